@@ -1,0 +1,88 @@
+#include "common/calibration.hpp"
+
+#include <cmath>
+
+namespace fs {
+
+Vec2 CameraModel::distort(const Vec2& xn) const {
+  const double x = xn.x(), y = xn.y();
+  const double r2 = x * x + y * y;
+  const double radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3));
+  return {x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x),
+          y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y};
+}
+
+Vec2 CameraModel::undistort_pixel(const Vec2& px) const {
+  const Vec2 xd((px.x() - cx) / fx, (px.y() - cy) / fy);
+  Vec2 xn = xd;
+  for (int it = 0; it < 20; ++it) {
+    const Vec2 err = distort(xn) - xd;
+    xn -= err;
+    if (err.squaredNorm() < 1e-24) break;
+  }
+  return xn;
+}
+
+bool CameraModel::project(const Vec3& x_world, Vec2& px) const {
+  const Vec3 xc = R_world_cam.transpose() * (x_world - t_world_cam);
+  if (xc.z() <= 1e-9) return false;
+  const Vec2 xd = distort(Vec2(xc.x() / xc.z(), xc.y() / xc.z()));
+  px = Vec2(fx * xd.x() + cx, fy * xd.y() + cy);
+  return true;
+}
+
+Vec3 CameraModel::ray_world(const Vec2& px) const {
+  const Vec2 xn = undistort_pixel(px);
+  return (R_world_cam * Vec3(xn.x(), xn.y(), 1.0)).normalized();
+}
+
+Plane LaserModel::plane_at_mirror_angle(double mirror_angle_rad) const {
+  const Eigen::AngleAxisd rot(optical_gain * mirror_angle_rad, axis_dir.normalized());
+  Plane p;
+  p.n = (rot * normal_at_zero).normalized();
+  p.d = p.n.dot(axis_point);
+  return p;
+}
+
+ScannerCalibration ScannerCalibration::bench_default(std::uint32_t step_count) {
+  ScannerCalibration c;
+  c.step_count = step_count;
+  c.first_step = 0;
+  c.camera = CameraModel{};
+  c.camera.k1 = -0.04;
+  c.camera.k2 = 0.01;
+  // Looking straight down: camera x = world x, camera y = world -y, camera z = world -z.
+  c.camera.R_world_cam << 1, 0, 0, 0, -1, 0, 0, 0, -1;
+  c.camera.t_world_cam = Vec3(0, 0, 500);
+
+  c.laser.axis_point = Vec3(200, 0, 500);
+  c.laser.axis_dir = Vec3::UnitY();
+  c.laser.optical_gain = 2.0;
+  // Plane at mirror angle 0 passes through the table origin: it contains the axis and the direction
+  // (origin - axis_point); its normal is perpendicular to both.
+  const Vec3 to_origin = (Vec3::Zero() - c.laser.axis_point).normalized();
+  c.laser.normal_at_zero = c.laser.axis_dir.cross(to_origin).normalized();
+  // Sweep the stripe over table x in [-150, 150]: plane angles relative to angle 0 (about +y).
+  auto plane_angle_for_x = [&](double x) {
+    const Vec3 dir = (Vec3(x, 0, 0) - c.laser.axis_point).normalized();
+    // signed angle from to_origin to dir about axis_dir
+    return std::atan2(to_origin.cross(dir).dot(c.laser.axis_dir), to_origin.dot(dir));
+  };
+  const double a0 = plane_angle_for_x(-150.0) / c.laser.optical_gain;
+  const double a1 = plane_angle_for_x(150.0) / c.laser.optical_gain;
+  c.laser.mirror_angle_at_step0 = a0;
+  c.laser.rad_per_step = step_count > 1 ? (a1 - a0) / static_cast<double>(step_count - 1) : 0.0;
+  c.table = Plane{Vec3::UnitZ(), 0.0};
+  return c;
+}
+
+bool intersect_ray_plane(const Vec3& origin, const Vec3& dir, const Plane& plane, double cos_min, Vec3& hit) {
+  const double denom = plane.n.dot(dir);
+  if (std::abs(denom) < cos_min) return false;
+  const double s = (plane.d - plane.n.dot(origin)) / denom;
+  if (s <= 0.0) return false;
+  hit = origin + s * dir;
+  return true;
+}
+
+}  // namespace fs

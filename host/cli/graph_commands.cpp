@@ -1,0 +1,7 @@
+#include "host/cli/commands.hpp"
+
+namespace fs::host::cli {
+
+void add_graph_commands(CLI::App& /*app*/) {}
+
+}  // namespace fs::host::cli

@@ -1,0 +1,37 @@
+#pragma once
+// An organized 3D point grid in millimetres: for laser scans, columns = galvo steps and rows = image rows;
+// for PCD/PLY input, the sensor's width x height. NaN x = no data. Memory is reserved once (reserve()) and
+// reused: reset() within capacity does not allocate.
+#include <Eigen/Core>
+#include <cstdint>
+#include <limits>
+#include <vector>
+
+namespace fs::host {
+
+struct OrganizedCloud {
+  std::uint32_t width = 0;    // columns
+  std::uint32_t height = 0;   // rows
+  std::vector<Eigen::Vector3f> points;   // row-major: index = row * width + col
+  std::vector<std::int32_t> labels;      // optional per-point labels (ground truth / dataset), empty if none
+  Eigen::Vector3d viewpoint = Eigen::Vector3d::Zero();   // sensor position, same frame as the points
+
+  void reserve(std::size_t max_points) {
+    points.reserve(max_points);
+    labels.reserve(max_points);
+  }
+  void reset(std::uint32_t w, std::uint32_t h, bool with_labels = false) {
+    width = w;
+    height = h;
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    points.assign(static_cast<std::size_t>(w) * h, Eigen::Vector3f(nan, nan, nan));
+    if (with_labels) labels.assign(static_cast<std::size_t>(w) * h, -1);
+    else labels.clear();
+  }
+  std::size_t index(std::uint32_t row, std::uint32_t col) const { return std::size_t(row) * width + col; }
+  const Eigen::Vector3f& at(std::uint32_t row, std::uint32_t col) const { return points[index(row, col)]; }
+  Eigen::Vector3f& at(std::uint32_t row, std::uint32_t col) { return points[index(row, col)]; }
+  static bool valid(const Eigen::Vector3f& p) { return p.x() == p.x(); }
+};
+
+}  // namespace fs::host

@@ -1,0 +1,45 @@
+#pragma once
+// Planar Face Representation Graph (thesis ch. 3.4, 7.1): nodes = planar faces (area mm^2, unit outward
+// normal), arcs = adjacencies (border length mm). One supernode stands for all unknown / NIL / image-border
+// regions and is never matched. JSON contract: see DESIGN.md and README "PFRG JSON".
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json_fwd.hpp>
+
+#include "common/calibration.hpp"
+
+namespace fs::host {
+
+struct PfrgNode {
+  int id = 0;
+  bool supernode = false;
+  double area = 0.0;               // mm^2
+  Vec3 normal = Vec3::Zero();      // unit, out of the object (toward the observer for scene faces)
+  // Optional (not part of the minimal JSON contract, written when known):
+  double offset = 0.0;             // plane: normal . x = offset (mm)
+  Vec3 centroid = Vec3::Zero();    // mm
+  bool has_plane = false;          // offset/centroid valid
+};
+
+struct PfrgArc {
+  int a = 0, b = 0;                // node ids
+  double border = 0.0;             // mm
+};
+
+struct Pfrg {
+  std::string name;
+  std::vector<PfrgNode> nodes;
+  std::vector<PfrgArc> arcs;
+
+  const PfrgNode* find(int id) const;
+};
+
+nlohmann::json to_json(const Pfrg& g);
+Pfrg pfrg_from_json(const nlohmann::json& j, const std::string& source);   // throws fs::Error naming source/field
+Pfrg read_pfrg_json(const std::filesystem::path& path);
+void write_pfrg_json(const Pfrg& g, const std::filesystem::path& path);
+
+}  // namespace fs::host

@@ -1,0 +1,56 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "common/calibration.hpp"
+
+namespace {
+
+TEST(Calibration, ProjectAndRayAreInverse) {
+  const auto c = fs::ScannerCalibration::bench_default();
+  const fs::Vec3 x(37.0, -52.0, 41.0);
+  fs::Vec2 px;
+  ASSERT_TRUE(c.camera.project(x, px));
+  const fs::Vec3 ray = c.camera.ray_world(px);
+  const fs::Vec3 expected = (x - c.camera.center()).normalized();
+  EXPECT_LT((ray - expected).norm(), 1e-9);
+}
+
+TEST(Calibration, DefaultSweepCoversTable) {
+  const auto c = fs::ScannerCalibration::bench_default(500);
+  const fs::Vec3 down(0, 0, -1);
+  for (std::uint32_t k : {0u, 499u}) {
+    const fs::Plane p = c.laser.plane_at_step(k);
+    // The plane contains the mirror axis.
+    EXPECT_NEAR(p.signed_distance(c.laser.axis_point), 0.0, 1e-9);
+    EXPECT_NEAR(p.signed_distance(c.laser.axis_point + 100 * c.laser.axis_dir), 0.0, 1e-9);
+    // Where it meets the table line y = 0.
+    const fs::Vec3 dir = p.n.cross(c.laser.axis_dir).normalized();
+    fs::Vec3 hit;
+    const fs::Vec3 d = dir.z() < 0 ? dir : fs::Vec3(-dir);
+    ASSERT_TRUE(fs::intersect_ray_plane(c.laser.axis_point, d, c.table, 1e-6, hit));
+    EXPECT_NEAR(hit.x(), k == 0 ? -150.0 : 150.0, 1e-6);
+  }
+}
+
+TEST(Calibration, MirrorDoublesTheAngle) {
+  const auto c = fs::ScannerCalibration::bench_default();
+  const fs::Plane a = c.laser.plane_at_mirror_angle(0.0);
+  const fs::Plane b = c.laser.plane_at_mirror_angle(0.01);
+  EXPECT_NEAR(std::acos(std::clamp(a.n.dot(b.n), -1.0, 1.0)), 0.02, 1e-12);
+}
+
+TEST(Calibration, UndistortInvertsDistort) {
+  auto cam = fs::ScannerCalibration::bench_default().camera;
+  cam.p1 = 1e-3;
+  cam.p2 = -5e-4;
+  for (double u : {0.0, 300.0, 1279.0})
+    for (double v : {0.0, 700.0, 1023.0}) {
+      const fs::Vec2 xn = cam.undistort_pixel(fs::Vec2(u, v));
+      const fs::Vec2 xd = cam.distort(xn);
+      EXPECT_NEAR(cam.fx * xd.x() + cam.cx, u, 1e-6);
+      EXPECT_NEAR(cam.fy * xd.y() + cam.cy, v, 1e-6);
+    }
+}
+
+}  // namespace
