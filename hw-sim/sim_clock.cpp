@@ -22,6 +22,7 @@ fw::Nanos SimClock::now() { return realtime_ ? monotonic_ns() + offset_ : now_.l
 
 void SimClock::sleep_until(fw::Nanos t) {
   if (!realtime_) {
+    if (t >= late_from_ && t < late_to_) t += late_delay_;
     fw::Nanos cur = now_.load();
     while (t > cur && !now_.compare_exchange_weak(cur, t)) {
     }

@@ -24,6 +24,13 @@ class GpioLines {
   virtual bool next_home_edge(GpioEdge& edge) = 0;
   // All outputs to their safe levels (enable off). noexcept.
   virtual void safe() noexcept = 0;
+  // Optional mirror position sensor (galvo position detector / encoder), in steps. Returns false when none
+  // is wired; then the stepper galvo runs open loop and cannot detect stalls or missed steps.
+  virtual bool read_position(double& steps, Nanos now) {
+    (void)steps;
+    (void)now;
+    return false;
+  }
 };
 
 }  // namespace fs::fw

@@ -11,6 +11,12 @@ class Laser {
   virtual bool is_on() const = 0;
   // Drive the line to its safe level (off) without touching anything else; noexcept for exit/fault paths.
   virtual void force_off() noexcept = 0;
+  // Optional emission monitor (photodiode / current sense). Returns false when the hardware has none;
+  // otherwise sets `emitting` to the measured state. The controller faults when it disagrees with is_on().
+  virtual bool monitor(bool& emitting) const {
+    (void)emitting;
+    return false;
+  }
 };
 
 }  // namespace fs::fw

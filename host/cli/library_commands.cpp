@@ -1,7 +1,174 @@
+// facetscan library build|list|polycubes
+#include <algorithm>
+#include <cstdio>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <fmt/format.h>
+
+#include "common/error.hpp"
+#include "common/mesh.hpp"
 #include "host/cli/commands.hpp"
+#include "host/cli/progress.hpp"
+#include "host/library/library.hpp"
+#include "host/library/polycubes.hpp"
+#include "host/library/views.hpp"
+#include "host/pfrg/pfrg.hpp"
+
+#include <nlohmann/json.hpp>
 
 namespace fs::host::cli {
+namespace {
 
-void add_library_commands(CLI::App& /*app*/) {}
+namespace stdfs = std::filesystem;
+
+bool is_mesh_file(const stdfs::path& p) {
+  std::string ext = p.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return ext == ".off" || ext == ".obj" || ext == ".stl" || ext == ".ply";
+}
+
+std::vector<stdfs::path> collect_meshes(const std::vector<std::string>& inputs) {
+  std::vector<stdfs::path> files;
+  for (const auto& in : inputs) {
+    const stdfs::path p(in);
+    if (stdfs::is_directory(p)) {
+      std::vector<stdfs::path> found;
+      for (const auto& e : stdfs::directory_iterator(p))
+        if (e.is_regular_file() && is_mesh_file(e.path())) found.push_back(e.path());
+      if (found.empty()) throw Error(fmt::format("{}: no .off/.obj/.stl/.ply meshes in this directory", in));
+      std::sort(found.begin(), found.end());
+      files.insert(files.end(), found.begin(), found.end());
+    } else if (stdfs::exists(p)) {
+      files.push_back(p);
+    } else {
+      throw Error(fmt::format("{}: no such file or directory", in));
+    }
+  }
+  return files;
+}
+
+void print_table(const Library& lib) {
+  std::size_t w = 5;
+  for (const auto& m : lib.models) w = std::max(w, m.name.size());
+  fmt::print("{:<{}}  {:>5}  {:>5}  {:>14}  {:>14}  {:>8}\n", "model", w, "faces", "arcs", "area_mm2", "volume_mm3",
+             "symmetry");
+  for (const auto& m : lib.models)
+    fmt::print("{:<{}}  {:>5}  {:>5}  {:>14.3f}  {:>14.3f}  {:>8}{}\n", m.name, w, m.face_count(), m.arc_count(),
+               m.total_area, m.volume, m.symmetry_order(), m.open ? "  (open: faces may be missing)" : "");
+  fmt::print("{} models\n", lib.models.size());
+}
+
+}  // namespace
+
+void add_library_commands(CLI::App& app) {
+  auto* lib = app.add_subcommand("library", "Reference model library: build from meshes, list, polycubes");
+  lib->require_subcommand(1);
+
+  struct BuildArgs {
+    std::vector<std::string> inputs;
+    std::string out;
+    BuildOptions options;
+    bool quiet = false;
+  };
+  auto b = std::make_shared<BuildArgs>();
+  auto* build = lib->add_subcommand("build", "Build a .fslib from meshes (OFF, OBJ, STL, PLY) and directories of them");
+  build->add_option("inputs", b->inputs, "Mesh files or directories")->required();
+  build->add_option("-o,--output", b->out, "Output library (.fslib)")->required();
+  build->add_option("--scale", b->options.scale, "Multiply coordinates (to millimetres)")->check(CLI::PositiveNumber);
+  build->add_option("--merge-angle", b->options.merge_angle_deg, "Coplanar merge tolerance (degrees)")
+      ->check(CLI::Range(0.0, 30.0));
+  build->add_flag("--allow-open", b->options.allow_open, "Accept open meshes (flagged: faces may be missing)");
+  build->add_flag("-q,--quiet", b->quiet, "No progress bar, no table");
+  build->callback([b] {
+    const auto files = collect_meshes(b->inputs);
+    Library out;
+    Progress progress(files.size(), b->quiet);
+    for (std::size_t i = 0; i < files.size(); ++i) {
+      progress.update(i, files[i].filename().string());
+      Mesh mesh = read_mesh(files[i]);
+      mesh.name = files[i].stem().string();
+      Model m = build_model(mesh, b->options);
+      if (out.find(m.name))
+        throw Error(fmt::format("{}: a model named '{}' is already in the library (names are file stems)",
+                                files[i].string(), m.name));
+      out.add(std::move(m));
+    }
+    progress.update(files.size(), "done");
+    progress.finish();
+    out.save(b->out);
+    if (!b->quiet) {
+      print_table(out);
+      fmt::print("wrote {}\n", b->out);
+    }
+  });
+
+  auto lib_path = std::make_shared<std::string>();
+  auto* list = lib->add_subcommand("list", "List the models of a library (faces, arcs, area, symmetry order)");
+  list->add_option("library", *lib_path, "Library file (.fslib)")->required();
+  list->callback([lib_path] { print_table(Library::load(*lib_path)); });
+
+  struct ShowArgs {
+    std::string library, model, out = "-";
+    std::vector<double> view;
+  };
+  auto s = std::make_shared<ShowArgs>();
+  auto* show = lib->add_subcommand("show", "Print a model's PFRG as JSON (or the partial view from a direction)");
+  show->add_option("library", s->library, "Library file (.fslib)")->required();
+  show->add_option("model", s->model, "Model name")->required();
+  show->add_option("--view", s->view, "Viewing direction X Y Z (sensor -> object): the PFRG of the visible faces "
+                                      "plus a supernode")->expected(3);
+  show->add_option("-o,--output", s->out, "Output JSON file (- = stdout)");
+  show->callback([s] {
+    const Library l = Library::load(s->library);
+    const Model* m = l.find(s->model);
+    if (!m) throw Error(fmt::format("{}: no model named '{}'", s->library, s->model));
+    Pfrg g = m->graph;
+    if (!s->view.empty()) {
+      const Vec3 dir(s->view[0], s->view[1], s->view[2]);
+      if (!(dir.norm() > 0) || !dir.allFinite()) throw Error("--view: the direction must be a non-zero vector");
+      g = partial_view(*m, Mat3::Identity(), dir);
+    }
+    if (s->out == "-") fmt::print("{}\n", to_json(g).dump(1));
+    else write_pfrg_json(g, s->out);
+  });
+
+  struct CubeArgs {
+    int max_volume = 4;
+    double edge = 20.0;
+    std::string out;
+    bool quiet = false;
+  };
+  auto c = std::make_shared<CubeArgs>();
+  auto* cubes = lib->add_subcommand("polycubes", "Build all polycubes up to a volume (thesis ch. 4.1.3) as a .fslib");
+  cubes->add_option("--max-volume", c->max_volume, "Largest number of unit cubes")->required()->check(CLI::Range(1, 10));
+  cubes->add_option("--edge", c->edge, "Cube edge length (mm)")->check(CLI::PositiveNumber);
+  cubes->add_option("-o,--output", c->out, "Output library (.fslib)")->required();
+  cubes->add_flag("-q,--quiet", c->quiet, "No progress bar, no summary");
+  cubes->callback([c] {
+    const auto all = enumerate_polycubes(c->max_volume);
+    std::size_t total = 0;
+    for (const auto& v : all) total += v.size();
+    Library out;
+    Progress progress(total, c->quiet);
+    std::size_t done = 0;
+    for (std::size_t v = 0; v < all.size(); ++v)
+      for (std::size_t i = 0; i < all[v].size(); ++i) {
+        const std::string name = polycube_name(static_cast<int>(v + 1), i + 1);
+        progress.update(done++, name);
+        out.add(polycube_model(all[v][i], c->edge, name));
+      }
+    progress.update(total, "done");
+    progress.finish();
+    out.save(c->out);
+    if (!c->quiet) {
+      for (std::size_t v = 0; v < all.size(); ++v) fmt::print("volume {}: {} polycubes\n", v + 1, all[v].size());
+      fmt::print("wrote {} models to {}\n", total, c->out);
+    }
+  });
+}
 
 }  // namespace fs::host::cli

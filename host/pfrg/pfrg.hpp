@@ -33,10 +33,19 @@ struct Pfrg {
   std::string name;
   std::vector<PfrgNode> nodes;
   std::vector<PfrgArc> arcs;
+  // Optional (JSON "observer"): unit vector from the object toward the sensor, in the frame of the normals.
+  // Used by the visibility condition of the matcher; when absent the matcher takes the area-weighted mean of
+  // the scene normals.
+  Vec3 observer = Vec3::Zero();
+  bool has_observer = false;
 
   const PfrgNode* find(int id) const;
 };
 
+// JSON: {"name":..., "nodes":[{"id","area","normal",["supernode"],["offset","centroid"]}],
+//        "arcs":[{"a","b","border"}], ["observer":[x,y,z]]}. Validation: unique integer ids, finite
+// non-negative areas/borders, non-zero finite normals (normalized on read), arcs between two different
+// existing nodes, no duplicate arcs. Errors name the source and the field (e.g. "s.json: nodes[2].normal: ...").
 nlohmann::json to_json(const Pfrg& g);
 Pfrg pfrg_from_json(const nlohmann::json& j, const std::string& source);   // throws fs::Error naming source/field
 Pfrg read_pfrg_json(const std::filesystem::path& path);

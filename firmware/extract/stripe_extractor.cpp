@@ -1,0 +1,279 @@
+#include "firmware/extract/stripe_extractor.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstring>
+#include <string>
+#include <type_traits>
+
+#include "common/error.hpp"
+
+namespace fs::fw {
+
+const char* to_string(SubpixelMethod m) {
+  switch (m) {
+    case SubpixelMethod::CentreOfGravity: return "cog";
+    case SubpixelMethod::Gaussian3: return "gauss3";
+    case SubpixelMethod::BlaisRioux: return "blais-rioux";
+    case SubpixelMethod::GaussFit: return "gauss-fit";
+  }
+  return "unknown";
+}
+
+SubpixelMethod parse_subpixel_method(const char* text) {
+  const std::string t = text ? text : "";
+  if (t == "cog") return SubpixelMethod::CentreOfGravity;
+  if (t == "gauss3") return SubpixelMethod::Gaussian3;
+  if (t == "blais-rioux") return SubpixelMethod::BlaisRioux;
+  if (t == "gauss-fit") return SubpixelMethod::GaussFit;
+  throw Error("unknown sub-pixel method '" + t + "' (expected cog, gauss3, blais-rioux or gauss-fit)");
+}
+
+namespace {
+
+constexpr std::uint32_t kBlock = 64;
+constexpr std::uint32_t kMaxBlocks = 256;  // rows up to 16384 samples
+
+template <typename T>
+inline double at(const T* row, std::uint32_t step, std::int64_t i) {
+  return static_cast<double>(row[static_cast<std::size_t>(i) * step]);
+}
+
+// Max and sum of a block of samples; written as a plain loop over a fixed count so it vectorizes.
+// 8-bit samples: a block of 64 sums to at most 16320, so a 16-bit accumulator suffices (twice the lanes).
+template <typename T>
+using BlockSum = std::conditional_t<sizeof(T) == 1, std::uint16_t, std::uint32_t>;
+
+template <typename T, std::uint32_t Step>
+inline void block_max_sum(const T* p, std::uint32_t count, T& mx, std::uint64_t& sum) {
+  T m = 0;
+  BlockSum<T> s = 0;
+  if (count == kBlock) {  // the common case: a fixed trip count the compiler unrolls and vectorizes
+    for (std::uint32_t i = 0; i < kBlock; ++i) {
+      const T v = p[i * Step];
+      m = v > m ? v : m;
+      s = static_cast<BlockSum<T>>(s + v);
+    }
+  } else {
+    for (std::uint32_t i = 0; i < count; ++i) {
+      const T v = p[i * Step];
+      m = v > m ? v : m;
+      s = static_cast<BlockSum<T>>(s + v);
+    }
+  }
+  mx = m;
+  sum += s;
+}
+
+template <typename T, std::uint32_t Step>
+RowPeak extract_row_impl(const T* row, std::uint32_t n, double full_scale, const ExtractParams& p) {
+  RowPeak r;
+  if (n < 5) return r;
+  const std::uint32_t nblocks = std::min((n + kBlock - 1) / kBlock, kMaxBlocks);
+  if (static_cast<std::uint64_t>(nblocks) * kBlock < n) n = nblocks * kBlock;  // clamp absurd widths
+  std::array<T, kMaxBlocks> bmax;
+  std::uint64_t sum = 0;
+  T mx = 0;
+  for (std::uint32_t b = 0; b < nblocks; ++b) {
+    const std::uint32_t begin = b * kBlock;
+    const std::uint32_t count = std::min(kBlock, n - begin);
+    block_max_sum<T, Step>(row + static_cast<std::size_t>(begin) * Step, count, bmax[b], sum);
+    mx = bmax[b] > mx ? bmax[b] : mx;
+  }
+  const double scale = full_scale / 255.0;
+  double bg = static_cast<double>(sum) / n;
+  const double peak = static_cast<double>(mx);
+  if (peak - bg < p.min_contrast * scale) return r;
+
+  // First sample equal to the maximum.
+  std::uint32_t b0 = 0;
+  while (bmax[b0] != mx) ++b0;
+  std::uint32_t imax = b0 * kBlock;
+  while (row[static_cast<std::size_t>(imax) * Step] != mx) ++imax;
+
+  // Support of the peak: contiguous samples above bg + 20 % of the contrast, at most max_half_width away.
+  const double low = bg + 0.2 * (peak - bg);
+  const std::int64_t hw = p.max_half_width;
+  std::int64_t lo = imax, hi = imax;
+  while (lo > 0 && imax - lo < hw && at(row, Step, lo - 1) > low) --lo;
+  while (hi + 1 < n && hi - imax < hw && at(row, Step, hi + 1) > low) ++hi;
+
+  // Background without the stripe's own energy.
+  double support_sum = 0.0;
+  for (std::int64_t i = lo; i <= hi; ++i) support_sum += at(row, Step, i);
+  const std::int64_t rest = static_cast<std::int64_t>(n) - (hi - lo + 1);
+  if (rest > 0) bg = (static_cast<double>(sum) - support_sum) / static_cast<double>(rest);
+  const double contrast = peak - bg;
+  if (contrast < p.min_contrast * scale) return r;
+  r.peak = peak;
+
+  // Saturation plateau.
+  if (peak >= full_scale) {
+    std::uint32_t run = 0;
+    for (std::int64_t i = imax; i < n && at(row, Step, i) >= full_scale; ++i) ++run;
+    if (run >= p.saturation_run) {
+      r.status = RowStatus::Saturated;
+      return r;
+    }
+  }
+
+  // Second peak outside the support: block maxima for whole blocks, exact scan for partial ones.
+  const double second_limit = bg + p.ambiguous_ratio * contrast;
+  double second = 0.0;
+  const std::int64_t lo_excl = std::max<std::int64_t>(0, lo - 1);  // the flank sample next to the support
+  const std::int64_t hi_excl = std::min<std::int64_t>(n - 1, hi + 1);
+  for (std::uint32_t b = 0; b < nblocks; ++b) {
+    const std::int64_t begin = static_cast<std::int64_t>(b) * kBlock;
+    const std::int64_t end = std::min<std::int64_t>(begin + kBlock, n);  // exclusive
+    if (static_cast<double>(bmax[b]) <= second_limit) continue;
+    if (end <= lo_excl || begin > hi_excl) {
+      second = std::max(second, static_cast<double>(bmax[b]));
+      continue;
+    }
+    for (std::int64_t i = begin; i < end; ++i) {
+      if (i >= lo_excl && i <= hi_excl) continue;
+      second = std::max(second, at(row, Step, i));
+    }
+  }
+  if (second > second_limit || (hi - lo) >= 2 * hw) {
+    r.status = RowStatus::Ambiguous;
+    return r;
+  }
+
+  // Full width at half maximum by linear interpolation on both flanks.
+  const double half = bg + 0.5 * contrast;
+  double left = static_cast<double>(imax), right = static_cast<double>(imax);
+  {
+    std::int64_t i = imax;
+    while (i > lo && at(row, Step, i - 1) > half) --i;
+    const double a = at(row, Step, i - (i > 0 ? 1 : 0)), b = at(row, Step, i);
+    left = (i > 0 && b != a) ? static_cast<double>(i) - (b - half) / (b - a) : static_cast<double>(i);
+    std::int64_t j = imax;
+    while (j < hi && at(row, Step, j + 1) > half) ++j;
+    const double c = at(row, Step, j), d = at(row, Step, j + (j + 1 < n ? 1 : 0));
+    right = (j + 1 < n && c != d) ? static_cast<double>(j) + (c - half) / (c - d) : static_cast<double>(j);
+  }
+  r.width = right - left;
+
+  const auto v = [&](std::int64_t i) {
+    if (i < 0 || i >= static_cast<std::int64_t>(n)) return 0.0;
+    return std::max(0.0, at(row, Step, i) - bg);
+  };
+  double col = static_cast<double>(imax);
+  // A flat top of several equal samples: start from its middle.
+  std::int64_t top_end = imax;
+  while (top_end + 1 <= hi && at(row, Step, top_end + 1) >= peak) ++top_end;
+  const std::int64_t ic = (imax + top_end) / 2;
+  switch (p.method) {
+    case SubpixelMethod::CentreOfGravity: {
+      const std::int64_t w = p.cog_half_window;
+      double s = 0.0, sw = 0.0;
+      for (std::int64_t i = ic - w; i <= ic + w; ++i) {
+        const double x = v(i);
+        s += x;
+        sw += x * static_cast<double>(i);
+      }
+      col = s > 0.0 ? sw / s : static_cast<double>(ic);
+      break;
+    }
+    case SubpixelMethod::Gaussian3: {
+      const double a = std::log(std::max(v(ic - 1), 0.5)), b = std::log(std::max(v(ic), 0.5)),
+                   c = std::log(std::max(v(ic + 1), 0.5));
+      const double den = a - 2.0 * b + c;
+      double d = den < 0.0 ? 0.5 * (a - c) / den : 0.0;
+      col = static_cast<double>(ic) + std::clamp(d, -0.5, 0.5);
+      break;
+    }
+    case SubpixelMethod::GaussFit: {
+      // Weighted LS fit of ln v = a + b x + c x^2 (x = i - ic), weights v^2; centre = ic - b / (2c).
+      double s0 = 0, s1 = 0, s2 = 0, s3 = 0, s4 = 0, t0 = 0, t1 = 0, t2 = 0;
+      const double floor_v = 0.2 * contrast;
+      for (std::int64_t i = lo; i <= hi; ++i) {
+        const double y = v(i);
+        if (y <= floor_v) continue;
+        const double w = y * y, x = static_cast<double>(i - ic), ly = std::log(y);
+        const double x2 = x * x;
+        s0 += w;
+        s1 += w * x;
+        s2 += w * x2;
+        s3 += w * x2 * x;
+        s4 += w * x2 * x2;
+        t0 += w * ly;
+        t1 += w * x * ly;
+        t2 += w * x2 * ly;
+      }
+      // Solve the 3x3 normal equations [s0 s1 s2; s1 s2 s3; s2 s3 s4] [a b c] = [t0 t1 t2] (Cramer).
+      const double det = s0 * (s2 * s4 - s3 * s3) - s1 * (s1 * s4 - s3 * s2) + s2 * (s1 * s3 - s2 * s2);
+      col = static_cast<double>(ic);
+      if (std::abs(det) > 1e-12) {
+        const double db = s0 * (t1 * s4 - s3 * t2) - t0 * (s1 * s4 - s3 * s2) + s2 * (s1 * t2 - t1 * s2);
+        const double dc = s0 * (s2 * t2 - t1 * s3) - s1 * (s1 * t2 - t1 * s2) + t0 * (s1 * s3 - s2 * s2);
+        const double b = db / det, c = dc / det;
+        if (c < 0.0) col = static_cast<double>(ic) + std::clamp(-b / (2.0 * c), -2.0, 2.0);
+      }
+      break;
+    }
+    case SubpixelMethod::BlaisRioux: {
+      // 4th-order derivative filter g(j) = f(j-2) + f(j-1) - f(j+1) - f(j+2); the centre is its zero crossing.
+      const auto g = [&](std::int64_t j) { return v(j - 2) + v(j - 1) - v(j + 1) - v(j + 2); };
+      const double g0 = g(ic);
+      std::int64_t j = g0 > 0.0 ? ic - 1 : ic;
+      const double gj = g(j), gj1 = g(j + 1);
+      col = (gj <= 0.0 && gj1 > 0.0 && gj1 != gj) ? static_cast<double>(j) + gj / (gj - gj1)
+                                                  : static_cast<double>(ic);
+      break;
+    }
+  }
+  r.col = col;
+  r.status = RowStatus::Ok;
+  return r;
+}
+
+}  // namespace
+
+template <>
+RowPeak extract_row<std::uint8_t>(const std::uint8_t* row, std::uint32_t n, std::uint32_t step, double full_scale,
+                                  const ExtractParams& p) {
+  return step == 2 ? extract_row_impl<std::uint8_t, 2>(row, n, full_scale, p)
+                   : extract_row_impl<std::uint8_t, 1>(row, n, full_scale, p);
+}
+
+template <>
+RowPeak extract_row<std::uint16_t>(const std::uint16_t* row, std::uint32_t n, std::uint32_t /*step*/,
+                                   double full_scale, const ExtractParams& p) {
+  return extract_row_impl<std::uint16_t, 1>(row, n, full_scale, p);
+}
+
+ExtractCounts extract_frame(const FrameView& f, const ExtractParams& params, std::span<msg::StripePoint> out) {
+  ExtractCounts c;
+  if (!f.data || f.width == 0 || f.height == 0) return c;
+  for (std::uint32_t y = 0; y < f.height; ++y) {
+    const std::uint8_t* base = f.data + static_cast<std::size_t>(y) * f.stride;
+    RowPeak r;
+    switch (f.format) {
+      case PixelFormat::Mono8: r = extract_row<std::uint8_t>(base, f.width, 1, 255.0, params); break;
+      case PixelFormat::Yuyv: r = extract_row<std::uint8_t>(base, f.width, 2, 255.0, params); break;
+      case PixelFormat::Mono16: {
+        r = extract_row<std::uint16_t>(reinterpret_cast<const std::uint16_t*>(base), f.width, 1, 65535.0, params);
+        break;
+      }
+    }
+    ++c.rows;
+    switch (r.status) {
+      case RowStatus::NoStripe: ++c.no_stripe; continue;
+      case RowStatus::Ambiguous: ++c.ambiguous; continue;
+      case RowStatus::Saturated: ++c.saturated; continue;
+      case RowStatus::Ok: break;
+    }
+    if (c.points >= out.size()) continue;
+    msg::StripePoint& pt = out[c.points++];
+    pt.row = static_cast<std::uint16_t>(y);
+    pt.col = static_cast<float>(r.col);
+    pt.peak = static_cast<std::uint16_t>(std::min(r.peak, 65535.0));
+    pt.width = static_cast<float>(r.width);
+  }
+  return c;
+}
+
+}  // namespace fs::fw

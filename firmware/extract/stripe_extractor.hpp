@@ -1,0 +1,61 @@
+#pragma once
+// Stripe extraction: one sub-pixel laser-stripe centre per image row.
+//
+// Per row: background = row mean, peak = row maximum. A row has a stripe when peak - background exceeds
+// both min_contrast and nothing else in the row comes close (a second local maximum outside the peak's
+// support above background + ambiguous_ratio * (peak - background) makes the row Ambiguous). A run of
+// saturated pixels at the peak (>= saturation_run) makes the row Saturated. Rejected rows are flagged and
+// produce no point. The sub-pixel centre is computed by the selected SubpixelMethod (measured in
+// tests/firmware/extract_test.cpp and extract_scene_test.cpp: the weighted Gaussian fit (GaussFit) is the
+// most accurate on the scene renderer's speckled stripes and has no outliers, so it is the default).
+//
+// No heap allocation: the caller provides the output span.
+#include <cstdint>
+#include <span>
+
+#include "common/messages.hpp"
+#include "firmware/device/camera.hpp"
+
+namespace fs::fw {
+
+// CentreOfGravity: window peak +- cog_half_window. Gaussian3: log-parabola through the 3 samples at the peak.
+// BlaisRioux: zero crossing of the 4th-order derivative filter. GaussFit: weighted least-squares log-parabola
+// (weights I^2, Guo's estimator) over every sample of the peak's support above 20 % of the contrast.
+enum class SubpixelMethod : std::uint8_t { CentreOfGravity = 0, Gaussian3 = 1, BlaisRioux = 2, GaussFit = 3 };
+const char* to_string(SubpixelMethod m);
+// Parses "cog" | "gauss3" | "blais-rioux" | "gauss-fit"; throws fs::Error otherwise.
+SubpixelMethod parse_subpixel_method(const char* text);
+
+enum class RowStatus : std::uint8_t { Ok = 0, NoStripe = 1, Ambiguous = 2, Saturated = 3 };
+
+struct ExtractParams {
+  SubpixelMethod method = SubpixelMethod::GaussFit;
+  double min_contrast = 24.0;     // peak - background, in 8-bit units (scaled by 257 for Mono16)
+  double ambiguous_ratio = 0.5;   // second peak above bg + ratio * (peak - bg) -> Ambiguous
+  std::uint32_t saturation_run = 3;  // this many pixels at full scale around the peak -> Saturated
+  std::uint32_t cog_half_window = 5; // centre-of-gravity window: peak +- this many pixels
+  std::uint32_t max_half_width = 24; // support of the peak searched at most this far each side
+};
+
+struct ExtractCounts {
+  std::uint32_t rows = 0, points = 0, no_stripe = 0, ambiguous = 0, saturated = 0;
+  // msg::StripeHeader::flags bits: 1 = saturated rows present, 2 = ambiguous rows present.
+  std::uint32_t header_flags() const { return (saturated ? 1u : 0u) | (ambiguous ? 2u : 0u); }
+};
+
+// One row's result (exposed for tests and the accuracy study).
+struct RowPeak {
+  RowStatus status = RowStatus::NoStripe;
+  double col = 0.0;
+  double peak = 0.0;
+  double width = 0.0;
+};
+
+// Analyses one row of `n` samples of type T (uint8_t or uint16_t) spaced `step` samples apart.
+template <typename T>
+RowPeak extract_row(const T* row, std::uint32_t n, std::uint32_t step, double full_scale, const ExtractParams& p);
+
+// Extracts every row of the frame into `out` (at most out.size() points, rows in order). Returns the counts.
+ExtractCounts extract_frame(const FrameView& frame, const ExtractParams& params, std::span<msg::StripePoint> out);
+
+}  // namespace fs::fw

@@ -1,0 +1,48 @@
+#pragma once
+// facetscan-fw configuration: a JSON file (--config) and/or command-line flags (flags win).
+//   {
+//     "galvo": "sim" | "sim-can[:...]" | "gpio:..." | "can:...",   "camera": "sim" | "v4l2:...",
+//     "scene": "hw-sim/scenes/cube.json",  "steps": 500,  "first_step": 0,
+//     "stream": "HOST:PORT",  "record": "scan.fscan",  "rt": false,  "rt_priority": 80,  "rt_cpu": -1,
+//     "virtual_time": true,  "faults": ["galvo.stall@step=120"],
+//     "loop": {"period_us": 500, "max_dwell_ms": 40, "camera_timeout_ms": 25, "late_limit_us": 250,
+//              "max_consecutive_late": 3, "heartbeat_ms": 500, "require_host": false, "host_grace_ms": 0,
+//              "homing_timeout_ms": 2000, "move_timeout_ms": 50},
+//     "extract": {"method": "blais-rioux" | "gauss3" | "cog", "min_contrast": 24, "ambiguous_ratio": 0.5,
+//                 "saturation_run": 3},
+//     "sim_camera": {"period_us": 5000, "exposure_us": 1000, "readout_us": 1000, "buffers": 4},
+//     "stream_buffer_kb": 16384, "host_heartbeat_timeout_ms": 0
+//   }
+// Unknown keys and wrong types are errors: fs::Error "<file>: <field>: <problem>".
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "firmware/loop/controller.hpp"
+
+namespace fs::fw {
+
+struct FwConfig {
+  std::string galvo = "sim";
+  std::string camera = "sim";
+  std::string scene;                 // empty: the shipped default scene
+  std::string stream;                // HOST:PORT
+  std::string record;                // .fscan path
+  bool rt = false;
+  int rt_priority = 80;
+  int rt_cpu = -1;
+  std::optional<bool> virtual_time;  // default: virtual with sim devices, real time otherwise
+  std::vector<std::string> faults;
+  LoopConfig loop;
+  std::uint32_t sim_period_us = 5000, sim_exposure_us = 1000, sim_readout_us = 1000, sim_buffers = 4;
+  std::uint32_t stream_buffer_kb = 16384;
+  std::uint32_t host_heartbeat_timeout_ms = 0;  // 0: host heartbeats not required
+  bool steps_given = false;
+};
+
+// Applies a JSON document to cfg. `source` names it in errors.
+void apply_config_json(FwConfig& cfg, const std::string& text, const std::string& source);
+void load_config_file(FwConfig& cfg, const std::string& path);
+
+}  // namespace fs::fw

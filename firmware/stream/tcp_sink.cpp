@@ -1,0 +1,217 @@
+#include "firmware/stream/tcp_sink.hpp"
+
+#include <arpa/inet.h>
+#include <fcntl.h>
+#include <netdb.h>
+#include <netinet/in.h>
+#include <netinet/tcp.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <charconv>
+#include <chrono>
+#include <cstring>
+
+#include "common/error.hpp"
+
+namespace fs::fw {
+
+namespace {
+Nanos mono_now() {
+  timespec ts{};
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return static_cast<Nanos>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+}  // namespace
+
+void parse_host_port(const std::string& spec, std::string& host, std::uint16_t& port) {
+  const std::size_t colon = spec.rfind(':');
+  if (colon == std::string::npos || colon == 0 || colon + 1 == spec.size())
+    throw Error("stream address '" + spec + "': expected HOST:PORT");
+  host = spec.substr(0, colon);
+  if (host.size() > 2 && host.front() == '[' && host.back() == ']') host = host.substr(1, host.size() - 2);
+  unsigned v = 0;
+  const char* b = spec.data() + colon + 1;
+  const char* e = spec.data() + spec.size();
+  const auto [p, ec] = std::from_chars(b, e, v);
+  if (ec != std::errc() || p != e || v == 0 || v > 65535)
+    throw Error("stream address '" + spec + "': port must be 1..65535");
+  port = static_cast<std::uint16_t>(v);
+}
+
+TcpSink::TcpSink(const std::string& host_port, TcpSinkConfig cfg) : cfg_(cfg) {
+  parse_host_port(host_port, host_, port_);
+  buf_.reserve(cfg_.buffer_bytes);
+  thread_ = std::thread([this] { service(); });
+}
+
+TcpSink::~TcpSink() {
+  stop_ = true;
+  cv_.notify_all();
+  if (thread_.joinable()) thread_.join();
+  disconnect();
+}
+
+std::size_t TcpSink::buffered_bytes() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return buf_.size() - head_;
+}
+
+void TcpSink::write(std::span<const std::uint8_t> frame) {
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (buf_.size() - head_ + frame.size() > cfg_.buffer_bytes) {
+      const bool stripe = frame.size() > 6 && frame[6] == static_cast<std::uint8_t>(msg::Type::Stripe);
+      (stripe ? stripes_dropped_ : other_dropped_).fetch_add(1);
+      return;
+    }
+    if (buf_.size() + frame.size() > buf_.capacity()) {  // compact (no reallocation: capacity is the bound)
+      buf_.erase(buf_.begin(), buf_.begin() + static_cast<std::ptrdiff_t>(head_));
+      head_ = 0;
+    }
+    buf_.insert(buf_.end(), frame.begin(), frame.end());
+    sizes_.push_back(frame.size());
+  }
+  cv_.notify_one();
+}
+
+bool TcpSink::drain(Nanos timeout) {
+  const Nanos end = mono_now() + timeout;
+  while (mono_now() < end) {
+    if (connected_.load() && buffered_bytes() == 0) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  return connected_.load() && buffered_bytes() == 0;
+}
+
+bool TcpSink::try_connect() {
+  addrinfo hints{};
+  hints.ai_family = AF_UNSPEC;
+  hints.ai_socktype = SOCK_STREAM;
+  addrinfo* res = nullptr;
+  const std::string port = std::to_string(port_);
+  if (getaddrinfo(host_.c_str(), port.c_str(), &hints, &res) != 0 || !res) return false;
+  int fd = -1;
+  for (addrinfo* a = res; a && fd < 0; a = a->ai_next) {
+    fd = socket(a->ai_family, a->ai_socktype | SOCK_NONBLOCK | SOCK_CLOEXEC, a->ai_protocol);
+    if (fd < 0) continue;
+    int rc = connect(fd, a->ai_addr, a->ai_addrlen);
+    if (rc != 0 && errno == EINPROGRESS) {
+      pollfd p{fd, POLLOUT, 0};
+      rc = poll(&p, 1, static_cast<int>(cfg_.connect_timeout / 1'000'000)) == 1 ? 0 : -1;
+      int err = 0;
+      socklen_t len = sizeof err;
+      if (rc == 0 && (getsockopt(fd, SOL_SOCKET, SO_ERROR, &err, &len) != 0 || err != 0)) rc = -1;
+    }
+    if (rc != 0) {
+      close(fd);
+      fd = -1;
+    }
+  }
+  freeaddrinfo(res);
+  if (fd < 0) return false;
+  int one = 1;
+  setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
+  std::lock_guard<std::mutex> lock(mu_);
+  fd_ = fd;
+  sent_ = 0;  // a frame cut by the previous connection goes again whole
+  last_host_heartbeat_ = mono_now();
+  connected_ = true;
+  connections_.fetch_add(1);
+  return true;
+}
+
+void TcpSink::disconnect() {
+  std::lock_guard<std::mutex> lock(mu_);
+  if (fd_ >= 0) close(fd_);
+  fd_ = -1;
+  sent_ = 0;
+  connected_ = false;
+}
+
+void TcpSink::service() {
+  Nanos backoff = cfg_.backoff_min;
+  wire::FrameDecoder dec("host " + host_ + ":" + std::to_string(port_));
+  std::vector<std::uint8_t> rx(4096);
+  while (!stop_.load()) {
+    if (!connected_.load()) {
+      if (try_connect()) {
+        backoff = cfg_.backoff_min;
+        dec.reset();
+        continue;
+      }
+      std::unique_lock<std::mutex> lock(mu_);
+      cv_.wait_for(lock, std::chrono::nanoseconds(backoff), [this] { return stop_.load(); });
+      backoff = std::min(backoff * 2, cfg_.backoff_max);
+      continue;
+    }
+    bool want_out;
+    int fd;
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      want_out = !sizes_.empty();
+      fd = fd_;
+    }
+    pollfd p{fd, static_cast<short>(POLLIN | (want_out ? POLLOUT : 0)), 0};
+    const int n = poll(&p, 1, 10);
+    if (n < 0 && errno != EINTR) {
+      disconnect();
+      continue;
+    }
+    bool lost = (p.revents & (POLLERR | POLLHUP | POLLNVAL)) != 0;
+    if (!lost && (p.revents & POLLIN)) {
+      const ssize_t r = recv(fd, rx.data(), rx.size(), MSG_DONTWAIT);
+      if (r == 0 || (r < 0 && errno != EAGAIN && errno != EINTR)) {
+        lost = true;
+      } else if (r > 0) {
+        std::span<const std::uint8_t> in(rx.data(), static_cast<std::size_t>(r));
+        try {
+          while (!in.empty()) {
+            in = in.subspan(dec.feed(in));
+            wire::FrameView f;
+            while (dec.next(f)) {
+              if (f.header.type == msg::Type::Heartbeat) {
+                host_heartbeats_.fetch_add(1);
+                std::lock_guard<std::mutex> lock(mu_);
+                last_host_heartbeat_ = mono_now();
+              }
+            }
+          }
+        } catch (const Error&) {
+          dec.reset();  // garbage from the host: ignore it
+        }
+      }
+    }
+    if (!lost && (p.revents & POLLOUT)) {
+      std::lock_guard<std::mutex> lock(mu_);
+      while (!sizes_.empty()) {
+        const std::size_t len = sizes_.front() - sent_;
+        const ssize_t w = send(fd_, buf_.data() + head_ + sent_, len, MSG_NOSIGNAL | MSG_DONTWAIT);
+        if (w < 0) {
+          if (errno != EAGAIN && errno != EINTR) lost = true;
+          break;
+        }
+        sent_ += static_cast<std::size_t>(w);
+        if (sent_ < sizes_.front()) break;
+        head_ += sizes_.front();
+        sizes_.pop_front();
+        sent_ = 0;
+        if (sizes_.empty()) {
+          buf_.clear();
+          head_ = 0;
+        }
+      }
+    }
+    if (!lost && cfg_.host_heartbeat_timeout > 0) {
+      std::lock_guard<std::mutex> lock(mu_);
+      lost = mono_now() - last_host_heartbeat_ > cfg_.host_heartbeat_timeout;
+    }
+    if (lost) disconnect();
+  }
+}
+
+}  // namespace fs::fw

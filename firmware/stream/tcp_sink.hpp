@@ -1,0 +1,77 @@
+#pragma once
+// The TCP stream to the host: a wire::FrameSink (the QueuedPublisher's output thread writes whole frames)
+// and a LinkState (the controller's interlock can require the host).
+//
+// A service thread connects to HOST:PORT, reconnecting with exponential backoff (backoff_min doubling up to
+// backoff_max) whenever the connection fails or drops. Frames are queued in a bounded buffer (buffer_bytes)
+// and sent from there; while disconnected they accumulate; when the buffer is full a new frame is dropped
+// and counted (stripe frames in frames_dropped(), reported in ScanEnd.stripes_dropped; never silent). A frame
+// cut by a dropped connection is sent again whole on the next one. Host -> scanner heartbeats (wire
+// Heartbeat frames) are read on the same socket; with host_heartbeat_timeout > 0 a silent host is treated as
+// a lost connection (closed and reconnected).
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "common/wire.hpp"
+#include "firmware/device/clock.hpp"
+#include "firmware/stream/queued_publisher.hpp"
+
+namespace fs::fw {
+
+struct TcpSinkConfig {
+  std::size_t buffer_bytes = 16u << 20;
+  Nanos backoff_min = 100'000'000;
+  Nanos backoff_max = 5'000'000'000;
+  Nanos connect_timeout = 1'000'000'000;
+  Nanos host_heartbeat_timeout = 0;  // 0: not required
+};
+
+// "HOST:PORT" -> host, port; throws fs::Error naming the spec.
+void parse_host_port(const std::string& spec, std::string& host, std::uint16_t& port);
+
+class TcpSink final : public wire::FrameSink, public LinkState {
+ public:
+  TcpSink(const std::string& host_port, TcpSinkConfig cfg = {});
+  ~TcpSink() override;
+  TcpSink(const TcpSink&) = delete;
+  TcpSink& operator=(const TcpSink&) = delete;
+
+  void write(std::span<const std::uint8_t> frame) override;
+  bool connected() const override { return connected_.load(); }
+  std::uint32_t frames_dropped() const override { return stripes_dropped_.load(); }
+  std::uint32_t other_frames_dropped() const { return other_dropped_.load(); }
+  std::uint32_t connections() const { return connections_.load(); }
+  std::uint64_t host_heartbeats() const { return host_heartbeats_.load(); }
+  std::size_t buffered_bytes() const;
+  // Waits until the buffer is empty and connected, or the timeout passes. True when drained.
+  bool drain(Nanos timeout);
+
+ private:
+  void service();
+  bool try_connect();
+  void disconnect();
+
+  std::string host_;
+  std::uint16_t port_ = 0;
+  TcpSinkConfig cfg_;
+  mutable std::mutex mu_;
+  std::condition_variable cv_;
+  std::vector<std::uint8_t> buf_;    // queued frames, back to back
+  std::deque<std::size_t> sizes_;    // their sizes
+  std::size_t head_ = 0;             // start of the first frame in buf_
+  std::size_t sent_ = 0;             // bytes of the first frame already sent on this connection
+  int fd_ = -1;
+  std::atomic<bool> stop_{false}, connected_{false};
+  std::atomic<std::uint32_t> stripes_dropped_{0}, other_dropped_{0}, connections_{0};
+  std::atomic<std::uint64_t> host_heartbeats_{0};
+  Nanos last_host_heartbeat_ = 0;
+  std::thread thread_;
+};
+
+}  // namespace fs::fw

@@ -1,0 +1,46 @@
+#pragma once
+// One entry point for every input the host accepts, yielding an organized cloud in millimetres:
+//   .pcd   organized PCD (ascii / binary / binary_compressed)
+//   .ply   PLY point cloud (organized if the header gives the grid)
+//   .fscan native scan file, triangulated with the calibration in its ScanBegin header
+// Units: PCD/PLY coordinates are multiplied by a scale (mm per file unit). Units::Auto treats a cloud whose
+// largest |coordinate| is below kAutoMetresBelow as metres (Kinect/PCL clouds, e.g. mOSD) and scales by 1000;
+// otherwise the file is taken to be in millimetres. An explicit scale > 0 overrides units.
+#include <cstdint>
+#include <string>
+
+#include "host/io/cloud_readers.hpp"
+#include "host/io/organized_cloud.hpp"
+#include "host/io/triangulate.hpp"
+
+namespace fs::host {
+
+enum class Units { Auto, Millimetres, Metres };
+
+struct LoadOptions {
+  Units units = Units::Auto;
+  double scale = 0.0;               // > 0: mm per file unit, overrides units
+  bool load_labels = true;          // dataset labels ("label" field) into OrganizedCloud::labels
+  std::uint64_t max_points = std::uint64_t(1) << 26;
+  TriangulationOptions triangulation;   // .fscan input
+  static constexpr double kAutoMetresBelow = 20.0;
+};
+
+struct LoadInfo {
+  std::string format;               // "pcd", "ply" or "fscan"
+  double scale = 1.0;               // applied: mm per file unit
+  std::size_t valid_points = 0;
+  bool complete_scan = true;        // .fscan: false for a partial (aborted / disconnected) scan
+  std::string scan_status;          // .fscan: to_string(ScanStatus)
+  TriangulationStats triangulation; // .fscan
+};
+
+// Throws fs::Error naming the file (and byte offset) for unreadable or malformed input.
+LoadInfo load_cloud(const std::string& path, OrganizedCloud& out, const LoadOptions& options = {});
+
+// The scale load_cloud would apply to an already-read cloud (exposed for tests and the CLI).
+double choose_scale(const OrganizedCloud& cloud, const LoadOptions& options);
+// Multiplies points and viewpoint by scale.
+void scale_cloud(OrganizedCloud& cloud, double scale);
+
+}  // namespace fs::host

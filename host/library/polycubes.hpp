@@ -1,0 +1,40 @@
+#pragma once
+// Artificial reference objects glued from unit cubes (thesis ch. 4.1.3): every polycube of volume 1..N
+// exactly once up to rotation and translation (mirror images are distinct), as cell sets, surface meshes and
+// models (coplanar unit squares merged into faces).
+#include <array>
+#include <string>
+#include <vector>
+
+#include "common/mesh.hpp"
+#include "host/library/model.hpp"
+
+namespace fs::host {
+
+using Cell = std::array<int, 3>;
+using Polycube = std::vector<Cell>;  // canonical: sorted cells, translated to min 0, least over the 24 rotations
+
+// The 24 proper rotations of the cube lattice (signed permutation matrices with determinant +1).
+const std::array<Mat3, 24>& cube_rotations();
+
+// Canonical form of a face-connected cell set (the test of preexistence: equal canonical forms <=> same
+// object up to rotation and translation).
+Polycube canonical_polycube(const Polycube& cells);
+
+// Number of the 24 rotations mapping the cell set onto itself (up to translation).
+int polycube_symmetry_order(const Polycube& cells);
+
+// All polycubes by volume: result[v - 1] lists those of volume v in ascending canonical order. Grows each
+// volume v-1 object by one face-adjacent cube. max_volume in [1, 10]; throws fs::Error otherwise.
+std::vector<std::vector<Polycube>> enumerate_polycubes(int max_volume);
+
+// Boundary surface: one outward quad per exposed unit-cube side, edge length `edge` (mm).
+Mesh polycube_mesh(const Polycube& cells, double edge, const std::string& name);
+
+// "polycube-<volume>-<index, 3 digits, from 1>".
+std::string polycube_name(int volume, std::size_t index);
+
+// The model of a polycube (build_model on polycube_mesh).
+Model polycube_model(const Polycube& cells, double edge, const std::string& name);
+
+}  // namespace fs::host

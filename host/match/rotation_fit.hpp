@@ -1,0 +1,40 @@
+#pragma once
+// Rotation fitting (thesis ch. 7.5): the weighted Horn/Davenport quaternion method. Each normal pair (r, s)
+// (reference, scene) contributes gamma * A(r, s) (table 7.14) to the symmetric 4x4 matrix B; the best rotation
+// R (R r ~ s) is the eigenvector of B's smallest eigenvalue, which equals sum gamma |R r - s|^2.
+// Quaternion component order of table 7.14: P = (x, y, z, w).
+#include <span>
+
+#include <Eigen/Core>
+
+#include "common/calibration.hpp"
+
+namespace fs::host::match {
+
+using Mat4 = Eigen::Matrix4d;
+
+// Table 7.14: the coefficients of A for one pair of unit normals (r reference, s scene).
+Mat4 quaternion_pair_matrix(const Vec3& r, const Vec3& s);
+
+// Adds gamma * A(r, s) to B (B_n = B_{n-1} + gamma_n A_n).
+void add_pair(Mat4& B, const Vec3& r, const Vec3& s, double gamma);
+
+struct RotationFit {
+  Mat3 R = Mat3::Identity();     // maps reference normals onto scene normals
+  double lambda_min = 0.0;       // weighted squared error sum gamma |R r - s|^2 (clamped >= 0)
+  double lambda_gap = 0.0;       // second smallest minus smallest eigenvalue
+};
+
+// Minimizes P^t B P with Eigen's SelfAdjointEigenSolver (no heap allocation).
+RotationFit solve_rotation(const Mat4& B);
+
+// Independent check (weighted Kabsch / SVD): the rotation minimizing sum w |R r_i - s_i|^2.
+Mat3 kabsch_rotation(std::span<const Vec3> r, std::span<const Vec3> s, std::span<const double> w);
+
+// Weighted squared error sum w |R r_i - s_i|^2.
+double fit_error(const Mat3& R, std::span<const Vec3> r, std::span<const Vec3> s, std::span<const double> w);
+
+// Angle of the rotation R_a^T R_b in degrees.
+double rotation_angle_deg(const Mat3& Ra, const Mat3& Rb);
+
+}  // namespace fs::host::match

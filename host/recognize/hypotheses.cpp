@@ -1,0 +1,165 @@
+#include "host/recognize/hypotheses.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace fs::host::rec {
+
+namespace {
+
+const PfrgNode* scene_node(const HypothesisContext& c, int id) {
+  if (id < 0 || static_cast<std::size_t>(id) >= c.scene_index.size()) return nullptr;
+  const int i = c.scene_index[static_cast<std::size_t>(id)];
+  return i < 0 ? nullptr : &c.scene.nodes[static_cast<std::size_t>(i)];
+}
+
+bool uses_scene(const Hypothesis& h, int id) {
+  for (const auto& m : h.matches)
+    if (m.scene == id) return true;
+  return false;
+}
+bool uses_ref(const Hypothesis& h, int id) {
+  for (const auto& m : h.matches)
+    if (m.ref == id) return true;
+  return false;
+}
+
+double face_radius(const ModelFace& f) {
+  double r = 0.0;
+  for (const auto& loop : f.loops)
+    for (const Vec3& p : loop) r = std::max(r, (p - f.centroid).norm());
+  return r;
+}
+
+}  // namespace
+
+void update_translation(const HypothesisContext& c, Hypothesis& h, std::vector<PlanePair>& scratch) {
+  scratch.clear();
+  for (const FaceMatch& m : h.matches) {
+    const PfrgNode* n = scene_node(c, m.scene);
+    if (!n || !n->has_plane) continue;
+    scratch.push_back(PlanePair{n->normal, n->offset, n->centroid, n->area, m.ref});
+  }
+  const Model& model = c.library.models[static_cast<std::size_t>(h.model)];
+  const TranslationFit fit = fit_translation(model, h.R, scratch);
+  h.t = fit.t;
+  h.free_dims = fit.free_dims;
+  h.free_dir = fit.free_dir;
+}
+
+int expand(const HypothesisContext& c, Hypothesis& h, std::vector<PlanePair>& scratch) {
+  const Model& model = c.library.models[static_cast<std::size_t>(h.model)];
+  const double cos_max = std::cos(c.params.expand_angle_deg * M_PI / 180.0);
+  int added = 0;
+  for (std::size_t f = 0; f < model.faces.size(); ++f) {
+    const int fid = static_cast<int>(f);
+    if (uses_ref(h, fid)) continue;
+    const ModelFace& mf = model.faces[f];
+    const Vec3 n = h.R * mf.normal;
+    const Vec3 centre = h.R * mf.centroid + h.t;
+    if (n.dot(c.viewpoint - centre) <= 0) continue;   // faces away from the sensor
+    const double radius = face_radius(mf) + c.params.expand_dist_mm;
+    int best = -1;
+    double best_cos = cos_max;
+    for (const PfrgNode& s : c.scene.nodes) {
+      if (s.supernode || !s.has_plane || uses_scene(h, s.id)) continue;
+      const double cs = s.normal.dot(n);
+      if (cs < best_cos) continue;
+      if (std::abs(s.normal.dot(centre) - s.offset) > c.params.expand_dist_mm) continue;
+      if (std::abs(n.dot(s.centroid - centre)) > c.params.expand_dist_mm) continue;
+      if ((s.centroid - centre).norm() > radius) continue;
+      if (s.area > c.params.expand_area_ratio * mf.area) continue;
+      best = s.id;
+      best_cos = cs;
+    }
+    if (best >= 0) {
+      h.matches.push_back(FaceMatch{best, fid, true});
+      ++added;
+    }
+  }
+  if (added > 0) update_translation(c, h, scratch);
+  return added;
+}
+
+int merge_compatible(const HypothesisContext& c, std::span<Hypothesis> hyps, std::vector<char>& alive,
+                     std::vector<PlanePair>& scratch) {
+  int merges = 0;
+  for (std::size_t i = 0; i < hyps.size(); ++i) {
+    if (!alive[i]) continue;
+    for (std::size_t j = i + 1; j < hyps.size(); ++j) {
+      if (!alive[j] || hyps[j].model != hyps[i].model) continue;
+      Hypothesis& a = hyps[i];
+      Hypothesis& b = hyps[j];
+      const Model& model = c.library.models[static_cast<std::size_t>(a.model)];
+      const bool close_t = (a.t - b.t).norm() <= c.params.merge_translation_mm;
+      bool shared_scene = false, shared_ref = false;
+      for (const FaceMatch& m : b.matches) {
+        shared_scene = shared_scene || uses_scene(a, m.scene);
+        shared_ref = shared_ref || uses_ref(a, m.ref);
+      }
+      if (!shared_scene && !shared_ref && close_t &&
+          rotation_angle_deg(a.R, b.R) <= c.params.merge_rotation_deg) {
+        // Compatible: the same object seen as separated subgraphs; merge b into a.
+        for (const FaceMatch& m : b.matches) a.matches.push_back(m);
+        a.level += b.level;
+        a.merged = true;
+        update_translation(c, a, scratch);
+        alive[j] = 0;
+        ++merges;
+      } else if (shared_scene && close_t &&
+                 rotation_angle_deg_sym(a.R, b.R, model) <= c.params.merge_rotation_deg) {
+        // The same object again (symmetry-equivalent or a sub-solution): keep the cheaper one.
+        if (b.cost < a.cost) {
+          std::swap(a, b);
+        }
+        alive[j] = 0;
+      }
+    }
+  }
+  return merges;
+}
+
+int count_visible_faces(const Model& model, const Mat3& R, const Vec3& t, const Vec3& viewpoint) {
+  int n = 0;
+  for (const ModelFace& f : model.faces) {
+    const Vec3 c = R * f.centroid + t;
+    n += (R * f.normal).dot(viewpoint - c) > 0 ? 1 : 0;
+  }
+  return n;
+}
+
+int count_incompatible_pairs(std::span<const Hypothesis> hyps, const std::vector<std::size_t>& order) {
+  int pairs = 0;
+  for (std::size_t x = 0; x < order.size(); ++x)
+    for (std::size_t y = x + 1; y < order.size(); ++y) {
+      const Hypothesis& a = hyps[order[x]];
+      const Hypothesis& b = hyps[order[y]];
+      bool shared = false;
+      for (const FaceMatch& m : b.matches) shared = shared || uses_scene(a, m.scene);
+      pairs += shared ? 1 : 0;
+    }
+  return pairs;
+}
+
+void copy_hypothesis(const Hypothesis& from, Hypothesis& to) {
+  to.model = from.model;
+  to.rank = from.rank;
+  to.path.assign(from.path.begin(), from.path.end());
+  to.matches.assign(from.matches.begin(), from.matches.end());
+  to.level = from.level;
+  to.faces_visible = from.faces_visible;
+  to.R = from.R;
+  to.t = from.t;
+  to.free_dims = from.free_dims;
+  to.free_dir = from.free_dir;
+  to.cost = from.cost;
+  to.rotfit_error = from.rotfit_error;
+  to.degenerate = from.degenerate;
+  to.verify = from.verify;
+  to.key = from.key;
+  to.instance = from.instance;
+  to.merged = from.merged;
+  to.inlier_cells.assign(from.inlier_cells.begin(), from.inlier_cells.end());
+}
+
+}  // namespace fs::host::rec

@@ -1,0 +1,43 @@
+#pragma once
+// From matching solutions to pose hypotheses (thesis ch. 8.1.3 and 9.4.1, plus the pose beyond the thesis):
+// translation from the matched planes, expanded solutions (unmatched scene faces that fit a predicted
+// reference face), merging of compatible solutions of one list, and helpers of the recognition step.
+#include <span>
+#include <vector>
+
+#include "host/recognize/pose.hpp"
+#include "host/recognize/recognizer.hpp"
+
+namespace fs::host::rec {
+
+struct HypothesisContext {
+  const Library& library;
+  const Pfrg& scene;
+  const std::vector<int>& scene_index;   // scene node id -> index in scene.nodes, -1 when absent
+  Vec3 viewpoint;
+  const RecognizeParams& params;
+};
+
+// Sets h.t (and free_dims/free_dir) from the planes of h.matches under h.R.
+void update_translation(const HypothesisContext& c, Hypothesis& h, std::vector<PlanePair>& scratch);
+
+// Adds unmatched scene faces that coincide with predicted, visible, unmatched model faces (marked expanded),
+// then refits the translation. Returns the number of faces added.
+int expand(const HypothesisContext& c, Hypothesis& h, std::vector<PlanePair>& scratch);
+
+// Within each model's list: merges compatible solutions (no shared scene or reference node, similar rotation
+// and translation) and drops duplicates (the same object under a symmetry-equivalent pose, overlapping scene
+// nodes; the costlier one goes). Returns the number of merges.
+int merge_compatible(const HypothesisContext& c, std::span<Hypothesis> hyps, std::vector<char>& alive,
+                     std::vector<PlanePair>& scratch);
+
+// Model faces whose outward normal faces the viewpoint in pose (R, t).
+int count_visible_faces(const Model& model, const Mat3& R, const Vec3& t, const Vec3& viewpoint);
+
+// Pairs among the given hypotheses that share a scene node (edges of the incompatibility graph).
+int count_incompatible_pairs(std::span<const Hypothesis> hyps, const std::vector<std::size_t>& order);
+
+// Copies without giving up `to`'s buffers.
+void copy_hypothesis(const Hypothesis& from, Hypothesis& to);
+
+}  // namespace fs::host::rec

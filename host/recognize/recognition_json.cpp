@@ -1,0 +1,59 @@
+#include <nlohmann/json.hpp>
+
+#include "host/match/inexact.hpp"
+#include "host/recognize/recognizer.hpp"
+
+namespace fs::host::rec {
+
+nlohmann::json to_json(const Recognition& r, const Library& library) {
+  nlohmann::json objects = nlohmann::json::array();
+  for (const Hypothesis& h : r.objects) {
+    const Model& m = library.models[static_cast<std::size_t>(h.model)];
+    nlohmann::json o;
+    o["model"] = m.name;
+    o["instance"] = h.instance;
+    o["rotation"] = {{h.R(0, 0), h.R(0, 1), h.R(0, 2)}, {h.R(1, 0), h.R(1, 1), h.R(1, 2)}, {h.R(2, 0), h.R(2, 1), h.R(2, 2)}};
+    o["translation"] = {h.t.x(), h.t.y(), h.t.z()};
+    o["cost"] = h.cost;
+    o["confidence"] = h.verify.confidence;
+    int searched = 0;
+    for (const FaceMatch& fm : h.matches) searched += fm.expanded ? 0 : 1;
+    o["faces_matched"] = static_cast<int>(h.matches.size());
+    o["faces_matched_by_search"] = searched;
+    o["faces_visible"] = h.faces_visible;
+    nlohmann::json matches = nlohmann::json::array();
+    nlohmann::json expanded = nlohmann::json::array();
+    for (const FaceMatch& fm : h.matches) {
+      matches.push_back({fm.scene, fm.ref});
+      if (fm.expanded) expanded.push_back({fm.scene, fm.ref});
+    }
+    o["matches"] = matches;
+    o["expanded_matches"] = expanded;
+    o["state"] = match::state_id(m.name, h.path);
+    o["rotfit_error"] = h.rotfit_error;
+    o["merged"] = h.merged;
+    if (h.free_dims > 0) {
+      o["translation_underdetermined"] = {{"dims", h.free_dims}, {"direction", {h.free_dir.x(), h.free_dir.y(), h.free_dir.z()}}};
+    }
+    o["verification"] = {{"inliers", h.verify.inliers},   {"violations", h.verify.violations},
+                         {"occluded", h.verify.occluded}, {"hits", h.verify.hits},
+                         {"coverage", h.verify.coverage}, {"rms_mm", h.verify.rms_mm},
+                         {"icp_iterations", h.verify.refine_iterations}};
+    objects.push_back(std::move(o));
+  }
+  const RecognizeStats& s = r.stats;
+  nlohmann::json stats = {{"segment_ms", s.segment_ms},   {"pfrg_ms", s.pfrg_ms},
+                          {"match_ms", s.match_ms},       {"verify_ms", s.verify_ms},
+                          {"total_ms", s.total_ms},       {"regions", s.regions},
+                          {"known_regions", s.known_regions}, {"scene_nodes", s.scene_nodes},
+                          {"scene_arcs", s.scene_arcs},   {"table_removed", s.table_removed},
+                          {"references", s.references},   {"states", s.states},
+                          {"hypotheses", s.hypotheses},   {"merged", s.merged},
+                          {"expanded_faces", s.expanded_faces}, {"rejected", s.rejected},
+                          {"incompatible_pairs", s.incompatible_pairs}};
+  nlohmann::json j = {{"objects", objects}, {"stats", stats}};
+  if (!r.note.empty()) j["note"] = r.note;
+  return j;
+}
+
+}  // namespace fs::host::rec

@@ -1,0 +1,134 @@
+#pragma once
+// Recognition (thesis ch. 8-9 and beyond): organized cloud -> segmentation -> scene PFRG (table removed)
+// -> inexact matching against every reference -> hypotheses (translation from planes, expansion ch. 8.1.3,
+// compatible-solution merge) -> low-level verification + ICP -> merged list, incompatibility graph and the
+// best compatible set (ch. 9.4) -> objects.
+//
+// Memory: a Recognizer sizes its buffers at construction (largest grid, region budget, state budget) and
+// reuses them; a warm recognize() performs no heap allocation (see tests/recognize).
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json_fwd.hpp>
+
+#include "common/calibration.hpp"
+#include "host/io/organized_cloud.hpp"
+#include "host/library/library.hpp"
+#include "host/match/inexact.hpp"
+#include "host/match/params.hpp"
+#include "host/pfrg/pfrg.hpp"
+#include "host/recognize/verify.hpp"
+#include "host/segment/scene_pfrg.hpp"
+#include "host/segment/segment_params.hpp"
+#include "host/segment/segmentation.hpp"
+#include "host/segment/segmenter.hpp"
+
+namespace fs::host::rec {
+
+struct RecognizeParams {
+  match::MatchParams match = match::preset("t9.3");
+  seg::SegmentParams segment = seg::SegmentParams::laser();
+  VerifyParams verify;
+  int solutions_per_model = 8;        // best solutions of each reference kept as hypotheses
+  std::int64_t max_states = 20000;    // state budget of one match
+  // The table (support plane) is absorbed into the supernode before matching.
+  bool remove_table = true;
+  double table_angle_deg = 8.0;
+  double table_dist_mm = 6.0;
+  // Expansion (ch. 8.1.3): an unmatched scene face joins when its plane coincides with a predicted one.
+  double expand_angle_deg = 12.0;
+  double expand_dist_mm = 6.0;
+  double expand_area_ratio = 1.6;     // scene area <= ratio * model face area
+  // Compatible-solution merge (ch. 8.1.3 / 9.4.1).
+  double merge_rotation_deg = 10.0;
+  double merge_translation_mm = 10.0;
+  // Acceptance.
+  double min_confidence = 0.6;
+  double confidence_weight = 0.2;     // ordering key = cost + weight * (1 - confidence)
+  double max_shared_inliers = 0.3;    // two objects may not explain more than this share of the same points
+  int max_objects = 16;
+  int max_verified = 48;              // hypotheses checked against the cloud (lowest matching cost first)
+  int max_refined = 16;               // of those, the most plausible refined by ICP and verified finely
+  int min_level = 2;                  // faces a search solution must match (overrides TH_minlevel)
+  int threads = 0;                    // matching threads (0 = all cores)
+};
+
+struct FaceMatch {
+  int scene = 0;       // scene PFRG node id
+  int ref = 0;         // model face index (= reference PFRG node id)
+  bool expanded = false;
+};
+
+struct Hypothesis {
+  int model = -1;                     // index into the library
+  int rank = 0;                       // rank of its solution in its model's list
+  std::vector<int> path;              // search-tree path of its solution: state id "<model>.9.1.1"
+  std::vector<FaceMatch> matches;
+  int level = 0;                      // faces matched by the search
+  int faces_visible = 0;              // model faces facing the sensor in this pose
+  Mat3 R = Mat3::Identity();
+  Vec3 t = Vec3::Zero();
+  int free_dims = 0;                  // translation directions the matched planes left open
+  Vec3 free_dir = Vec3::Zero();
+  double cost = 0.0;                  // matching cost (ch. 7.6)
+  double rotfit_error = 0.0;
+  bool degenerate = false;
+  VerifyResult verify;
+  double key = 0.0;                   // ordering key
+  int instance = 0;                   // 0 = first instance of its model, 1 = second, ...
+  bool merged = false;                // a compatible solution was merged into it
+  std::vector<std::uint32_t> inlier_cells;
+};
+
+struct RecognizeStats {
+  double segment_ms = 0, pfrg_ms = 0, match_ms = 0, verify_ms = 0, total_ms = 0;
+  int regions = 0, known_regions = 0, scene_nodes = 0, scene_arcs = 0;
+  bool table_removed = false;
+  int references = 0;
+  std::int64_t states = 0;            // search states over all references
+  int hypotheses = 0, merged = 0, expanded_faces = 0, rejected = 0, incompatible_pairs = 0;
+};
+
+struct Recognition {
+  std::vector<Hypothesis> objects;    // best first
+  RecognizeStats stats;
+  std::string note;                   // why the list is empty (or other remarks)
+};
+
+class Recognizer {
+ public:
+  Recognizer(const Library& library, const RecognizeParams& params, std::size_t max_cells = 512 * 1024);
+  ~Recognizer();
+  // table: the support plane when known (e.g. from a scan's calibration); nullptr = the largest plane facing
+  // the sensor is taken as the table when remove_table is set.
+  const Recognition& recognize(const OrganizedCloud& cloud, const Plane* table = nullptr);
+
+  // Intermediate results of the last recognize() (for reports and `facetscan graph`).
+  const seg::Segmentation& segmentation() const { return seg_; }
+  const Pfrg& scene_graph() const { return scene_; }
+  const Library& library() const { return library_; }
+  const RecognizeParams& params() const { return params_; }
+  // The verified hypotheses of the last recognize(), in ordering-key order (diagnostics, reports).
+  std::vector<const Hypothesis*> candidates() const;
+  // Cell -> object index (into objects) or -1, for colouring.
+  void object_labels(const OrganizedCloud& cloud, std::vector<std::int32_t>& labels) const;
+
+ private:
+  struct Impl;
+  const Library& library_;
+  RecognizeParams params_;
+  seg::Segmenter segmenter_;
+  seg::ScenePfrgBuilder pfrg_builder_;
+  seg::Segmentation seg_;
+  Pfrg scene_;
+  std::unique_ptr<Impl> impl_;
+  Recognition result_;
+};
+
+// Recognition JSON (DESIGN.md contract): {"objects":[{"model","rotation","translation","cost","confidence",
+// "faces_matched","faces_visible","matches",...}],"stats":{...}}.
+nlohmann::json to_json(const Recognition& r, const Library& library);
+
+}  // namespace fs::host::rec

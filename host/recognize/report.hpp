@@ -1,0 +1,24 @@
+#pragma once
+// Outputs people look at: the result table (terminal), an HTML report directory (segmentation image, PFRG,
+// ENM, a top view of the scene with every recognized model drawn in its pose, the object table, statistics)
+// and the cloud coloured by object (PLY).
+#include <filesystem>
+#include <string>
+
+#include "host/io/organized_cloud.hpp"
+#include "host/recognize/recognizer.hpp"
+
+namespace fs::host::rec {
+
+// Rotation as axis-angle: "123.4° about (0.00, 0.00, 1.00)".
+std::string axis_angle_text(const Mat3& R);
+
+// A fixed-width table: model, instance, position (mm), rotation (axis-angle), confidence, cost, faces.
+std::string result_table(const Recognition& r, const Library& library);
+
+// Writes DIR/index.html, segmentation.png, pfrg.svg, enm.svg, scene.svg (+ scene_top.png) and
+// objects.ply. `title` names the input.
+void write_report(const std::filesystem::path& dir, const std::string& title, const OrganizedCloud& cloud,
+                  const Recognizer& recognizer, const Recognition& r);
+
+}  // namespace fs::host::rec

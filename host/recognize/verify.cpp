@@ -1,0 +1,221 @@
+#include "host/recognize/verify.hpp"
+
+#include <Eigen/Cholesky>
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "host/recognize/pose.hpp"
+
+namespace fs::host::rec {
+
+ModelGeometry::ModelGeometry(const Model& model)
+    : model_(&model), center_(model.center), radius_(model.bounding_radius) {
+  faces_.reserve(model.faces.size());
+  for (const ModelFace& mf : model.faces) {
+    Face f;
+    f.n = mf.normal.normalized();
+    f.offset = mf.offset;
+    f.u = f.n.unitOrthogonal();
+    f.v = f.n.cross(f.u);
+    f.lo = Eigen::Vector2d::Constant(std::numeric_limits<double>::infinity());
+    f.hi = -f.lo;
+    for (const auto& loop : mf.loops) {
+      f.loop_start.push_back(static_cast<std::uint32_t>(f.pts.size()));
+      for (const Vec3& p : loop) {
+        const Eigen::Vector2d q(f.u.dot(p), f.v.dot(p));
+        f.pts.push_back(q);
+        f.lo = f.lo.cwiseMin(q);
+        f.hi = f.hi.cwiseMax(q);
+      }
+    }
+    f.loop_start.push_back(static_cast<std::uint32_t>(f.pts.size()));
+    faces_.push_back(std::move(f));
+  }
+}
+
+bool ModelGeometry::inside(const Face& f, const Eigen::Vector2d& q) const {
+  if (q.x() < f.lo.x() || q.y() < f.lo.y() || q.x() > f.hi.x() || q.y() > f.hi.y()) return false;
+  bool in = false;   // even-odd rule over all loops (holes are their own loops)
+  for (std::size_t l = 0; l + 1 < f.loop_start.size(); ++l) {
+    const std::uint32_t b = f.loop_start[l], e = f.loop_start[l + 1];
+    for (std::uint32_t i = b, j = e - 1; i < e; j = i++) {
+      const Eigen::Vector2d& a = f.pts[i];
+      const Eigen::Vector2d& c = f.pts[j];
+      if ((a.y() > q.y()) != (c.y() > q.y()) &&
+          q.x() < (c.x() - a.x()) * (q.y() - a.y()) / (c.y() - a.y()) + a.x())
+        in = !in;
+    }
+  }
+  return in;
+}
+
+int ModelGeometry::cast(const Vec3& origin, const Vec3& dir, double& distance) const {
+  // Bounding sphere first.
+  const Vec3 oc = center_ - origin;
+  const double along = oc.dot(dir);
+  if ((oc - along * dir).squaredNorm() > radius_ * radius_ * 1.0001 + 1e-9) return -1;
+  int best = -1;
+  double best_s = std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < faces_.size(); ++i) {
+    const Face& f = faces_[i];
+    const double den = f.n.dot(dir);
+    if (den >= -1e-9) continue;   // back-facing or grazing
+    const double s = (f.offset - f.n.dot(origin)) / den;
+    if (s <= 0.0 || s >= best_s) continue;
+    const Vec3 h = origin + s * dir;
+    if (!inside(f, Eigen::Vector2d(f.u.dot(h), f.v.dot(h)))) continue;
+    best_s = s;
+    best = static_cast<int>(i);
+  }
+  distance = best_s;
+  return best;
+}
+
+void SampleSet::reserve(std::size_t max_cells) {
+  points_.reserve(max_cells);
+  cells_.reserve(max_cells);
+  blocks_.reserve(max_cells / 16 + 16);
+}
+
+void SampleSet::build(const OrganizedCloud& cloud, int sample_step, int block) {
+  points_.clear();
+  cells_.clear();
+  blocks_.clear();
+  viewpoint_ = cloud.viewpoint;
+  const Eigen::Vector3f v = cloud.viewpoint.cast<float>();
+  const auto step = static_cast<std::uint32_t>(std::max(1, sample_step));
+  const std::uint32_t span = step * static_cast<std::uint32_t>(std::max(1, block));
+  for (std::uint32_t r0 = 0; r0 < cloud.height; r0 += span) {
+    for (std::uint32_t c0 = 0; c0 < cloud.width; c0 += span) {
+      Block b;
+      b.begin = static_cast<std::uint32_t>(points_.size());
+      Eigen::Vector3f sum = Eigen::Vector3f::Zero();
+      for (std::uint32_t r = r0; r < std::min(cloud.height, r0 + span); r += step)
+        for (std::uint32_t c = c0; c < std::min(cloud.width, c0 + span); c += step) {
+          const std::size_t i = cloud.index(r, c);
+          const Eigen::Vector3f& p = cloud.points[i];
+          if (!OrganizedCloud::valid(p)) continue;
+          points_.push_back(p);
+          cells_.push_back(static_cast<std::uint32_t>(i));
+          sum += (p - v).normalized();
+        }
+      b.end = static_cast<std::uint32_t>(points_.size());
+      if (b.end == b.begin) continue;
+      b.dir = sum.normalized();
+      float min_cos = 1.0f;
+      for (std::uint32_t k = b.begin; k < b.end; ++k) min_cos = std::min(min_cos, (points_[k] - v).normalized().dot(b.dir));
+      b.angle = std::acos(std::clamp(min_cos, -1.0f, 1.0f)) + 1e-4f;
+      blocks_.push_back(b);
+    }
+  }
+}
+
+VerifyResult Verifier::evaluate(const SampleSet& samples, const ModelGeometry& g, const Mat3& R, const Vec3& t) {
+  VerifyResult r;
+  inlier_cells_.clear();
+  inlier_sample_.clear();
+  inlier_face_.clear();
+  const Mat3 Rt = R.transpose();
+  const Vec3& view = samples.viewpoint();
+  const Vec3 origin_m = Rt * (view - t);
+  const double tol = params_.inlier_mm;
+  // The object's bounding sphere as seen from the viewpoint.
+  const Vec3 cs = R * g.center() + t;
+  const double dist = (cs - view).norm();
+  if (dist <= g.radius()) return r;   // the sensor inside the object: nothing sensible to verify
+  const Eigen::Vector3f dir_obj = ((cs - view) / dist).cast<float>();
+  const float ang_obj = static_cast<float>(std::asin(std::min(1.0, g.radius() / dist)));
+  const auto& pts = samples.points();
+  for (const SampleSet::Block& b : samples.blocks()) {
+    const float c = std::clamp(b.dir.dot(dir_obj), -1.0f, 1.0f);
+    if (std::acos(c) > b.angle + ang_obj) continue;
+    for (std::uint32_t k = b.begin; k < b.end; ++k) {
+      const Vec3 p = pts[k].cast<double>();
+      Vec3 d = Rt * (p - t) - origin_m;
+      const double range = d.norm();
+      if (range <= 1e-9) continue;
+      d /= range;
+      double s = 0.0;
+      const int face = g.cast(origin_m, d, s);
+      if (face < 0) continue;
+      ++r.hits;
+      if (range > s + tol) {
+        ++r.violations;
+      } else if (range < s - tol) {
+        ++r.occluded;
+      } else {
+        ++r.inliers;
+        inlier_cells_.push_back(samples.cells()[k]);
+        inlier_sample_.push_back(k);
+        inlier_face_.push_back(face);
+      }
+    }
+  }
+  const double denom =
+      static_cast<double>(r.inliers + r.violations) + params_.occluded_weight * static_cast<double>(r.occluded);
+  r.confidence = denom > 0 ? static_cast<double>(r.inliers) / denom : 0.0;
+  if (r.inliers < params_.min_inliers)
+    r.confidence *= static_cast<double>(r.inliers) / static_cast<double>(std::max(1, params_.min_inliers));
+  r.coverage = r.hits > 0 ? static_cast<double>(r.inliers) / r.hits : 0.0;
+  return r;
+}
+
+VerifyResult Verifier::verify(const SampleSet& samples, const ModelGeometry& g, Mat3& R, Vec3& t, bool refine) {
+  VerifyResult r = evaluate(samples, g, R, t);
+  if (!refine || params_.icp_iterations <= 0) return r;
+  const Model& model = g.model();
+  const auto& pts = samples.points();
+  int iterations = 0;
+  for (int it = 0; it < params_.icp_iterations; ++it) {
+    if (inlier_sample_.size() < 6) break;
+    // Centre for conditioning.
+    Vec3 c = Vec3::Zero();
+    for (std::uint32_t k : inlier_sample_) c += pts[k].cast<double>();
+    c /= static_cast<double>(inlier_sample_.size());
+    Eigen::Matrix<double, 6, 6> A = Eigen::Matrix<double, 6, 6>::Zero();
+    Eigen::Matrix<double, 6, 1> b = Eigen::Matrix<double, 6, 1>::Zero();
+    int used = 0;
+    for (std::size_t k = 0; k < inlier_sample_.size(); ++k) {
+      const ModelFace& f = model.faces[static_cast<std::size_t>(inlier_face_[k])];
+      const Vec3 n = R * f.normal;
+      const double d = f.offset + n.dot(t);
+      const Vec3 q = pts[inlier_sample_[k]].cast<double>() - c;
+      const double res = n.dot(q) - (d - n.dot(c));
+      if (std::abs(res) > params_.icp_max_dist_mm) continue;
+      Eigen::Matrix<double, 6, 1> J;
+      J << q.cross(n), n;
+      A += J * J.transpose();
+      b -= J * res;
+      ++used;
+    }
+    if (used < 6) break;
+    A.diagonal().array() += 1e-6 * (A.trace() / 6.0 + 1e-12);
+    const Eigen::Matrix<double, 6, 1> x = A.ldlt().solve(b);
+    const Vec3 w = x.head<3>();
+    const Vec3 tau = x.tail<3>();
+    const double angle = w.norm();
+    const Mat3 Rd = angle > 1e-15 ? Mat3(Eigen::AngleAxisd(angle, w / angle)) : Mat3::Identity();
+    // Points moved by y -> Rd (y - c) + tau + c fit the model; move the model by the inverse instead.
+    R = nearest_rotation(Rd.transpose() * R);
+    t = Rd.transpose() * (t - c - tau) + c;
+    iterations = it + 1;
+    if (angle < 1e-7 && tau.norm() < 1e-5) break;
+    evaluate(samples, g, R, t);
+  }
+  r = evaluate(samples, g, R, t);
+  r.refine_iterations = iterations;
+  // RMS of the inliers' plane distances in the final pose.
+  double s2 = 0.0;
+  for (std::size_t k = 0; k < inlier_sample_.size(); ++k) {
+    const ModelFace& f = model.faces[static_cast<std::size_t>(inlier_face_[k])];
+    const Vec3 n = R * f.normal;
+    const double res = n.dot(pts[inlier_sample_[k]].cast<double>()) - (f.offset + n.dot(t));
+    s2 += res * res;
+  }
+  r.rms_mm = inlier_sample_.empty() ? 0.0 : std::sqrt(s2 / static_cast<double>(inlier_sample_.size()));
+  return r;
+}
+
+}  // namespace fs::host::rec

@@ -1,0 +1,104 @@
+#pragma once
+// Low-level verification of a pose hypothesis against the measured organized cloud (beyond the thesis, its
+// outlook ch. 10): every sampled measured point's sensor ray is cast against the model's faces in that pose.
+//   inlier     the measured point lies on the predicted surface (|range - predicted| <= inlier_mm)
+//   violation  the sensor saw through the predicted surface (range > predicted + inlier_mm): free space where
+//              the hypothesis claims matter
+//   occluded   the measured point lies in front of the predicted surface (something else hides the object)
+// The pose is refined by point-to-plane ICP on the inliers (each assigned to its face's plane).
+// confidence = inliers / (inliers + violations + occluded_weight * occluded), scaled down when the inliers are
+// too few to carry the claim.
+#include <cstdint>
+#include <vector>
+
+#include "common/calibration.hpp"
+#include "host/io/organized_cloud.hpp"
+#include "host/library/model.hpp"
+
+namespace fs::host::rec {
+
+struct VerifyParams {
+  double inlier_mm = 2.0;          // range tolerance of an inlier (also the violation margin)
+  int sample_step = 2;             // use every n-th row and column
+  int icp_iterations = 6;          // 0 = no refinement
+  double icp_max_dist_mm = 4.0;    // point-to-plane distance for ICP correspondences
+  double occluded_weight = 0.25;
+  int min_inliers = 30;            // fewer inliers scale the confidence down linearly
+};
+
+struct VerifyResult {
+  int hits = 0, inliers = 0, violations = 0, occluded = 0;
+  double rms_mm = 0.0;             // rms point-to-plane distance of the inliers after refinement
+  double confidence = 0.0;
+  double coverage = 0.0;           // inliers / hits
+  int refine_iterations = 0;
+};
+
+// Per-model geometry prepared once (face planes, in-plane bases and 2D polygon loops in the model frame).
+class ModelGeometry {
+ public:
+  explicit ModelGeometry(const Model& model);
+  // Ray (model frame) -> nearest front-facing face hit: distance along the unit direction and face index;
+  // returns -1 when it misses.
+  int cast(const Vec3& origin, const Vec3& dir, double& distance) const;
+  const Model& model() const { return *model_; }
+  double radius() const { return radius_; }
+  const Vec3& center() const { return center_; }
+
+ private:
+  struct Face {
+    Vec3 n, u, v;
+    double offset;
+    std::vector<Eigen::Vector2d> pts;          // all loops' vertices, concatenated
+    std::vector<std::uint32_t> loop_start;     // start index of each loop in pts (+ end sentinel)
+    Eigen::Vector2d lo, hi;                    // 2D bounding box
+  };
+  bool inside(const Face& f, const Eigen::Vector2d& q) const;
+  const Model* model_;
+  std::vector<Face> faces_;
+  Vec3 center_;
+  double radius_;
+};
+
+// The measured points verification looks at: every sample_step-th valid cell, grouped in blocks of
+// neighbouring samples with the cone of their viewing rays, so a hypothesis only visits the blocks whose rays
+// can meet its bounding sphere. Built once per scan; no allocation once warm.
+class SampleSet {
+ public:
+  void reserve(std::size_t max_cells);
+  void build(const OrganizedCloud& cloud, int sample_step, int block = 8);
+  struct Block {
+    std::uint32_t begin = 0, end = 0;   // range in points()
+    Eigen::Vector3f dir = Eigen::Vector3f::UnitZ();   // mean viewing direction (unit)
+    float angle = 0.0f;                 // max angle (rad) between a member's ray and dir
+  };
+  const std::vector<Eigen::Vector3f>& points() const { return points_; }
+  const std::vector<std::uint32_t>& cells() const { return cells_; }
+  const std::vector<Block>& blocks() const { return blocks_; }
+  const Vec3& viewpoint() const { return viewpoint_; }
+
+ private:
+  std::vector<Eigen::Vector3f> points_;
+  std::vector<std::uint32_t> cells_;
+  std::vector<Block> blocks_;
+  Vec3 viewpoint_ = Vec3::Zero();
+};
+
+class Verifier {
+ public:
+  explicit Verifier(const VerifyParams& params = {}) : params_(params) {}
+  // Verifies (and, with refine, refines R and t in place). Reuses internal buffers (no allocation once warm).
+  VerifyResult verify(const SampleSet& samples, const ModelGeometry& geometry, Mat3& R, Vec3& t, bool refine);
+  // Cell indices of the inliers of the last verify() call (for colouring the cloud by object).
+  const std::vector<std::uint32_t>& inlier_cells() const { return inlier_cells_; }
+  const VerifyParams& params() const { return params_; }
+
+ private:
+  VerifyResult evaluate(const SampleSet& samples, const ModelGeometry& g, const Mat3& R, const Vec3& t);
+  VerifyParams params_;
+  std::vector<std::uint32_t> inlier_cells_;
+  std::vector<std::uint32_t> inlier_sample_;
+  std::vector<std::int32_t> inlier_face_;
+};
+
+}  // namespace fs::host::rec

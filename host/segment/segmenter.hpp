@@ -1,0 +1,120 @@
+#pragma once
+// Planar segmentation of an organized grid (thesis ch. 2.4, 3.5.1): normals from the grid tangents
+// (one-sided at depth jumps), region growing (normal angle + point-to-plane distance + depth continuity),
+// edge refinement, plane refit, merge pass of adjacent coplanar regions, leftover cells grouped into
+// unknown regions, and the border lengths between everything.
+//
+// Memory: all working buffers are sized once (constructor / reserve()) by the largest grid and the region
+// budget; segment() then runs without heap allocation for grids within that size. When the region or border
+// budget is exhausted the remaining cells stay unknown and Segmentation::truncated is set.
+#include <cstdint>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "host/io/organized_cloud.hpp"
+#include "host/segment/segment_params.hpp"
+#include "host/segment/segmentation.hpp"
+
+namespace fs::host::seg {
+
+struct SegmentLimits {
+  std::size_t max_cells = 640 * 480;
+  std::size_t max_regions = 8192;
+  std::size_t max_borders = 32768;
+};
+
+class Segmenter {
+ public:
+  explicit Segmenter(const SegmentParams& params = SegmentParams::laser(), const SegmentLimits& limits = {});
+
+  const SegmentParams& params() const { return params_; }
+  const SegmentLimits& limits() const { return limits_; }
+  // Grows the buffers (allocates) so that grids of up to max_cells cells fit.
+  void reserve(std::size_t max_cells);
+  // Reserves `out` for the limits of this segmenter (call once, then reuse `out`).
+  void prepare(Segmentation& out) const;
+
+  // Segments `cloud` into `out` (reused). Grids larger than the reserved size grow the buffers first.
+  void segment(const OrganizedCloud& cloud, Segmentation& out);
+
+  // Per-cell unit normal from the last segment() call (NaN where undefined).
+  const std::vector<Eigen::Vector3f>& normals() const { return normal_; }
+
+ private:
+  struct Acc {   // moments relative to origin_ (double)
+    double n = 0, sx = 0, sy = 0, sz = 0, sxx = 0, sxy = 0, sxz = 0, syy = 0, syz = 0, szz = 0;
+    double area = 0, pc = 0, pr = 0;
+    void add(const Eigen::Vector3d& p, double a, double col, double row);
+    void merge(const Acc& o);
+  };
+  struct PlaneF {
+    Eigen::Vector3f n = Eigen::Vector3f::UnitZ();
+    Eigen::Vector3f c = Eigen::Vector3f::Zero();
+  };
+
+  void compute_normals(const OrganizedCloud& cloud);
+  void grow_regions(const OrganizedCloud& cloud, Segmentation& out);
+  void refine_edges(const OrganizedCloud& cloud);
+  void merge_regions(const OrganizedCloud& cloud, Segmentation& out);
+  void group_leftovers(const OrganizedCloud& cloud, Segmentation& out);
+  void finalize_regions(const OrganizedCloud& cloud, Segmentation& out);
+  void compute_borders(const OrganizedCloud& cloud, Segmentation& out);
+
+  Acc& acc_add_cell(int region, const OrganizedCloud& cloud, std::size_t i);
+  void fit(const Acc& a, Eigen::Vector3d& n, Eigen::Vector3d& c, double& rms) const;
+  void refit(int region);
+  // Depth continuity of grid neighbours: close enough, or (up to jump_max_mm) a step that is not along the
+  // viewing ray, i.e. a surface seen at a grazing angle rather than a jump edge.
+  bool continuous(const OrganizedCloud& cloud, std::size_t i, std::size_t j) const {
+    const Eigen::Vector3f d = cloud.points[j] - cloud.points[i];
+    const float dd = d.squaredNorm();
+    if (dd <= jump2_[i]) return true;
+    if (!(dd <= jump_max2_)) return false;
+    const Eigen::Vector3f ray = cloud.points[i] - vp_f_;
+    const float c = ray.dot(d);
+    return c * c < cos2_jump_ * dd * ray.squaredNorm();
+  }
+  float jump_max2_ = 0.f, cos2_jump_ = 1.f;
+  Eigen::Vector3f vp_f_ = Eigen::Vector3f::Zero();
+  // Border pair table (open addressing); returns the index in out.borders or -1 when full.
+  int border_slot(Segmentation& out, std::int32_t a, std::int32_t b);
+  void clear_border_table();
+
+  SegmentParams params_;
+  SegmentLimits limits_;
+  Eigen::Vector3d origin_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d viewpoint_ = Eigen::Vector3d::Zero();
+  std::uint32_t width_ = 0, height_ = 0;
+
+  // per cell
+  std::vector<Eigen::Vector3f> normal_;
+  std::vector<float> area_, lenu_, lenv_, jump2_, dist_;
+  std::vector<std::uint8_t> state_;
+  std::vector<std::int32_t> lab_;
+  std::vector<std::uint32_t> queue_;
+  std::vector<std::uint32_t> pend_cell_;
+  std::vector<std::int32_t> pend_label_;
+  // per region
+  std::vector<Acc> acc_;
+  std::vector<PlaneF> plane_;
+  std::vector<std::int32_t> parent_, remap_;
+  std::vector<std::uint8_t> grown_;
+  std::size_t region_count_ = 0;
+  // border pair table
+  std::vector<std::uint64_t> bkey_;
+  std::vector<std::int32_t> bval_;
+  // border edges (cell * 2 + {0: right, 1: down}) and their border index, for the straight-edge lengths
+  std::vector<std::uint32_t> edge_cell_;
+  std::vector<std::int32_t> edge_border_;
+  struct LineInfo {
+    Eigen::Vector3f dir = Eigen::Vector3f::Zero();
+    float tmin = 0, tmax = 0, bin = 0;
+    std::int32_t offset = -1, count = 0;
+  };
+  std::vector<LineInfo> line_;
+  std::vector<std::uint8_t> bins_;
+  void straight_border_lengths(const OrganizedCloud& cloud, Segmentation& out, std::size_t nedges);
+};
+
+}  // namespace fs::host::seg

@@ -1,0 +1,164 @@
+// Stripe extraction on synthetic Gaussian rows with known centres: status flags, accuracy of each sub-pixel
+// method (error vs. noise table printed), Mono8 / Mono16 / YUYV frames.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <random>
+#include <vector>
+
+#include "common/error.hpp"
+#include "firmware/extract/stripe_extractor.hpp"
+
+namespace fs::fw {
+namespace {
+
+// A stripe row: ambient + amplitude * exp(-(x-c)^2 / (2 s^2)) integrated over each pixel, + Gaussian noise.
+std::vector<std::uint8_t> gaussian_row(std::uint32_t n, double centre, double sigma, double amplitude, double ambient,
+                                       double noise, std::mt19937& rng) {
+  std::normal_distribution<double> nd(0.0, 1.0);
+  std::vector<std::uint8_t> row(n);
+  for (std::uint32_t i = 0; i < n; ++i) {
+    const double x0 = (static_cast<double>(i) - 0.5 - centre) / (sigma * std::sqrt(2.0));
+    const double x1 = (static_cast<double>(i) + 0.5 - centre) / (sigma * std::sqrt(2.0));
+    const double area = 0.5 * (std::erf(x1) - std::erf(x0)) * sigma * std::sqrt(2.0 * M_PI);
+    double v = ambient + amplitude * area;
+    v += noise * nd(rng);
+    row[i] = static_cast<std::uint8_t>(std::clamp(std::lround(v), 0L, 255L));
+  }
+  return row;
+}
+
+double mean_abs_error(SubpixelMethod m, double noise, int trials, std::uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> uc(100.0, 500.0), us(1.2, 2.5);
+  ExtractParams p;
+  p.method = m;
+  double sum = 0.0;
+  int n = 0;
+  for (int t = 0; t < trials; ++t) {
+    const double c = uc(rng);
+    const auto row = gaussian_row(640, c, us(rng), 180.0, 20.0, noise, rng);
+    const RowPeak r = extract_row<std::uint8_t>(row.data(), 640, 1, 255.0, p);
+    if (r.status != RowStatus::Ok) continue;
+    sum += std::abs(r.col - c);
+    ++n;
+  }
+  EXPECT_GT(n, trials * 9 / 10);
+  return n ? sum / n : 1e9;
+}
+
+TEST(Extract, FindsCentreWithoutNoise) {
+  std::mt19937 rng(1);
+  const auto row = gaussian_row(320, 123.37, 1.8, 200.0, 15.0, 0.0, rng);
+  for (auto m : {SubpixelMethod::CentreOfGravity, SubpixelMethod::Gaussian3, SubpixelMethod::BlaisRioux,
+                 SubpixelMethod::GaussFit}) {
+    ExtractParams p;
+    p.method = m;
+    const RowPeak r = extract_row<std::uint8_t>(row.data(), 320, 1, 255.0, p);
+    ASSERT_EQ(r.status, RowStatus::Ok) << to_string(m);
+    EXPECT_NEAR(r.col, 123.37, 0.05) << to_string(m);
+    EXPECT_NEAR(r.width, 2.3548 * 1.8, 0.5) << to_string(m);  // FWHM of the Gaussian
+    EXPECT_GE(r.peak, 200.0);
+  }
+}
+
+TEST(Extract, DefaultMethodMeetsAccuracyAtDefaultNoise) {
+  // Default noise of the sim camera: sigma 2 DN. Requirement: mean absolute error <= 0.05 px.
+  EXPECT_LE(mean_abs_error(ExtractParams{}.method, 2.0, 2000, 7), 0.05);
+}
+
+TEST(Extract, ErrorVersusNoiseTable) {
+  std::printf("noise_dn  cog      gauss3   blais-rioux  gauss-fit  (mean |error| px, 2000 rows each)\n");
+  double prev_gauss = 0.0;
+  for (double noise : {0.0, 1.0, 2.0, 4.0, 8.0}) {
+    const double cog = mean_abs_error(SubpixelMethod::CentreOfGravity, noise, 2000, 11);
+    const double g3 = mean_abs_error(SubpixelMethod::Gaussian3, noise, 2000, 11);
+    const double br = mean_abs_error(SubpixelMethod::BlaisRioux, noise, 2000, 11);
+    const double gf = mean_abs_error(SubpixelMethod::GaussFit, noise, 2000, 11);
+    std::printf("%8.1f  %.4f   %.4f   %.4f       %.4f\n", noise, cog, g3, br, gf);
+    EXPECT_GE(g3 + 1e-3, prev_gauss * 0.5);  // error grows (roughly) with noise
+    prev_gauss = g3;
+  }
+}
+
+TEST(Extract, RejectsRowWithoutStripe) {
+  std::mt19937 rng(2);
+  std::vector<std::uint8_t> row(400);
+  std::normal_distribution<double> nd(30.0, 3.0);
+  for (auto& v : row) v = static_cast<std::uint8_t>(std::clamp(std::lround(nd(rng)), 0L, 255L));
+  EXPECT_EQ(extract_row<std::uint8_t>(row.data(), 400, 1, 255.0, ExtractParams{}).status, RowStatus::NoStripe);
+}
+
+TEST(Extract, FlagsDoublePeakAsAmbiguous) {
+  std::mt19937 rng(3);
+  auto a = gaussian_row(400, 100.0, 1.5, 180.0, 20.0, 0.0, rng);
+  const auto b = gaussian_row(400, 260.0, 1.5, 150.0, 0.0, 0.0, rng);  // a reflection, 83 % as bright
+  for (std::size_t i = 0; i < a.size(); ++i) a[i] = static_cast<std::uint8_t>(std::min(255, a[i] + b[i]));
+  EXPECT_EQ(extract_row<std::uint8_t>(a.data(), 400, 1, 255.0, ExtractParams{}).status, RowStatus::Ambiguous);
+  // A weak reflection (20 %) is tolerated and the main stripe is found.
+  auto c = gaussian_row(400, 100.0, 1.5, 180.0, 20.0, 0.0, rng);
+  const auto d = gaussian_row(400, 260.0, 1.5, 36.0, 0.0, 0.0, rng);
+  for (std::size_t i = 0; i < c.size(); ++i) c[i] = static_cast<std::uint8_t>(std::min(255, c[i] + d[i]));
+  const RowPeak r = extract_row<std::uint8_t>(c.data(), 400, 1, 255.0, ExtractParams{});
+  ASSERT_EQ(r.status, RowStatus::Ok);
+  EXPECT_NEAR(r.col, 100.0, 0.05);
+}
+
+TEST(Extract, FlagsSaturationPlateau) {
+  std::mt19937 rng(4);
+  const auto row = gaussian_row(400, 200.0, 3.0, 900.0, 20.0, 0.0, rng);  // clipped at 255 over many pixels
+  EXPECT_EQ(extract_row<std::uint8_t>(row.data(), 400, 1, 255.0, ExtractParams{}).status, RowStatus::Saturated);
+}
+
+TEST(Extract, FrameFormatsAgree) {
+  std::mt19937 rng(5);
+  const std::uint32_t w = 256, h = 8;
+  std::vector<std::uint8_t> mono8(w * h), yuyv(w * h * 2);
+  std::vector<std::uint16_t> mono16(w * h);
+  for (std::uint32_t y = 0; y < h; ++y) {
+    const auto row = gaussian_row(w, 40.0 + 20.0 * y + 0.25 * y, 1.6, 170.0, 10.0, 0.0, rng);
+    for (std::uint32_t x = 0; x < w; ++x) {
+      mono8[y * w + x] = row[x];
+      mono16[y * w + x] = static_cast<std::uint16_t>(row[x] * 257);
+      yuyv[(y * w + x) * 2] = row[x];
+      yuyv[(y * w + x) * 2 + 1] = 128;
+    }
+  }
+  // Row 3 without stripe.
+  for (std::uint32_t x = 0; x < w; ++x) {
+    mono8[3 * w + x] = 10;
+    mono16[3 * w + x] = 2570;
+    yuyv[(3 * w + x) * 2] = 10;
+  }
+  std::vector<msg::StripePoint> out8(h), out16(h), outy(h);
+  FrameView f8{mono8.data(), w, h, w, PixelFormat::Mono8, 0, 0, 0};
+  FrameView f16{reinterpret_cast<const std::uint8_t*>(mono16.data()), w, h, w * 2, PixelFormat::Mono16, 0, 0, 0};
+  FrameView fy{yuyv.data(), w, h, w * 2, PixelFormat::Yuyv, 0, 0, 0};
+  const auto c8 = extract_frame(f8, ExtractParams{}, out8);
+  const auto c16 = extract_frame(f16, ExtractParams{}, out16);
+  const auto cy = extract_frame(fy, ExtractParams{}, outy);
+  EXPECT_EQ(c8.points, h - 1);
+  EXPECT_EQ(c8.no_stripe, 1u);
+  EXPECT_EQ(c16.points, h - 1);
+  EXPECT_EQ(cy.points, h - 1);
+  for (std::uint32_t i = 0; i < c8.points; ++i) {
+    const std::uint32_t y = out8[i].row;
+    EXPECT_NEAR(out8[i].col, 40.0 + 20.0 * y + 0.25 * y, 0.05);
+    EXPECT_NEAR(out16[i].col, out8[i].col, 1e-3);
+    EXPECT_NEAR(outy[i].col, out8[i].col, 1e-3);
+    EXPECT_GT(out16[i].peak, 40000);
+  }
+  // Output capacity is respected.
+  std::vector<msg::StripePoint> small(2);
+  EXPECT_EQ(extract_frame(f8, ExtractParams{}, small).points, 2u);
+}
+
+TEST(Extract, ParsesMethodNames) {
+  EXPECT_EQ(parse_subpixel_method("cog"), SubpixelMethod::CentreOfGravity);
+  EXPECT_EQ(parse_subpixel_method("blais-rioux"), SubpixelMethod::BlaisRioux);
+  EXPECT_THROW(parse_subpixel_method("fft"), fs::Error);
+}
+
+}  // namespace
+}  // namespace fs::fw

@@ -1,0 +1,70 @@
+// Benchmarks: building models, computing symmetry groups, loading .fslib files, partial views.
+#include <benchmark/benchmark.h>
+
+#include <filesystem>
+
+#include "common/mesh.hpp"
+#include "host/library/library.hpp"
+#include "host/library/polycubes.hpp"
+#include "host/library/views.hpp"
+#include "support/test_paths.hpp"
+
+namespace {
+
+namespace stdfs = std::filesystem;
+
+fs::host::Library polyhedra_library() {
+  fs::host::Library lib;
+  for (const auto& e : stdfs::directory_iterator(fs::test::shared_data() / "polyhedra/polyhedra-viewer/off"))
+    lib.add(fs::host::build_model(fs::read_mesh(e.path())));
+  return lib;
+}
+
+void BM_BuildAllPolyhedra(benchmark::State& state) {
+  for (auto _ : state) benchmark::DoNotOptimize(polyhedra_library());
+  state.SetLabel("120 OFF solids: read + build_model (incl. symmetry)");
+}
+BENCHMARK(BM_BuildAllPolyhedra)->Unit(benchmark::kMillisecond);
+
+void BM_LoadPolyhedraLibrary(benchmark::State& state) {
+  const auto bytes = polyhedra_library().to_bytes();
+  for (auto _ : state) benchmark::DoNotOptimize(fs::host::Library::from_bytes(bytes, "bench"));
+  state.SetLabel(std::to_string(bytes.size()) + " bytes, 120 models");
+}
+BENCHMARK(BM_LoadPolyhedraLibrary)->Unit(benchmark::kMillisecond);
+
+void BM_EnumeratePolycubes(benchmark::State& state) {
+  for (auto _ : state) benchmark::DoNotOptimize(fs::host::enumerate_polycubes(static_cast<int>(state.range(0))));
+}
+BENCHMARK(BM_EnumeratePolycubes)->Arg(6)->Arg(8)->Unit(benchmark::kMillisecond);
+
+void BM_PolycubeLibrary6(benchmark::State& state) {
+  for (auto _ : state) {
+    fs::host::Library lib;
+    const auto all = fs::host::enumerate_polycubes(6);
+    for (std::size_t v = 0; v < all.size(); ++v)
+      for (std::size_t i = 0; i < all[v].size(); ++i)
+        lib.add(fs::host::polycube_model(all[v][i], 20, fs::host::polycube_name(static_cast<int>(v + 1), i + 1)));
+    benchmark::DoNotOptimize(lib);
+  }
+}
+BENCHMARK(BM_PolycubeLibrary6)->Unit(benchmark::kMillisecond);
+
+void BM_SymmetrySnubDodecahedron(benchmark::State& state) {
+  const auto m = fs::host::build_model(
+      fs::read_mesh(fs::test::shared_data() / "polyhedra/polyhedra-viewer/off/snub-dodecahedron.off"));
+  for (auto _ : state) benchmark::DoNotOptimize(fs::host::compute_symmetries(m));
+}
+BENCHMARK(BM_SymmetrySnubDodecahedron)->Unit(benchmark::kMicrosecond);
+
+void BM_PartialView(benchmark::State& state) {
+  const auto m = fs::host::build_model(
+      fs::read_mesh(fs::test::shared_data() / "polyhedra/polyhedra-viewer/off/truncated-icosidodecahedron.off"));
+  const fs::Mat3 R = Eigen::AngleAxisd(0.3, fs::Vec3(1, 2, 3).normalized()).toRotationMatrix();
+  for (auto _ : state) benchmark::DoNotOptimize(fs::host::partial_view(m, R, fs::Vec3(0, 0, -1)));
+}
+BENCHMARK(BM_PartialView)->Unit(benchmark::kMicrosecond);
+
+}  // namespace
+
+BENCHMARK_MAIN();

@@ -1,0 +1,181 @@
+// bench_match: states/s and time to the best solution of the inexact matcher (thesis ch. 7).
+//  - BM_AllPolyhedra/mode: the 120 polyhedra of ../shared/data/polyhedra, each against a rigid partial view of
+//                          itself; mode 0 = first solution (TH_solutions = 1), 1 = full search (budget 50000)
+//  - BM_PolyhedronView/i:  polyhedron i alone, first-solution mode
+//  - BM_ByGraphSize/n:     prisms with n faces, growth with graph size (both modes)
+//  - BM_Library/N/T:       one scene against the first N polyhedra, ParallelMatcher with T threads
+#include <benchmark/benchmark.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <random>
+#include <vector>
+
+#include "common/mesh.hpp"
+#include "host/match/inexact.hpp"
+#include "host/match/parallel.hpp"
+#include "host/match/params.hpp"
+#include "support/test_paths.hpp"
+#include "match_helpers.hpp"
+#include "test_graphs.hpp"
+#include <chrono>
+
+namespace {
+
+using namespace fs::host::match;
+using fs::Mat3;
+using fs::Vec3;
+using fs::host::Pfrg;
+
+const Vec3 kViewDir(0, 0, -1);
+
+struct Pair {
+  std::string name;
+  Pfrg model, scene;
+  Mat3 R;
+};
+
+// Mode 0: the preset of FS_BENCH_PRESET (default t7.34) stopped at the first solution; mode 1: full search.
+MatchParams mode_params(int mode) {
+  const char* env = std::getenv("FS_BENCH_PRESET");
+  MatchParams p = preset(env ? env : "t7.34");
+  if (mode == 0) p.max_solutions = 1;
+  return p;
+}
+
+const std::vector<Pair>& polyhedra() {
+  static const std::vector<Pair> pairs = [] {
+    std::vector<Pair> out;
+    std::vector<std::filesystem::path> files;
+    for (const auto& e : std::filesystem::directory_iterator(fs::test::shared_data() / "polyhedra/polyhedra-viewer/off"))
+      files.push_back(e.path());
+    std::sort(files.begin(), files.end());
+    std::mt19937 rng(1);
+    for (const auto& f : files) {
+      Pair p;
+      p.name = f.stem().string();
+      p.model = fs::test::mesh_pfrg(fs::read_mesh(f), 50.0);
+      p.R = fs::test::random_rotation(rng);
+      p.scene = fs::test::rigid_view(p.model, p.R, kViewDir);
+      out.push_back(std::move(p));
+    }
+    return out;
+  }();
+  return pairs;
+}
+
+fs::Mesh prism(int sides) {
+  fs::Mesh m;
+  m.name = "prism" + std::to_string(sides);
+  for (int z = 0; z < 2; ++z)
+    for (int i = 0; i < sides; ++i) {
+      const double a = 2 * 3.141592653589793 * i / sides;
+      m.vertices.push_back(Vec3(50 * std::cos(a), 50 * std::sin(a), 60.0 * z));
+    }
+  std::vector<std::uint32_t> bottom, top;
+  for (int i = 0; i < sides; ++i) {
+    bottom.push_back(static_cast<std::uint32_t>(sides - 1 - i));
+    top.push_back(static_cast<std::uint32_t>(sides + i));
+    const auto a = static_cast<std::uint32_t>(i), b = static_cast<std::uint32_t>((i + 1) % sides);
+    m.faces.push_back({a, b, b + static_cast<std::uint32_t>(sides), a + static_cast<std::uint32_t>(sides)});
+  }
+  m.faces.push_back(bottom);
+  m.faces.push_back(top);
+  return m;
+}
+
+void report(benchmark::State& state, std::int64_t states, std::int64_t matches) {
+  state.counters["states/s"] = benchmark::Counter(static_cast<double>(states), benchmark::Counter::kIsRate);
+  state.counters["states/match"] = benchmark::Counter(static_cast<double>(states) / static_cast<double>(matches));
+}
+
+void BM_AllPolyhedra(benchmark::State& state) {
+  const int mode = static_cast<int>(state.range(0));
+  InexactMatcher m;
+  const MatchParams params = mode_params(mode);
+  double max_us = 0, sum_us = 0, max30_us = 0, best_sum_us = 0;
+  std::int64_t states = 0, pairs = 0, correct = 0, budget_stops = 0;
+  for (auto _ : state) {
+    for (const Pair& p : polyhedra()) {
+      const auto t0 = std::chrono::steady_clock::now();
+      const MatchResult& r = m.match(p.scene, p.model, params);
+      const double us = std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count();
+      max_us = std::max(max_us, us);
+      if (p.model.nodes.size() <= 30) max30_us = std::max(max30_us, us);
+      sum_us += us;
+      best_sum_us += r.stats.time_to_best_ms * 1000.0;
+      states += r.stats.states_created;
+      budget_stops += r.stats.stop == StopReason::kStateBudget;
+      ++pairs;
+      if (!r.solutions.empty() && fs::test::judge(p.model, p.R, r.solutions[0]).equivalent) ++correct;
+    }
+  }
+  state.counters["mean_us/pair"] = sum_us / static_cast<double>(pairs);
+  state.counters["mean_us_to_best"] = best_sum_us / static_cast<double>(pairs);
+  state.counters["max_us/pair"] = max_us;
+  state.counters["max_us/pair<=30"] = max30_us;
+  state.counters["correct_first_%"] = 100.0 * static_cast<double>(correct) / static_cast<double>(pairs);
+  state.counters["budget_stops"] = static_cast<double>(budget_stops) / static_cast<double>(state.iterations());
+  state.counters["states/s"] = static_cast<double>(states) / (sum_us * 1e-6);
+}
+
+void BM_PolyhedronView(benchmark::State& state) {
+  const Pair& p = polyhedra()[static_cast<std::size_t>(state.range(0))];
+  InexactMatcher m;
+  const MatchParams params = mode_params(0);
+  std::int64_t states = 0, n = 0;
+  for (auto _ : state) {
+    const MatchResult& r = m.match(p.scene, p.model, params);
+    states += r.stats.states_created;
+    ++n;
+    benchmark::DoNotOptimize(r.solutions.data());
+  }
+  report(state, states, n);
+  state.SetLabel(p.name + " " + std::to_string(p.model.nodes.size()) + " faces, view " +
+                 std::to_string(fs::test::real_ids(p.scene).size()));
+}
+
+void BM_ByGraphSize(benchmark::State& state) {
+  const int faces = static_cast<int>(state.range(0));
+  const int mode = static_cast<int>(state.range(1));
+  const Pfrg model = fs::test::mesh_pfrg(prism(faces - 2));
+  const Mat3 R = Eigen::AngleAxisd(1.2, Vec3(1, 0.2, 0).normalized()).toRotationMatrix();
+  const Pfrg scene = fs::test::rigid_view(model, R, kViewDir);
+  InexactMatcher m;
+  const MatchParams params = mode_params(mode);
+  std::int64_t states = 0, n = 0;
+  for (auto _ : state) {
+    const MatchResult& r = m.match(scene, model, params);
+    states += r.stats.states_created;
+    ++n;
+  }
+  report(state, states, n);
+  state.SetLabel("view " + std::to_string(fs::test::real_ids(scene).size()) + " faces");
+}
+
+void BM_Library(benchmark::State& state) {
+  const auto n = static_cast<std::size_t>(state.range(0));
+  const int threads = static_cast<int>(state.range(1));
+  std::vector<Pfrg> refs;
+  for (std::size_t i = 0; i < n; ++i) refs.push_back(polyhedra()[i % polyhedra().size()].model);
+  const Pfrg& scene = polyhedra()[7].scene;
+  ParallelMatcher pm(threads);
+  const MatchParams params = mode_params(0);
+  std::int64_t states = 0, k = 0;
+  for (auto _ : state) {
+    const auto res = pm.match(scene, refs, params, 4);
+    for (const auto& r : res) states += r.stats.states_created;
+    ++k;
+  }
+  report(state, states, k);
+}
+
+}  // namespace
+
+BENCHMARK(BM_AllPolyhedra)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->Iterations(1);
+BENCHMARK(BM_PolyhedronView)->DenseRange(0, 119)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_ByGraphSize)->ArgsProduct({{6, 8, 10, 14, 18, 22, 26, 30}, {0, 1}})->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_Library)->ArgsProduct({{10, 30, 60, 120}, {1, 2}})->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_MAIN();

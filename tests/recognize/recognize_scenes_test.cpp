@@ -1,0 +1,100 @@
+// Recognition on the shipped hw-sim scenes (ideal scan grids with depth noise): the right models, the right
+// poses, the right face correspondences, nothing else.
+#include <gtest/gtest.h>
+
+#include <iostream>
+#include <map>
+
+#include <nlohmann/json.hpp>
+
+#include "host/library/mesh_files.hpp"
+#include "host/recognize/pose.hpp"
+#include "host/recognize/recognizer.hpp"
+#include "hw-sim/scene/ground_truth_grid.hpp"
+#include "hw-sim/scene/scene.hpp"
+#include "support/test_paths.hpp"
+
+namespace {
+
+using fs::host::rec::Recognizer;
+
+const fs::host::Library& library() {
+  static const fs::host::Library lib = fs::host::load_or_build_library(
+      {(fs::test::source_dir() / "hw-sim/scenes/meshes").string()});
+  return lib;
+}
+
+struct SceneRun {
+  fs::sim::Scene scene;
+  fs::host::OrganizedCloud cloud;
+};
+
+SceneRun scan(const std::string& name, std::uint32_t steps = 300, double noise_mm = 0.05) {
+  SceneRun s;
+  s.scene = fs::sim::load_scene(fs::test::source_dir() / "hw-sim/scenes" / (name + ".json"));
+  fs::sim::resample_sweep(s.scene.calibration, steps);
+  const auto gt = fs::sim::make_ground_truth_grid(s.scene, {.depth_noise_mm = noise_mm, .seed = 7});
+  gt.export_to(s.cloud);
+  return s;
+}
+
+// Every scene object is found once with the right model and pose; no extra objects.
+void expect_scene_recognized(const std::string& name) {
+  SceneRun s = scan(name);
+  fs::host::rec::RecognizeParams params;
+  params.threads = 2;
+  Recognizer rec(library(), params, s.cloud.points.size());
+  const fs::Plane table = s.scene.calibration.table;
+  const auto& r = rec.recognize(s.cloud, &table);
+  if (r.objects.size() != s.scene.objects.size()) {
+    std::cerr << "scene graph: " << fs::host::to_json(rec.scene_graph()).dump() << "\n";
+    for (const auto* h : rec.candidates())
+      std::cerr << library().models[static_cast<std::size_t>(h->model)].name << " cost " << h->cost << " conf "
+                << h->verify.confidence << " inl " << h->verify.inliers << " viol " << h->verify.violations
+                << " occ " << h->verify.occluded << " matches " << h->matches.size() << " t " << h->t.transpose()
+                << "\n";
+    std::cerr << fs::host::rec::to_json(r, library()).dump() << "\n";
+  }
+  ASSERT_EQ(r.objects.size(), s.scene.objects.size()) << name << ": " << r.note;
+  std::vector<bool> used(r.objects.size(), false);
+  for (const auto& obj : s.scene.objects) {
+    bool found = false;
+    for (std::size_t i = 0; i < r.objects.size(); ++i) {
+      const auto& h = r.objects[i];
+      const auto& model = library().models[static_cast<std::size_t>(h.model)];
+      if (used[i] || model.name != obj.name) continue;
+      // Compare the poses: x_world = R x_model + t; symmetric objects may take any equivalent rotation.
+      const double rot_err = fs::host::rec::rotation_angle_deg_sym(obj.rotation, h.R, model);
+      const fs::Vec3 centre_true = obj.rotation * model.center + obj.translation;
+      const fs::Vec3 centre_found = h.R * model.center + h.t;
+      if (rot_err < 1.0 && (centre_true - centre_found).norm() < 1.5) {
+        used[i] = found = true;
+        EXPECT_GT(h.verify.confidence, 0.8) << name << " " << obj.name;
+      } else {
+        ADD_FAILURE() << name << ": " << obj.name << " pose off by " << rot_err << " deg, "
+                      << (centre_true - centre_found).norm() << " mm";
+      }
+    }
+    EXPECT_TRUE(found) << name << ": " << obj.name << " not recognized";
+  }
+}
+
+TEST(RecognizeScenes, Cube) { expect_scene_recognized("cube"); }
+TEST(RecognizeScenes, Pyramid) { expect_scene_recognized("pyramid"); }
+TEST(RecognizeScenes, CubePyramidSeparate) { expect_scene_recognized("cube-pyramid-separate"); }
+TEST(RecognizeScenes, CubeOccludesPyramid) { expect_scene_recognized("cube-occludes-pyramid"); }
+TEST(RecognizeScenes, DefaultDemoScene) { expect_scene_recognized("default"); }
+
+TEST(RecognizeScenes, EmptyTableGivesNoObjectAndSaysWhy) {
+  fs::sim::Scene scene = fs::sim::load_scene(fs::test::source_dir() / "hw-sim/scenes/cube.json");
+  scene.objects.clear();
+  fs::sim::resample_sweep(scene.calibration, 200);
+  fs::host::OrganizedCloud cloud;
+  fs::sim::make_ground_truth_grid(scene, {.depth_noise_mm = 0.05, .seed = 3}).export_to(cloud);
+  Recognizer rec(library(), {}, cloud.points.size());
+  const auto& r = rec.recognize(cloud, &scene.calibration.table);
+  EXPECT_TRUE(r.objects.empty());
+  EXPECT_FALSE(r.note.empty());
+}
+
+}  // namespace

@@ -1,0 +1,94 @@
+// Zero heap allocations per scan after warm-up (segmentation + scene PFRG), with fs::AllocCounter.
+#include <gtest/gtest.h>
+
+#include "common/alloc_counter/alloc_counter.hpp"
+#include "common/error.hpp"
+#include "host/segment/scene_pfrg.hpp"
+#include "host/segment/segmenter.hpp"
+#include "synthetic_scene.hpp"
+
+namespace {
+
+using namespace fs::host;
+using namespace fs::host::seg;
+
+TEST(SegmentAlloc, NoAllocationPerScanAfterWarmUp) {
+  fs::test::SyntheticScene sc;
+  sc.objects.push_back(fs::test::make_pyramid({-30, 10, 0}, 35, 40, 25));
+  sc.objects.push_back(fs::test::make_box({45, -20, 20}, {20, 15, 20}, -15));
+  fs::test::SyntheticGrid a, b;
+  fs::test::render(sc, a, 0.05, 1);
+  sc.objects[1] = fs::test::make_box({40, 30, 15}, {15, 25, 15}, 40);   // a different second scan
+  fs::test::render(sc, b, 0.05, 2);
+
+  SegmentLimits lim;
+  lim.max_cells = a.cloud.points.size();
+  lim.max_regions = 2048;
+  lim.max_borders = 8192;
+  Segmenter segmenter(SegmentParams::laser(), lim);
+  Segmentation s;
+  segmenter.prepare(s);
+  ScenePfrgBuilder builder(lim.max_regions, lim.max_borders);
+  Pfrg g;
+  builder.prepare(g);
+  segmenter.segment(a.cloud, s);   // warm-up
+  builder.build(s, g);
+
+  fs::AllocCounter counter;
+  segmenter.segment(b.cloud, s);
+  builder.build(s, g);
+  segmenter.segment(a.cloud, s);
+  builder.build(s, g);
+  EXPECT_EQ(counter.allocations(), 0u);
+  EXPECT_GE(g.nodes.size(), 7u);   // the work was done: SN + table + >= 5 faces
+}
+
+TEST(SegmentLimits, RegionBudgetExhaustionIsFlaggedNotFatal) {
+  // A staircase of many small planes with a tiny region budget.
+  OrganizedCloud c;
+  c.reset(120, 60);
+  c.viewpoint = fs::Vec3(60, 30, 400);
+  for (std::uint32_t r = 0; r < 60; ++r)
+    for (std::uint32_t k = 0; k < 120; ++k) c.at(r, k) = Eigen::Vector3f(float(k), float(r), float((k / 10) * 8));
+  SegmentLimits lim;
+  lim.max_cells = c.points.size();
+  lim.max_regions = 4;
+  lim.max_borders = 16;
+  Segmenter segmenter(SegmentParams::laser(), lim);
+  Segmentation s;
+  segmenter.segment(c, s);
+  EXPECT_TRUE(s.truncated);
+  EXPECT_LE(s.regions.size(), 4u);
+  ScenePfrgBuilder builder(lim.max_regions, lim.max_borders);
+  Pfrg g;
+  builder.build(s, g);
+  EXPECT_GE(g.nodes.size(), 2u);
+}
+
+TEST(SegmentInput, MismatchedGridIsAnError) {
+  OrganizedCloud c;
+  c.width = 10;
+  c.height = 10;
+  c.points.resize(50);
+  Segmenter segmenter;
+  Segmentation s;
+  EXPECT_THROW(segmenter.segment(c, s), fs::Error);
+}
+
+TEST(SegmentInput, AllNanAndEmptyGridsGiveOnlyTheSupernode) {
+  Segmenter segmenter;
+  ScenePfrgBuilder builder;
+  for (std::uint32_t w : {0u, 37u}) {
+    OrganizedCloud c;
+    c.reset(w, w ? 23 : 0);
+    Segmentation s;
+    segmenter.segment(c, s);
+    EXPECT_TRUE(s.regions.empty());
+    Pfrg g;
+    builder.build(s, g);
+    ASSERT_EQ(g.nodes.size(), 1u);
+    EXPECT_TRUE(g.arcs.empty());
+  }
+}
+
+}  // namespace
