@@ -51,6 +51,7 @@ void apply_config_json(FwConfig& c, const std::string& text, const std::string& 
   for (const auto& [k, v] : doc.items()) {
     if (k == "galvo") c.galvo = get_str(v, src, k);
     else if (k == "camera") c.camera = get_str(v, src, k);
+    else if (k == "laser") c.laser = get_str(v, src, k);
     else if (k == "scene") c.scene = get_str(v, src, k);
     else if (k == "stream") c.stream = get_str(v, src, k);
     else if (k == "record") c.record = get_str(v, src, k);

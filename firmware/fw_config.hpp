@@ -2,6 +2,7 @@
 // facetscan-fw configuration: a JSON file (--config) and/or command-line flags (flags win).
 //   {
 //     "galvo": "sim" | "sim-can[:...]" | "gpio:..." | "can:...",   "camera": "sim" | "v4l2:...",
+//     "laser": "gpio:CHIP:line=L[,active_low=1]"   (a laser on its own GPIO line, e.g. with the CAN galvo)
 //     "scene": "hw-sim/scenes/cube.json",  "steps": 500,  "first_step": 0,
 //     "stream": "HOST:PORT",  "record": "scan.fscan",  "rt": false,  "rt_priority": 80,  "rt_cpu": -1,
 //     "virtual_time": true,  "faults": ["galvo.stall@step=120"],
@@ -26,6 +27,7 @@ namespace fs::fw {
 struct FwConfig {
   std::string galvo = "sim";
   std::string camera = "sim";
+  std::string laser;                 // "gpio:CHIP:line=L[,active_low=1]"; empty: the galvo's laser= line / the twin
   std::string scene;                 // empty: the shipped default scene
   std::string stream;                // HOST:PORT
   std::string record;                // .fscan path

@@ -3,6 +3,8 @@
 //   facetscan-fw --galvo sim-can --record scan.fscan --fault camera.drop@frame=40
 //   facetscan-fw --galvo gpio:gpiochip0:step=17,dir=27,en=22,home=23,laser=24 --camera v4l2:/dev/video0
 //                --stream 192.168.1.10:5555 --rt   (one command line)
+//   facetscan-fw --galvo can:can0:node=1 --camera v4l2:/dev/video0 --laser gpio:gpiochip0:line=24 --record s.fscan
+//   facetscan-fw --check --galvo can:can0 --camera v4l2:/dev/video0 --laser gpio:gpiochip0:line=24
 //   facetscan-fw sim-frame --scene hw-sim/scenes/default.json --step 250 -o f.png
 #include <CLI/CLI.hpp>
 #include <fmt/core.h>
@@ -28,6 +30,7 @@
 #include "hw-sim/scene_frame_renderer.hpp"
 #include "hw-sim/sim_rig.hpp"
 #if __has_include("firmware/backends/factory.hpp") && defined(FACETSCAN_HAVE_BACKENDS)
+#include "firmware/backends/device_check.hpp"
 #include "firmware/backends/factory.hpp"
 #include "hw-sim/can/cia402_twin.hpp"
 #define FS_BACKENDS 1
@@ -99,6 +102,8 @@ int run_scan(fw::FwConfig& cfg) {
   } else if (!cfg.faults.empty()) {
     throw Error("--fault needs the simulated devices (--galvo sim --camera sim)");
   }
+  if (sim_camera && !cfg.laser.empty())
+    throw Error("--laser '" + cfg.laser + "': the simulated camera sees the simulated laser; use --laser with --camera v4l2:...");
 
   fw::MonotonicClock mono;
   fw::Clock* clock = rig ? static_cast<fw::Clock*>(&rig->clock) : &mono;
@@ -134,12 +139,19 @@ int run_scan(fw::FwConfig& cfg) {
       camera_owned = fw::make_v4l2_camera(cfg.camera);
       camera = camera_owned.get();
     }
+    if (!cfg.laser.empty()) {
+      if (laser_owned)
+        throw Error("--laser '" + cfg.laser + "': the --galvo gpio spec already has a laser= line; give only one");
+      if (!starts_with(cfg.laser, "gpio:"))
+        throw Error("--laser '" + cfg.laser + "': expected gpio:CHIP:line=L[,active_low=1]");
+      laser_owned = fw::make_gpio_laser(cfg.laser);
+    }
     if (!laser) laser = laser_owned.get();
 #else
     throw Error("--galvo '" + cfg.galvo + "': this build has no device backends");
 #endif
   }
-  if (!laser) throw Error("no laser line: give laser=LINE in the --galvo gpio spec");
+  if (!laser) throw Error("no laser line: give --laser gpio:CHIP:line=L (or laser=LINE in the --galvo gpio spec)");
 
   // Output: recording and/or stream.
   std::unique_ptr<ScanFileWriter> file;
@@ -180,6 +192,9 @@ int run_scan(fw::FwConfig& cfg) {
   const fw::LoopReport& rep = ctl.run();
   pub.flush();
   if (file) file->close();
+  // Hand the last frames (the final stripes and ScanEnd) to the host before the process exits.
+  if (tcp && !tcp->drain(2'000'000'000))
+    std::fprintf(stderr, "facetscan-fw: warning: the host did not take the last frames within 2 s\n");
 
   const msg::LoopStats s = rep.stats();
   std::fprintf(stderr,
@@ -207,16 +222,20 @@ int main(int argc, char** argv) {
   fw::FwConfig cfg;
   std::string config_path;
   std::uint32_t steps = 0;
-  bool realtime = false, virtual_time = false;
+  bool realtime = false, virtual_time = false, check = false;
   app.add_option("--config", config_path, "JSON configuration file (flags override it)")->check(CLI::ExistingFile);
   app.add_option("--galvo", cfg.galvo, "sim | sim-can[:node=N,...] | gpio:CHIP:step=L,dir=L,en=L,home=L[,laser=L] | can:IFACE[:...]");
   app.add_option("--camera", cfg.camera, "sim | v4l2:/dev/videoN[:fmt=GREY,...]");
+  app.add_option("--laser", cfg.laser, "gpio:CHIP:line=L[,active_low=1] (a laser on its own line, e.g. with --galvo can:...)");
   app.add_option("--scene", cfg.scene, "scene JSON for the simulated camera (default: the shipped default scene)");
   app.add_option("--steps", steps, "number of galvo steps of the scan")->check(CLI::Range(1, 100000));
   app.add_option("--stream", cfg.stream, "stream to the host HOST:PORT (reconnects with backoff)");
   app.add_option("--record", cfg.record, "record the scan to a .fscan file");
   app.add_flag("--rt", cfg.rt, "SCHED_FIFO + mlockall + CPU affinity for the loop (warns when not permitted)");
   app.add_option("--fault", cfg.faults, "inject a fault into the twins, e.g. galvo.stall@step=120 (repeatable)");
+  app.add_flag("--check", check,
+               "probe the configured devices (GPIO chip/lines, CAN drive, camera formats), print what is found and "
+               "what is missing; exit 0 only when everything is there (3 otherwise)");
   auto* rt_opt = app.add_flag("--realtime", realtime, "run the twins in real time");
   app.add_flag("--virtual-time", virtual_time, "run the twins on virtual time (default with sim devices)")->excludes(rt_opt);
   fs::sim::add_sim_frame_command(app);
@@ -238,6 +257,7 @@ int main(int argc, char** argv) {
       // Flags given on the command line win over the file.
       if (app.count("--galvo")) fromfile.galvo = flags.galvo;
       if (app.count("--camera")) fromfile.camera = flags.camera;
+      if (app.count("--laser")) fromfile.laser = flags.laser;
       if (app.count("--scene")) fromfile.scene = flags.scene;
       if (app.count("--stream")) fromfile.stream = flags.stream;
       if (app.count("--record")) fromfile.record = flags.record;
@@ -251,6 +271,20 @@ int main(int argc, char** argv) {
     }
     if (realtime) cfg.virtual_time = false;
     if (virtual_time) cfg.virtual_time = true;
+    if (check) {
+#ifdef FS_BACKENDS
+      const fw::CheckReport r = fw::check_devices(cfg.galvo, cfg.camera, cfg.laser);
+      std::fputs(r.text().c_str(), stdout);
+      if (r.ok()) {
+        std::printf("facetscan-fw --check: all %zu checks passed\n", r.items.size());
+        return 0;
+      }
+      std::printf("facetscan-fw --check: %zu of %zu checks failed (MISS above)\n", r.failed(), r.items.size());
+      return 3;
+#else
+      throw fs::Error("--check: this build has no device backends");
+#endif
+    }
     return run_scan(cfg);
   } catch (const fs::Error& e) {
     std::fprintf(stderr, "facetscan-fw: error: %s\n", e.what());

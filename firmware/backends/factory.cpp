@@ -131,7 +131,9 @@ CanSpec parse_can_spec(std::string_view spec) {
     else if (kv.key == "hb") c.heartbeat_ms = number<std::uint16_t>(spec, kv, 10, 10000);
     else if (kv.key == "vel") c.velocity = number<std::uint32_t>(spec, kv, 1, 100'000'000);
     else if (kv.key == "acc") c.acceleration = number<std::uint32_t>(spec, kv, 1, 1'000'000'000);
-    else bad(spec, "unknown key '" + std::string(kv.key) + "' (known: node, hb, vel, acc)");
+    else if (kv.key == "sdo_ms") c.sdo_timeout_ms = number<std::uint32_t>(spec, kv, 1, 60000);
+    else if (kv.key == "state_ms") c.state_timeout_ms = number<std::uint32_t>(spec, kv, 1, 600000);
+    else bad(spec, "unknown key '" + std::string(kv.key) + "' (known: node, hb, vel, acc, sdo_ms, state_ms)");
   }
   return c;
 }
@@ -191,6 +193,8 @@ Cia402Config master_config(const CanSpec& c) {
   m.heartbeat_ms = c.heartbeat_ms;
   m.velocity = c.velocity;
   m.acceleration = c.acceleration;
+  m.sdo_timeout = static_cast<Nanos>(c.sdo_timeout_ms) * 1'000'000;
+  m.state_timeout = static_cast<Nanos>(c.state_timeout_ms) * 1'000'000;
   return m;
 }
 }  // namespace

@@ -2,7 +2,8 @@
 // Real device backends from the command-line spec strings of facetscan-fw:
 //   --galvo gpio:CHIP:step=L,dir=L,en=L,home=L[,laser=L][,home_active_low=0|1][,en_active_low=0|1]
 //        CHIP = gpiochipN, /dev/gpiochipN, a chip label or number; L = line offset or line name.
-//   --galvo can:IFACE[:node=N][,hb=MS][,vel=STEPS_PER_S][,acc=STEPS_PER_S2]   CiA 402 drive on SocketCAN
+//   --galvo can:IFACE[:node=N][,hb=MS][,vel=STEPS_PER_S][,acc=STEPS_PER_S2][,sdo_ms=MS][,state_ms=MS]
+//        CiA 402 drive on SocketCAN (sdo_ms: SDO timeout per attempt, default 50; state_ms: enable/homing, 500)
 //   --galvo sim-can[:node=N][,...same keys as can]   the same CiA 402 master driving the hw-sim twin over a
 //        socketpair (deterministic with a SimClock: poll() services the twin too)
 //   --camera v4l2:/dev/videoN[:fmt=GREY|Y16|YUYV][,width=W][,height=H][,fps=F][,exposure=E][,buffers=N]
@@ -51,6 +52,8 @@ struct CanSpec {
   std::uint16_t heartbeat_ms = 100;
   std::uint32_t velocity = 20000; // profile velocity, steps/s
   std::uint32_t acceleration = 400000;  // profile acceleration = deceleration, steps/s^2
+  std::uint32_t sdo_timeout_ms = 50;     // per SDO attempt (sdo_ms=)
+  std::uint32_t state_timeout_ms = 500;  // enable / fault reset / homing steps (state_ms=)
 };
 
 enum class V4l2Fourcc : std::uint8_t { Grey = 0, Y16 = 1, Yuyv = 2 };

@@ -232,6 +232,9 @@ void Controller::tick(Nanos now) {
     if (r == GrabResult::Error) return fault(FaultCode::CameraError, now);
     account_frame(f, now);
     const bool taken = st == State::Scanning && phase_ == Phase::Expose && handle_frame(f, now);
+    // Done / Fault stopped the camera inside handle_frame: its buffers are gone with it (a real V4L2 camera
+    // refuses the release of a buffer it no longer hands out), so release only while still running.
+    if (report_.state != st) break;
     dev_.camera.release(f);
     if (taken) break;
   }

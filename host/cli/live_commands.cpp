@@ -62,7 +62,7 @@ class ScanHandler {
                  r.stats.total_ms, r.stats.segment_ms, r.stats.match_ms, r.stats.verify_ms);
     }
     if (!out_dir_.empty()) {
-      const stdfs::path dir = stdfs::path(out_dir_) / fmt::format("scan-{}", scan.scan_id());
+      const stdfs::path dir = stdfs::path(out_dir_) / fmt::format("scan-{:03}-id{}", scans_, scan.scan_id());
       rec::write_report(dir / "report", fmt::format("scan {}", scan.scan_id()), cloud_, *recognizer_, r);
       nlohmann::json j = rec::to_json(r, library_);
       j["scan"] = {{"scan_id", scan.scan_id()}, {"status", to_string(scan.status())}, {"partial", partial},
@@ -187,14 +187,28 @@ int run_demo(const DemoOptions& o) {
   if (posix_spawn(&pid, argv[0], nullptr, nullptr, argv.data(), environ) != 0)
     throw Error(fw.string() + ": cannot start the firmware");
 
-  Progress progress(0, o.quiet, 0.0);
+  // The number of steps of the scan, for the progress bar: --steps, else the scene's, else the default 500.
+  std::size_t steps = o.steps > 0 ? static_cast<std::size_t>(o.steps) : 500;
+  if (o.steps <= 0) {
+    try {
+      std::ifstream sf(scene);
+      const nlohmann::json sj = nlohmann::json::parse(sf);
+      if (sj.contains("scanner") && sj["scanner"].contains("steps")) steps = sj["scanner"]["steps"].get<std::size_t>();
+    } catch (const std::exception&) {
+    }
+  }
+  Progress progress(steps, o.quiet, 0.0);
+  std::uint64_t shown = 0;
   const auto start = std::chrono::steady_clock::now();
   int status = 0;
   bool exited = false;
   while (handler.scans() == 0) {
     server.poll_once(50);
     const std::uint64_t frames = server.stats().frames;
-    progress.update(static_cast<std::size_t>(frames), "frames received from facetscan-fw");
+    if (frames >= shown + 10 || (frames > shown && frames >= steps)) {
+      shown = frames;
+      progress.update(static_cast<std::size_t>(std::min<std::uint64_t>(frames, steps)), "stripes received");
+    }
     if (!exited && waitpid(pid, &status, WNOHANG) == pid) exited = true;
     if (exited && !server.connected()) {
       // The firmware is gone; give the stream a moment, then deliver what arrived as partial.
@@ -228,7 +242,7 @@ void add_live_commands(CLI::App& app) {
   serve->add_option("-l,--library", so->library, "Library: a .fslib file, or mesh files / directories")
       ->required()
       ->expected(1, -1);
-  serve->add_option("-o,--out", so->out_dir, "Write result.json and an HTML report per scan into DIR/scan-<id>/");
+  serve->add_option("-o,--out", so->out_dir, "Write result.json and an HTML report per scan into DIR/scan-<n>-id<scan id>/");
   serve->add_option("--params", so->params, "Match parameters: a preset or a JSON file");
   serve->add_option("--max-scans", so->max_scans, "Stop after N scans (0 = run until interrupted)");
   serve->add_flag("-q,--quiet", so->quiet, "Print nothing per scan");

@@ -1,6 +1,7 @@
 // facetscan recognize | serve | demo
 #include <algorithm>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <memory>
@@ -17,6 +18,7 @@
 #include "host/io/load.hpp"
 #include "host/library/mesh_files.hpp"
 #include "host/match/params.hpp"
+#include "host/pfrg/pfrg.hpp"
 #include "host/recognize/recognizer.hpp"
 #include "host/recognize/report.hpp"
 
@@ -123,6 +125,17 @@ void run_recognize(const RecognizeOptions& o) {
         recognizer_profile = profile;
       }
       const rec::Recognition& r = recognizer->recognize(cloud);
+      if (std::getenv("FACETSCAN_DEBUG")) {
+        std::fprintf(stderr, "scene graph: %s\n", to_json(recognizer->scene_graph()).dump().c_str());
+        for (const rec::Hypothesis* h : recognizer->candidates()) {
+          std::string m;
+          for (const auto& fm : h->matches) m += fmt::format(" {}:{}{}", fm.scene, fm.ref, fm.expanded ? "e" : "");
+          std::fprintf(stderr, "candidate %-20s cost %.5f conf %.3f inl %d viol %d occ %d t (%.1f %.1f %.1f) [%s]\n",
+                       library.models[static_cast<std::size_t>(h->model)].name.c_str(), h->cost, h->verify.confidence,
+                       h->verify.inliers, h->verify.violations, h->verify.occluded, h->t.x(), h->t.y(), h->t.z(),
+                       m.c_str());
+        }
+      }
       nlohmann::json j = rec::to_json(r, library);
       j["input"] = {{"file", path}, {"format", info.format}, {"width", cloud.width}, {"height", cloud.height},
                     {"valid_points", info.valid_points}, {"complete_scan", info.complete_scan}};

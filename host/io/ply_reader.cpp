@@ -175,6 +175,7 @@ void read_ply(std::span<const std::byte> data, const std::string& name, Organize
   int ix = -1, iy = -1, iz = -1, ilabel = -1;
   for (const auto& e : elements) {
     if (e.name != "vertex") continue;
+    if (vertex) throw error_at_offset(name, in.offset(), "more than one vertex element");
     vertex = &e;
     for (std::size_t i = 0; i < e.props.size(); ++i) {
       const auto& p = e.props[i];

@@ -43,6 +43,8 @@ struct State {
   NodeSet cr, cs, tr, ts;          // core / terminal sets (reference, scene); rest = complement
   Mat4 B = Mat4::Zero();           // accumulated sum gamma A (7.5.8)
   Mat3 R = Mat3::Identity();       // best fitting rotation
+  Eigen::Vector4d q{0, 0, 0, 1};   // its quaternion (x y z w): warm start of the children's fits
+  double lambda = 0;               // smallest eigenvalue of B: lower bound of the children's
   double sum_gamma = 0, d_area = 0, d_border = 0, rotfit = 0, cost = 0;
   std::uint64_t hash = 0;
   int parent = -1, child_index = 0, level = 0, r = -1, s = -1;
@@ -187,9 +189,12 @@ struct InexactMatcher::Impl {
     return cost;
   }
 
-  void fit(State& c) const {
-    const RotationFit f = solve_rotation(c.B);
+  FastFitStats fit_stats;
+  void fit(State& c, const State& par) {
+    const RotationFit f = solve_rotation_fast(c.B, par.lambda, par.q, &fit_stats);
     c.R = f.R;
+    c.q = f.q;
+    c.lambda = f.lambda_min;
     c.rotfit = c.sum_gamma > 0 ? f.lambda_min / (2.0 * c.sum_gamma) : 0.0;
   }
 
@@ -222,6 +227,7 @@ struct InexactMatcher::Impl {
     heap.clear();
     heap_push(0);
     st.stop = StopReason::kNoStates;
+    fit_stats = {};
     bool stop = false;
 
     while (!stop) {
@@ -279,10 +285,13 @@ struct InexactMatcher::Impl {
             c.sum_gamma += g;
             if (root) {
               // One pair: zero error, a one-parameter family of rotations; take the smallest one (no solve).
-              c.R = Eigen::Quaterniond::FromTwoVectors(nr, ns).toRotationMatrix();
+              const Eigen::Quaterniond q1 = Eigen::Quaterniond::FromTwoVectors(nr, ns);
+              c.R = q1.toRotationMatrix();
+              c.q = Eigen::Vector4d(q1.x(), q1.y(), q1.z(), q1.w());
+              c.lambda = 0.0;
               c.rotfit = 0.0;
             } else {
-              fit(c);
+              fit(c, par);
             }
             c.first_r = root ? r : par.first_r;
             c.degenerate = root || (par.degenerate && nr.cross(gr.normal[static_cast<std::size_t>(c.first_r)]).norm() < sin_degen);
@@ -332,13 +341,22 @@ struct InexactMatcher::Impl {
           const int dad = (gs.adj[static_cast<std::size_t>(s)] & par.cs).count() - dam;
           // 7 neighbour match
           if (p.on(Condition::kNeighborMatch) && par.level >= 1 && dam == 0) return removed(Condition::kNeighborMatch);
-          if (!fitted) build();
           c.am = par.am + dam;
           c.ai = par.ai + dai;
           c.ad = par.ad + dad;
           const double darea = rel_diss(gr.area[static_cast<std::size_t>(r)], gs.area[static_cast<std::size_t>(s)]);
           c.d_area = par.d_area + darea;
           c.d_border = par.d_border + dborder;
+          if (!fitted) {
+            // 8 cost threshold, early: the cost without the rotation fit term (epsilon e_rotfit / level >= 0) is
+            // a lower bound, so a candidate failing it fails condition 8 anyway; skip its eigen solve.
+            if (p.on(Condition::kCostThreshold) && p.epsilon >= 0) {
+              c.level = par.level + 1;
+              c.rotfit = 0.0;
+              if (cost_of(c) - par.cost > p.th_cost) return removed(Condition::kCostThreshold);
+            }
+            build();
+          }
           c.cost = cost_of(c);
           // 8 cost threshold
           if (p.on(Condition::kCostThreshold) && c.cost - par.cost > p.th_cost) return removed(Condition::kCostThreshold);
@@ -395,6 +413,8 @@ struct InexactMatcher::Impl {
       }
     }
     st.time_ms = static_cast<double>(clock->now_ns() - t0) * 1e-6;
+    st.fits_fast = fit_stats.fast;
+    st.fits_fallback = fit_stats.fallback;
   }
 
   // Subset condition: is a's match set a proper subset of b's?

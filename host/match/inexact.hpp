@@ -66,6 +66,8 @@ struct MatchStats {
   // When the lowest-cost complete leaf was found (states created so far, time since the start).
   std::int64_t states_to_best = 0;
   double time_to_best_ms = 0.0;
+  // Rotation fits of created states: fast path (Newton + inverse iteration) / full eigen solver fallback.
+  std::int64_t fits_fast = 0, fits_fallback = 0;
 };
 
 struct MatchResult {

@@ -6,6 +6,7 @@
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
+#include <Eigen/LU>
 #include <Eigen/SVD>
 
 namespace fs::host::match {
@@ -36,8 +37,102 @@ RotationFit solve_rotation(const Mat4& B) {
   q.normalize();
   RotationFit f;
   f.R = q.toRotationMatrix();
+  f.q = Eigen::Vector4d(q.x(), q.y(), q.z(), q.w());
   f.lambda_min = std::max(0.0, es.eigenvalues()(0));
   f.lambda_gap = es.eigenvalues()(1) - es.eigenvalues()(0);
+  return f;
+}
+
+namespace {
+
+double minor3(const Mat4& M, int i, int j, int k) {
+  const double a = M(i, i), b = M(i, j), c = M(i, k), d = M(j, j), e = M(j, k), f = M(k, k);
+  return a * (d * f - e * e) - b * (b * f - e * c) + c * (b * e - d * c);
+}
+
+}  // namespace
+
+Eigen::Vector4d rotation_quaternion(const Mat3& R) {
+  const Eigen::Quaterniond q(R);
+  return Eigen::Vector4d(q.x(), q.y(), q.z(), q.w());
+}
+
+RotationFit solve_rotation_fast(const Mat4& B, double lambda_lower, const Eigen::Vector4d& hint, FastFitStats* stats) {
+  auto fallback = [&] {
+    if (stats) ++stats->fallback;
+    return solve_rotation(B);
+  };
+  const double tr = B.trace();
+  if (!(tr > 0) || !std::isfinite(tr)) return fallback();
+  // Characteristic polynomial p(l) = l^4 - c3 l^3 + c2 l^2 - c1 l + c0 (principal minors).
+  const double c3 = tr;
+  double c2 = 0;
+  for (int i = 0; i < 4; ++i)
+    for (int j = i + 1; j < 4; ++j) c2 += B(i, i) * B(j, j) - B(i, j) * B(i, j);
+  const double c1 = minor3(B, 0, 1, 2) + minor3(B, 0, 1, 3) + minor3(B, 0, 2, 3) + minor3(B, 1, 2, 3);
+  const double c0 = B.determinant();
+  auto poly = [&](double l, double& dp) {
+    dp = ((4.0 * l - 3.0 * c3) * l + 2.0 * c2) * l - c1;
+    return (((l - c3) * l + c2) * l - c1) * l + c0;
+  };
+  // Newton from below: monotone increasing towards the smallest root.
+  double l = std::max(0.0, std::min(lambda_lower, tr));
+  double dp = 0;
+  bool converged = false;
+  for (int it = 0; it < 40; ++it) {
+    const double pv = poly(l, dp);
+    if (!(dp < 0)) break;   // at / beyond a root or a stationary point: let the checks below decide
+    const double step = -pv / dp;
+    if (!(step > 1e-15 * tr)) {   // converged to rounding level (or a slightly negative step from rounding)
+      converged = true;
+      break;
+    }
+    l += step;
+    if (l > tr) return fallback();
+  }
+  if (!converged) {
+    // dp >= 0 here means l is (to rounding) at the root; accept only if p(l) is tiny.
+    const double pv = poly(l, dp);
+    if (!(std::abs(pv) <= 1e-12 * tr * tr * tr * tr)) return fallback();
+  }
+  poly(l, dp);
+  const double gap_lb = std::abs(dp) / (tr * tr);
+  if (!(gap_lb >= 1e-6 * tr)) return fallback();
+  // Shifted inverse iteration: shift below the root by much less than the gap.
+  const double sigma = l - 1e-11 * tr;
+  Mat4 M = B;
+  M.diagonal().array() -= sigma;
+  const Eigen::PartialPivLU<Mat4> lu(M);
+  Eigen::Vector4d v = hint;
+  if (!v.allFinite() || !(v.squaredNorm() > 0.25)) v = Eigen::Vector4d(0.5, 0.5, 0.5, 0.5);
+  // A small generic component: symmetric data can make the hint exactly orthogonal to the answer (e.g. the
+  // identity vs a half turn), which inverse iteration could never leave.
+  v = v.normalized() + 1e-3 * Eigen::Vector4d(0.3104, -0.5227, 0.7331, 0.1185);
+  v.normalize();
+  for (int it = 0; it < 5; ++it) {
+    Eigen::Vector4d w = lu.solve(v);
+    if (!w.allFinite() || !(w.squaredNorm() > 0)) return fallback();
+    // Keep the hint's sign so consecutive states give close quaternions.
+    if (w.dot(v) < 0) w = -w;
+    w.normalize();
+    const double change = (w - v).squaredNorm();
+    v = w;
+    if (it >= 1 && change < 1e-26) break;
+  }
+  const Eigen::Vector4d Bv = B * v;
+  const double lam = v.dot(Bv);
+  // Davis-Kahan: the eigenvector error is at most residual / gap; accept only a 1e-10 rad bound.
+  if (!((Bv - lam * v).norm() <= 1e-10 * gap_lb)) return fallback();
+  // The eigenpair must be the one of the Newton root (the smallest), not the next one (>= root + gap).
+  if (!(std::abs(lam - l) <= 0.25 * gap_lb)) return fallback();
+  if (stats) ++stats->fast;
+  Eigen::Quaterniond q(v(3), v(0), v(1), v(2));
+  q.normalize();
+  RotationFit f;
+  f.R = q.toRotationMatrix();
+  f.q = Eigen::Vector4d(q.x(), q.y(), q.z(), q.w());
+  f.lambda_min = std::max(0.0, lam);
+  f.lambda_gap = gap_lb;
   return f;
 }
 

@@ -23,10 +23,29 @@ struct RotationFit {
   Mat3 R = Mat3::Identity();     // maps reference normals onto scene normals
   double lambda_min = 0.0;       // weighted squared error sum gamma |R r - s|^2 (clamped >= 0)
   double lambda_gap = 0.0;       // second smallest minus smallest eigenvalue
+  Eigen::Vector4d q{0, 0, 0, 1}; // unit quaternion of R, P = (x, y, z, w) (the eigenvector, sign arbitrary)
 };
 
 // Minimizes P^t B P with Eigen's SelfAdjointEigenSolver (no heap allocation).
 RotationFit solve_rotation(const Mat4& B);
+
+// Same answer as solve_rotation, much cheaper (used once per search state):
+//  1. Newton on the characteristic polynomial det(B - l I) from a lower bound of the smallest eigenvalue
+//     (B is positive semi-definite, and B_n = B_{n-1} + gamma A_n with A_n PSD, so the parent's lambda_min is a
+//     lower bound, Weyl): the iterates increase monotonically to the smallest root, never to another one;
+//  2. two steps of shifted inverse iteration (shift just below that root), warm-started from the hint
+//     (the parent's quaternion), then the Rayleigh quotient as lambda_min.
+// Falls back to solve_rotation when Newton does not converge, the residual check fails, or the eigen gap is
+// tiny (gap < 1e-6 trace(B): degenerate normal sets, where the eigenvector is ill-defined).
+// lambda_gap: on the fast path a lower bound of the gap, |p'(lambda_min)| / trace(B)^2.
+struct FastFitStats {
+  long fast = 0, fallback = 0;
+};
+RotationFit solve_rotation_fast(const Mat4& B, double lambda_lower, const Eigen::Vector4d& hint,
+                                FastFitStats* stats = nullptr);
+
+// Unit quaternion P = (x, y, z, w) of table 7.14 for R.
+Eigen::Vector4d rotation_quaternion(const Mat3& R);
 
 // Independent check (weighted Kabsch / SVD): the rotation minimizing sum w |R r_i - s_i|^2.
 Mat3 kabsch_rotation(std::span<const Vec3> r, std::span<const Vec3> s, std::span<const double> w);

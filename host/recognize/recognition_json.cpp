@@ -37,7 +37,7 @@ nlohmann::json to_json(const Recognition& r, const Library& library) {
     }
     o["verification"] = {{"inliers", h.verify.inliers},   {"violations", h.verify.violations},
                          {"occluded", h.verify.occluded}, {"hits", h.verify.hits},
-                         {"coverage", h.verify.coverage}, {"rms_mm", h.verify.rms_mm},
+                         {"coverage", h.verify.coverage}, {"explained", h.verify.explained}, {"rms_mm", h.verify.rms_mm},
                          {"icp_iterations", h.verify.refine_iterations}};
     objects.push_back(std::move(o));
   }

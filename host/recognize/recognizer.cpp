@@ -92,6 +92,11 @@ struct Recognizer::Impl {
   // Verification context.
   SampleSet coarse, fine;
   bool refine_phase = false;
+  // Samples per segmentation region (coarse / fine), to measure how much of its matched regions a hypothesis
+  // explains.
+  std::vector<std::uint32_t> region_coarse, region_fine;
+  std::vector<std::uint32_t> region_hits;
+  const std::vector<std::int32_t>* labels = nullptr;
 };
 
 Recognizer::Recognizer(const Library& library, const RecognizeParams& params, std::size_t max_cells)
@@ -234,6 +239,16 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
   // Phase 1: coarse check of every candidate (no refinement).
   im.coarse.build(cloud, 2 * params_.verify.sample_step);
   im.fine.build(cloud, params_.verify.sample_step);
+  im.labels = &seg_.labels;
+  auto count_regions = [&](const SampleSet& set, std::vector<std::uint32_t>& counts) {
+    counts.assign(seg_.regions.size(), 0);
+    for (std::uint32_t cell : set.cells()) {
+      const std::int32_t r = cell < seg_.labels.size() ? seg_.labels[cell] : -1;
+      if (r >= 0 && static_cast<std::size_t>(r) < counts.size()) ++counts[static_cast<std::size_t>(r)];
+    }
+  };
+  count_regions(im.coarse, im.region_coarse);
+  count_regions(im.fine, im.region_fine);
   auto verify_task = [](void* ctx, std::size_t task, int worker) {
     auto& m = *static_cast<Impl*>(ctx);
     Hypothesis& h = m.hyps[m.order[task]];
@@ -241,6 +256,24 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
     h.verify = v.verify(m.refine_phase ? m.fine : m.coarse, m.geometry[static_cast<std::size_t>(h.model)], h.R,
                         h.t, m.refine_phase);
     h.inlier_cells.assign(v.inlier_cells().begin(), v.inlier_cells().end());
+    // How much of the matched scene regions the model explains: a model smaller than the faces it claims
+    // leaves measured points of those faces unexplained.
+    const auto& counts = m.refine_phase ? m.region_fine : m.region_coarse;
+    std::uint64_t total = 0, explained = 0;
+    for (const FaceMatch& fm : h.matches) {
+      const int r = fm.scene - 1;
+      if (r >= 0 && static_cast<std::size_t>(r) < counts.size()) total += counts[static_cast<std::size_t>(r)];
+    }
+    for (std::uint32_t cell : h.inlier_cells) {
+      const std::int32_t r = (*m.labels)[cell];
+      for (const FaceMatch& fm : h.matches)
+        if (fm.scene - 1 == r) {
+          ++explained;
+          break;
+        }
+    }
+    h.verify.explained = total > 0 ? std::min(1.0, static_cast<double>(explained) / static_cast<double>(total)) : 0.0;
+    h.verify.confidence *= h.verify.explained;
   };
   im.refine_phase = false;
   im.pool.run(im.order.size(), verify_task, &im);

@@ -31,6 +31,7 @@ struct VerifyResult {
   double rms_mm = 0.0;             // rms point-to-plane distance of the inliers after refinement
   double confidence = 0.0;
   double coverage = 0.0;           // inliers / hits
+  double explained = 1.0;          // share of the matched scene regions' samples that are inliers (recognizer)
   int refine_iterations = 0;
 };
 

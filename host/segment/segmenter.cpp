@@ -128,23 +128,28 @@ void Segmenter::compute_normals(const OrganizedCloud& cloud) {
   const int span = std::max(1, params_.normal_span);
   const float jump_abs = float(params_.jump_abs_mm), jump_rel = float(params_.jump_rel);
   const float dist_abs = float(params_.dist_abs_mm), dist_rel = float(params_.dist_rel);
-  // thresholds first (continuity is needed by the tangents)
-  for (int i = 0; i < w * h; ++i) {
-    const Eigen::Vector3f& p = P[std::size_t(i)];
-    if (!finite(p)) {
-      state_[std::size_t(i)] = 0;
-      lab_[std::size_t(i)] = kNil;
-      jump2_[std::size_t(i)] = 0.f;
-      dist_[std::size_t(i)] = 0.f;
-      continue;
+  // One streaming pass over the rows (the rows a step needs are still in cache): thresholds of row r, normals
+  // of row r - span (its tangents need the thresholds / validity up to row r), seeds of row r - span - 1 (they
+  // need the normals of the rows around them).
+  // thresholds (continuity is needed by the tangents)
+  auto thresholds_row = [&](int r) {
+    for (int i = r * w; i < (r + 1) * w; ++i) {
+      const Eigen::Vector3f& p = P[std::size_t(i)];
+      if (!finite(p)) {
+        state_[std::size_t(i)] = 0;
+        lab_[std::size_t(i)] = kNil;
+        jump2_[std::size_t(i)] = 0.f;
+        dist_[std::size_t(i)] = 0.f;
+        continue;
+      }
+      state_[std::size_t(i)] = kValid;
+      lab_[std::size_t(i)] = kUnassigned;
+      const float range2 = (p - vp).squaredNorm();
+      const float jump = jump_abs + (jump_rel != 0.f ? jump_rel * std::sqrt(range2) : 0.f);
+      jump2_[std::size_t(i)] = jump * jump;
+      dist_[std::size_t(i)] = dist_abs + dist_rel * range2;
     }
-    state_[std::size_t(i)] = kValid;
-    lab_[std::size_t(i)] = kUnassigned;
-    const float range2 = (p - vp).squaredNorm();
-    const float jump = jump_abs + (jump_rel != 0.f ? jump_rel * std::sqrt(range2) : 0.f);
-    jump2_[std::size_t(i)] = jump * jump;
-    dist_[std::size_t(i)] = dist_abs + dist_rel * range2;
-  }
+  };
   // One tangent along a grid axis: central difference over +-s cells when both sides are continuous,
   // else one-sided; tries span, then 1. Returns false when no continuous neighbour exists.
   auto tangent = [&](int r, int c, int dr, int dc, Eigen::Vector3f& t) {
@@ -180,7 +185,7 @@ void Segmenter::compute_normals(const OrganizedCloud& cloud) {
     }
     return false;
   };
-  for (int r = 0; r < h; ++r) {
+  auto normals_row = [&](int r) {
     for (int c = 0; c < w; ++c) {
       const std::size_t i = std::size_t(r) * std::size_t(w) + std::size_t(c);
       normal_[i] = Eigen::Vector3f(nan, nan, nan);
@@ -224,10 +229,10 @@ void Segmenter::compute_normals(const OrganizedCloud& cloud) {
       area_[i] = a;
       state_[i] |= kHasNormal;
     }
-  }
+  };
   // seeds: the normal agrees with the 4 neighbours' normals
   const float cs = float(cos_deg(params_.seed_angle_deg));
-  for (int r = 1; r + 1 < h; ++r) {
+  auto seeds_row = [&](int r) {
     for (int c = 1; c + 1 < w; ++c) {
       const std::size_t i = std::size_t(r) * std::size_t(w) + std::size_t(c);
       if (!(state_[i] & kHasNormal)) continue;
@@ -241,6 +246,13 @@ void Segmenter::compute_normals(const OrganizedCloud& cloud) {
       }
       if (ok) state_[i] |= kSeed;
     }
+  };
+  for (int r = 0; r < h + span + 1; ++r) {
+    if (r < h) thresholds_row(r);
+    const int rn = r - span;
+    if (rn >= 0 && rn < h) normals_row(rn);
+    const int rs = rn - 1;
+    if (rs >= 1 && rs + 1 < h) seeds_row(rs);
   }
 }
 
@@ -514,11 +526,65 @@ void Segmenter::finalize_regions(const OrganizedCloud& cloud, Segmentation& out)
   const std::size_t R = region_count_;
   for (std::size_t r = 0; r < R; ++r) acc_[r] = Acc{};
   out.labels.resize(n);
-  for (std::size_t row = 0, i = 0; row < height_; ++row) {
-    for (std::size_t col = 0; col < width_; ++col, ++i) {
+  const auto& P = cloud.points;
+  const std::size_t w = width_, h = height_;
+  // Cell areas and tangent lengths from the final labels: the tangents of compute_normals() may reach across
+  // a region border into a neighbouring surface (a grazing step counts as depth-continuous, up to
+  // jump_max_mm), which inflates |du x dv| of every border cell. Here a tangent only uses neighbours of the
+  // same region (central difference inside, one-sided at the border), so a region's area is the visible
+  // surface it covers.
+  auto tangent = [&](std::size_t i, std::int32_t l, bool has_prev, std::size_t prev, bool has_next, std::size_t next,
+                     Eigen::Vector3f& t) {
+    const bool bp = has_prev && lab_[prev] == l, bn = has_next && lab_[next] == l;
+    if (bp && bn) {
+      t = 0.5f * (P[next] - P[prev]);
+    } else if (bn) {
+      t = P[next] - P[i];
+    } else if (bp) {
+      t = P[i] - P[prev];
+    } else {
+      return false;
+    }
+    return true;
+  };
+  // Length along an axis for a cell without a same-region neighbour on it: the nearest valid neighbour's
+  // distance, capped by `cap` (e.g. a one-cell-wide strip next to a jump).
+  auto fallback = [&](std::size_t i, bool has_prev, std::size_t prev, bool has_next, std::size_t next, float cap) {
+    float d = cap;
+    if (has_prev && (state_[prev] & kValid)) d = std::min(d, (P[prev] - P[i]).norm());
+    if (has_next && (state_[next] & kValid)) d = std::min(d, (P[next] - P[i]).norm());
+    return d;
+  };
+  for (std::size_t row = 0, i = 0; row < h; ++row) {
+    for (std::size_t col = 0; col < w; ++col, ++i) {
       const std::int32_t l = lab_[i];
       out.labels[i] = l < 0 ? kNil : l;
-      if (l >= 0) acc_[std::size_t(l)].add(cloud.points[i].cast<double>() - origin_, area_[i], double(col), double(row));
+      if (l < 0) continue;
+      const bool hl = col > 0, hr = col + 1 < w, hu = row > 0, hd = row + 1 < h;
+      Eigen::Vector3f du, dv;
+      const bool tu = tangent(i, l, hl, hl ? i - 1 : i, hr, hr ? i + 1 : i, du);
+      const bool tv = tangent(i, l, hu, hu ? i - w : i, hd, hd ? i + w : i, dv);
+      float a = 0.f;
+      if (tu && tv) {
+        a = du.cross(dv).norm();
+        lenu_[i] = du.squaredNorm();
+        lenv_[i] = dv.squaredNorm();
+      } else if (tu || tv) {
+        const float len = tu ? du.norm() : dv.norm();
+        const float other = tu ? fallback(i, hu, hu ? i - w : i, hd, hd ? i + w : i, std::sqrt(lenv_[i]))
+                               : fallback(i, hl, hl ? i - 1 : i, hr, hr ? i + 1 : i, std::sqrt(lenu_[i]));
+        a = len * other;
+        lenu_[i] = tu ? len * len : other * other;
+        lenv_[i] = tv ? len * len : other * other;
+      } else {
+        const float lu = fallback(i, hl, hl ? i - 1 : i, hr, hr ? i + 1 : i, std::sqrt(lenu_[i]));
+        const float lv = fallback(i, hu, hu ? i - w : i, hd, hd ? i + w : i, std::sqrt(lenv_[i]));
+        a = lu * lv;
+        lenu_[i] = lu * lu;
+        lenv_[i] = lv * lv;
+      }
+      area_[i] = a;
+      acc_[std::size_t(l)].add(P[i].cast<double>() - origin_, a, double(col), double(row));
     }
   }
   out.regions.resize(R);

@@ -339,6 +339,7 @@ bool Cia402Twin::sdo_read(std::uint16_t index, std::uint8_t sub, std::uint32_t& 
   }
   switch (index) {
     case kHeartbeatProducer: v = hb_ms_; size = 2; return true;
+    case 0x1000: v = 0x00020192; size = 4; return true;  // device type: CiA 402 (0x0192), servo drive (0x0002)
     case kErrorCode: v = error_code_; size = 2; return true;
     case kControlword: v = cw_; size = 2; return true;
     case kStatusword: v = statusword(); size = 2; return true;

@@ -33,7 +33,10 @@ echo "cross build ready: $fw ($((t1 - t0)) s)"
 if ! file -b "$fw" | grep -q 'ARM aarch64'; then
   echo "FAIL: $fw is not an aarch64 executable: $(file -b "$fw")" >&2; exit 1
 fi
-qemu=(qemu-aarch64 -L /usr/aarch64-linux-gnu)
+# -E LD_LIBRARY_PATH: the sysroot's ld.so (libc6-arm64-cross, 2.36-8cross1) must load the sysroot's libc, not the
+# multiarch libc6:arm64 (a newer 2.36 point release) from /usr/lib/aarch64-linux-gnu, which it finds through
+# qemu's path fallback; mixing the two hangs the first pthread_create. The other libraries come from multiarch.
+qemu=(qemu-aarch64 -L /usr/aarch64-linux-gnu -E LD_LIBRARY_PATH=/usr/aarch64-linux-gnu/lib)
 ver="$("${qemu[@]}" "$fw" --version 2>&1)" || { echo "FAIL: --version under qemu: $ver" >&2; exit 1; }
 native_ver="$("$native_fw" --version 2>&1)"
 echo "qemu-aarch64: $ver"

@@ -46,7 +46,7 @@ dpkg-deb -e "$deb" "$work/control" || fail "dpkg-deb -e"
 bin="$work/root/usr/bin/facetscan-fw"
 file -b "$bin" | grep -q 'ARM aarch64' || fail "packaged binary is not aarch64: $(file -b "$bin")"
 [ -x "$bin" ] || fail "packaged binary is not executable"
-qemu-aarch64 -L /usr/aarch64-linux-gnu "$bin" --version | grep -q "^facetscan-fw $version" || fail "packaged --version"
+qemu-aarch64 -L /usr/aarch64-linux-gnu -E LD_LIBRARY_PATH=/usr/aarch64-linux-gnu/lib "$bin" --version | grep -q "^facetscan-fw $version" || fail "packaged --version"
 cmp -s "$work/root/usr/share/facetscan/board.example.json" "$src/toolchain/deploy/board.example.json" \
   || fail "packaged board.example.json differs from the source"
 sh -n "$work/control/postinst" || fail "postinst: shell syntax"

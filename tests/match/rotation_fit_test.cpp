@@ -2,6 +2,9 @@
 #include <gtest/gtest.h>
 
 #include <random>
+
+#include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
 #include <vector>
 
 #include "host/match/rotation_fit.hpp"
@@ -94,6 +97,83 @@ TEST(RotationFit, IncrementalEqualsBatch) {
                 {d.w.begin(), d.w.begin() + static_cast<long>(n + 1)}};
     EXPECT_LT(rotation_angle_deg(solve_rotation(B).R, kabsch_rotation(prefix.r, prefix.s, prefix.w)), 1e-6);
   }
+}
+
+// Fast path (Newton on det(B - l I) + warm-started inverse iteration) vs the full eigen solver on random
+// incremental sequences B_n = B_{n-1} + gamma_n A_n, warm-started as the matcher does (parent's lambda and
+// quaternion), with exact, noisy and grossly wrong pairs.
+TEST(RotationFit, FastPathEqualsFullSolverOnIncrementalSequences) {
+  std::mt19937 rng(11);
+  FastFitStats stats;
+  int compared = 0;
+  for (int t = 0; t < 400; ++t) {
+    const Mat3 R = fs::test::random_rotation(rng);
+    const double noise = t % 4 == 0 ? 0.0 : (t % 4 == 1 ? 1.0 : (t % 4 == 2 ? 10.0 : 90.0));
+    const Data d = make(rng, R, 2 + t % 7, noise);
+    Mat4 B = Mat4::Zero();
+    add_pair(B, d.r[0], d.s[0], d.w[0]);
+    const Eigen::Quaterniond q1 = Eigen::Quaterniond::FromTwoVectors(d.r[0], d.s[0]);
+    Eigen::Vector4d hint(q1.x(), q1.y(), q1.z(), q1.w());
+    double lower = 0;
+    for (std::size_t n = 1; n < d.r.size(); ++n) {
+      add_pair(B, d.r[n], d.s[n], d.w[n]);
+      const RotationFit full = solve_rotation(B);
+      const RotationFit fast = solve_rotation_fast(B, lower, hint, &stats);
+      const double scale = B.trace();
+      EXPECT_NEAR(fast.lambda_min, full.lambda_min, 1e-9 * full.lambda_min + 1e-13 * scale) << t << " " << n;
+      EXPECT_LT((fast.R - full.R).cwiseAbs().maxCoeff(), 1e-9) << t << " " << n;
+      EXPECT_NEAR(fast.R.determinant(), 1.0, 1e-12);
+      EXPECT_LE(fast.lambda_gap, full.lambda_gap * (1 + 1e-9) + 1e-13 * scale);   // a lower bound
+      EXPECT_GE(fast.lambda_min, lower * (1 - 1e-9) - 1e-13 * scale);              // Weyl: monotone
+      lower = fast.lambda_min;
+      hint = fast.q;
+      ++compared;
+    }
+  }
+  EXPECT_GT(compared, 1000);
+  // Nearly all of them take the fast path (the point of it); the rest fell back and are exact by construction.
+  EXPECT_GT(stats.fast, compared * 9 / 10) << "fallbacks " << stats.fallback;
+}
+
+TEST(RotationFit, FastPathWithoutWarmStartFindsTheSmallestEigenpair) {
+  // A bad hint (orthogonal to the answer) and a zero lower bound: Newton from below still finds the smallest
+  // root and the inverse iteration converges to its eigenvector.
+  std::mt19937 rng(5);
+  for (int t = 0; t < 100; ++t) {
+    const Mat3 R = fs::test::random_rotation(rng);
+    const Data d = make(rng, R, 3 + t % 4, 3.0);
+    const Mat4 B = accumulate(d);
+    const RotationFit full = solve_rotation(B);
+    Eigen::Vector4d hint = Eigen::Vector4d::Zero();
+    hint(t % 4) = 1.0;
+    hint -= hint.dot(full.q) * full.q;
+    const RotationFit fast = solve_rotation_fast(B, 0.0, hint);
+    EXPECT_NEAR(fast.lambda_min, full.lambda_min, 1e-9 * full.lambda_min + 1e-13 * B.trace());
+    EXPECT_LT(rotation_angle_deg(fast.R, full.R), 1e-7);
+    // Hint = exactly another eigenvector (happens with symmetric exact data, e.g. cube corners).
+    const Eigen::SelfAdjointEigenSolver<Mat4> es(B);
+    const RotationFit fast2 = solve_rotation_fast(B, 0.0, es.eigenvectors().col(1 + t % 3));
+    EXPECT_NEAR(fast2.lambda_min, full.lambda_min, 1e-9 * full.lambda_min + 1e-13 * B.trace());
+    EXPECT_LT(rotation_angle_deg(fast2.R, full.R), 1e-7);
+  }
+}
+
+TEST(RotationFit, FastPathFallsBackOnDegenerateSets) {
+  // Parallel normals: a one-parameter family of rotations (gap 0) -> the full solver's answer.
+  Mat4 B = Mat4::Zero();
+  add_pair(B, Vec3::UnitX(), Vec3::UnitY(), 1.0);
+  add_pair(B, Vec3::UnitX(), Vec3::UnitY(), 2.0);
+  FastFitStats stats;
+  const RotationFit fast = solve_rotation_fast(B, 0.0, Eigen::Vector4d(0, 0, 0, 1), &stats);
+  const RotationFit full = solve_rotation(B);
+  EXPECT_EQ(stats.fallback, 1);
+  EXPECT_EQ(stats.fast, 0);
+  EXPECT_EQ(fast.R, full.R);
+  EXPECT_EQ(fast.lambda_min, full.lambda_min);
+  // Zero matrix and non-finite input: fallback, no crash.
+  stats = {};
+  solve_rotation_fast(Mat4::Zero(), 0.0, Eigen::Vector4d(0, 0, 0, 1), &stats);
+  EXPECT_EQ(stats.fallback, 1);
 }
 
 TEST(RotationFit, DegenerateSingleNormalHasZeroGap) {

@@ -1,0 +1,244 @@
+// Recognition benchmark (issue 10): random scenes of the 120 polyhedra (hw-sim/scene/random_scene.hpp), ideal
+// scan grids with depth noise, recognized against the 120-model library; accuracy, pose errors, false
+// positives, CPU time and the allocations of a warm recognize(), per scene category.
+//
+//   bench_recognition [--scenes N] [--seed S] [--categories single,separated,occluded,empty] [--steps 500]
+//                     [--noise 0.05] [--threads 1] [--alloc-every 1] [--verbose]
+//
+// --alloc-every K: the allocation count is taken in every K-th round of the categories (all categories).
+//
+// Scenes are spread round-robin over the categories; scene i uses seed S + i.
+#include <time.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "common/alloc_counter/alloc_counter.hpp"
+#include "common/error.hpp"
+#include "host/library/library.hpp"
+#include "host/library/model.hpp"
+#include "host/recognize/pose.hpp"
+#include "host/recognize/recognizer.hpp"
+#include "hw-sim/scene/ground_truth_grid.hpp"
+#include "hw-sim/scene/random_scene.hpp"
+#include "support/test_paths.hpp"
+
+namespace {
+
+using fs::sim::SceneCategory;
+
+double cpu_ms() {
+  timespec ts{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+  return static_cast<double>(ts.tv_sec) * 1e3 + static_cast<double>(ts.tv_nsec) * 1e-6;
+}
+
+double quantile(std::vector<double> v, double q) {
+  if (v.empty()) return std::nan("");
+  std::sort(v.begin(), v.end());
+  const double pos = q * static_cast<double>(v.size() - 1);
+  const auto i = static_cast<std::size_t>(pos);
+  const double f = pos - static_cast<double>(i);
+  return i + 1 < v.size() ? v[i] * (1 - f) + v[i + 1] * f : v[i];
+}
+
+struct CategoryStats {
+  int scenes = 0, objects = 0, found = 0, identity_ok = 0, reported = 0, extra = 0, scenes_with_fp = 0;
+  std::vector<double> rot_err, trans_err, cpu, wall, allocs;
+};
+
+struct Args {
+  int scenes = 200;
+  std::uint64_t seed = 1;
+  std::vector<SceneCategory> categories{SceneCategory::single, SceneCategory::separated, SceneCategory::occluded,
+                                        SceneCategory::empty};
+  std::uint32_t steps = 500;
+  double noise = 0.05;
+  int threads = 1;
+  int alloc_every = 1;
+  bool verbose = false;
+};
+
+Args parse_args(int argc, char** argv) {
+  Args a;
+  for (int i = 1; i < argc; ++i) {
+    const std::string k = argv[i];
+    auto value = [&]() -> std::string {
+      if (i + 1 >= argc) throw fs::Error("argument " + k + ": missing value");
+      return argv[++i];
+    };
+    if (k == "--scenes") a.scenes = std::stoi(value());
+    else if (k == "--seed") a.seed = std::stoull(value());
+    else if (k == "--steps") a.steps = static_cast<std::uint32_t>(std::stoul(value()));
+    else if (k == "--noise") a.noise = std::stod(value());
+    else if (k == "--threads") a.threads = std::stoi(value());
+    else if (k == "--alloc-every") a.alloc_every = std::stoi(value());
+    else if (k == "--verbose") a.verbose = true;
+    else if (k == "--categories") {
+      a.categories.clear();
+      std::string list = value();
+      std::size_t start = 0;
+      while (start <= list.size()) {
+        const std::size_t comma = std::min(list.find(',', start), list.size());
+        a.categories.push_back(fs::sim::parse_scene_category(list.substr(start, comma - start)));
+        start = comma + 1;
+      }
+    } else {
+      throw fs::Error("unknown argument '" + k +
+                      "' (--scenes N --seed S --categories a,b --steps K --noise MM --threads T --alloc-every K "
+                      "--verbose)");
+    }
+  }
+  if (a.scenes < 1 || a.steps < 10 || a.alloc_every < 0) throw fs::Error("arguments out of range");
+  return a;
+}
+
+int run(const Args& args) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const auto catalog = fs::sim::make_catalog(
+      fs::sim::read_catalog_meshes(fs::test::shared_data() / "polyhedra/polyhedra-viewer/off"), {.seed = args.seed});
+  fs::host::Library library;
+  for (const auto& e : catalog) library.add(fs::host::build_model(e.mesh));
+  std::printf("library: %zu models built in %.1f s\n", library.models.size(),
+              std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+
+  fs::host::rec::RecognizeParams params;
+  params.threads = args.threads;
+  const std::size_t cells =
+      static_cast<std::size_t>(args.steps) * fs::ScannerCalibration::bench_default().camera.height;
+  fs::host::rec::Recognizer recognizer(library, params, cells);
+
+  std::map<SceneCategory, CategoryStats> stats;
+  std::map<std::string, int> missed_models, confused_with;
+  fs::host::OrganizedCloud cloud;
+  for (int i = 0; i < args.scenes; ++i) {
+    const SceneCategory cat = args.categories[static_cast<std::size_t>(i) % args.categories.size()];
+    const std::uint64_t seed = args.seed + static_cast<std::uint64_t>(i);
+    const auto rs = fs::sim::make_random_scene(catalog, {.category = cat, .steps = args.steps}, seed);
+    fs::sim::make_ground_truth_grid(rs.scene, {.depth_noise_mm = args.noise, .seed = seed}).export_to(cloud, false);
+    const fs::Plane table = rs.scene.calibration.table;
+
+    const auto w0 = std::chrono::steady_clock::now();
+    const double c0 = cpu_ms();
+    const auto& r = recognizer.recognize(cloud, &table);
+    const double cpu = cpu_ms() - c0;
+    const double wall = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - w0).count();
+    // Copy what we evaluate: the second recognize() overwrites the result.
+    std::vector<fs::host::rec::Hypothesis> found_objects = r.objects;
+    const std::string note = r.note;
+
+    CategoryStats& s = stats[cat];
+    ++s.scenes;
+    s.cpu.push_back(cpu);
+    s.wall.push_back(wall);
+    if (args.alloc_every > 0 && (i / static_cast<int>(args.categories.size())) % args.alloc_every == 0) {
+      fs::AllocCounter counter;
+      recognizer.recognize(cloud, &table);
+      s.allocs.push_back(static_cast<double>(counter.process_allocations()));
+    }
+
+    std::vector<bool> used(found_objects.size(), false);
+    s.reported += static_cast<int>(found_objects.size());
+    for (std::size_t oi = 0; oi < rs.scene.objects.size(); ++oi) {
+      if (rs.catalog_index[oi] < 0) continue;  // the distractor box
+      const auto& obj = rs.scene.objects[oi];
+      const auto& truth = library.models[static_cast<std::size_t>(rs.catalog_index[oi])];
+      const fs::Vec3 centre_true = obj.rotation * truth.center + obj.translation;
+      ++s.objects;
+      // Nearest reported object (by model centre) decides the identity; a hit needs the same model within 10 mm.
+      int nearest = -1, hit = -1, any = -1;
+      double nearest_d = 20.0, hit_d = 10.0, any_d = 1e300;
+      for (std::size_t j = 0; j < found_objects.size(); ++j) {
+        const auto& h = found_objects[j];
+        const auto& m = library.models[static_cast<std::size_t>(h.model)];
+        const double d = (h.R * m.center + h.t - centre_true).norm();
+        if (d < nearest_d) nearest_d = d, nearest = static_cast<int>(j);
+        if (d < any_d) any_d = d, any = static_cast<int>(j);
+        if (!used[j] && m.name == truth.name && d < hit_d) hit_d = d, hit = static_cast<int>(j);
+      }
+      if (nearest >= 0 && found_objects[static_cast<std::size_t>(nearest)].model == rs.catalog_index[oi])
+        ++s.identity_ok;
+      if (hit >= 0) {
+        used[static_cast<std::size_t>(hit)] = true;
+        ++s.found;
+        const auto& h = found_objects[static_cast<std::size_t>(hit)];
+        s.rot_err.push_back(fs::host::rec::rotation_angle_deg_sym(obj.rotation, h.R, truth));
+        s.trans_err.push_back(hit_d);
+      } else {
+        ++missed_models[truth.name];
+        std::string got = "nothing";
+        if (any >= 0) {
+          const auto& h = found_objects[static_cast<std::size_t>(any)];
+          got = library.models[static_cast<std::size_t>(h.model)].name + " at " + std::to_string(any_d) + " mm, " +
+                std::to_string(fs::host::rec::rotation_angle_deg_sym(obj.rotation, h.R, truth)) + " deg";
+        }
+        if (nearest >= 0) {
+          const auto& h = found_objects[static_cast<std::size_t>(nearest)];
+          if (h.model != rs.catalog_index[oi])
+            ++confused_with[truth.name + " -> " + library.models[static_cast<std::size_t>(h.model)].name];
+        }
+        if (args.verbose)
+          std::printf("MISS seed %llu %s: %s (face %d on table, %d faces) -> nearest %s; note: %s\n",
+                      static_cast<unsigned long long>(seed), fs::sim::to_string(cat), truth.name.c_str(),
+                      rs.resting_face[oi], static_cast<int>(truth.faces.size()), got.c_str(), note.c_str());
+      }
+    }
+    int extra = 0;
+    for (std::size_t j = 0; j < found_objects.size(); ++j) extra += used[j] ? 0 : 1;
+    s.extra += extra;
+    if (extra > 0) ++s.scenes_with_fp;
+    if (args.verbose && extra > 0)
+      for (std::size_t j = 0; j < found_objects.size(); ++j)
+        if (!used[j])
+          std::printf("EXTRA seed %llu %s: reported %s (conf %.2f cost %.3f) not in the scene\n",
+                      static_cast<unsigned long long>(seed), fs::sim::to_string(cat),
+                      library.models[static_cast<std::size_t>(found_objects[j].model)].name.c_str(),
+                      found_objects[j].verify.confidence, found_objects[j].cost);
+    std::fflush(stdout);
+  }
+
+  std::printf("\n%d scenes, %u steps, depth noise %.2f mm, threads %d, seed %llu, %.0f s total\n\n", args.scenes,
+              args.steps, args.noise, args.threads, static_cast<unsigned long long>(args.seed),
+              std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+  std::printf("| category | scenes | objects | found (model + centre < 10 mm) | top-1 identity | rot err median / p90 "
+              "(deg) | centre err median / p90 (mm) | extra objects | scenes with a false positive | CPU ms median "
+              "/ p90 | wall ms median / p90 | allocs of a warm recognize (median / max) |\n");
+  std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+  for (const auto& [cat, s] : stats) {
+    auto pct = [](int a, int b) { return b > 0 ? 100.0 * a / b : std::nan(""); };
+    std::printf("| %s | %d | %d | %d (%.1f %%) | %.1f %% | %.2f / %.2f | %.2f / %.2f | %d | %d (%.1f %%) | %.0f / %.0f "
+                "| %.0f / %.0f | %.0f / %.0f |\n",
+                fs::sim::to_string(cat), s.scenes, s.objects, s.found, pct(s.found, s.objects),
+                pct(s.identity_ok, s.objects), quantile(s.rot_err, 0.5), quantile(s.rot_err, 0.9),
+                quantile(s.trans_err, 0.5), quantile(s.trans_err, 0.9), s.extra, s.scenes_with_fp,
+                pct(s.scenes_with_fp, s.scenes), quantile(s.cpu, 0.5), quantile(s.cpu, 0.9), quantile(s.wall, 0.5),
+                quantile(s.wall, 0.9), quantile(s.allocs, 0.5), quantile(s.allocs, 1.0));
+  }
+  if (!missed_models.empty()) {
+    std::printf("\nmissed models (count):");
+    for (const auto& [name, n] : missed_models) std::printf(" %s:%d", name.c_str(), n);
+    std::printf("\n");
+  }
+  if (!confused_with.empty()) {
+    std::printf("confusions (truth -> reported):");
+    for (const auto& [name, n] : confused_with) std::printf(" %s:%d", name.c_str(), n);
+    std::printf("\n");
+  }
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    return run(parse_args(argc, argv));
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "bench_recognition: %s\n", e.what());
+    return 2;
+  }
+}
