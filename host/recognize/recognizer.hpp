@@ -51,7 +51,7 @@ struct RecognizeParams {
   int max_objects = 16;
   int max_verified = 48;              // hypotheses checked against the cloud (lowest matching cost first)
   int max_refined = 16;               // of those, the most plausible refined by ICP and verified finely
-  int min_level = 2;                  // faces a search solution must match (overrides TH_minlevel)
+  int min_level = 3;                  // faces a search solution must match (TH_minlevel, as in the thesis)
   int threads = 0;                    // matching threads (0 = all cores)
 };
 
