@@ -13,6 +13,7 @@
 #include "common/mesh.hpp"
 #include "host/cli/commands.hpp"
 #include "host/cli/progress.hpp"
+#include "host/library/mesh_files.hpp"
 #include "host/library/library.hpp"
 #include "host/library/polycubes.hpp"
 #include "host/library/views.hpp"
@@ -24,32 +25,6 @@ namespace fs::host::cli {
 namespace {
 
 namespace stdfs = std::filesystem;
-
-bool is_mesh_file(const stdfs::path& p) {
-  std::string ext = p.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  return ext == ".off" || ext == ".obj" || ext == ".stl" || ext == ".ply";
-}
-
-std::vector<stdfs::path> collect_meshes(const std::vector<std::string>& inputs) {
-  std::vector<stdfs::path> files;
-  for (const auto& in : inputs) {
-    const stdfs::path p(in);
-    if (stdfs::is_directory(p)) {
-      std::vector<stdfs::path> found;
-      for (const auto& e : stdfs::directory_iterator(p))
-        if (e.is_regular_file() && is_mesh_file(e.path())) found.push_back(e.path());
-      if (found.empty()) throw Error(fmt::format("{}: no .off/.obj/.stl/.ply meshes in this directory", in));
-      std::sort(found.begin(), found.end());
-      files.insert(files.end(), found.begin(), found.end());
-    } else if (stdfs::exists(p)) {
-      files.push_back(p);
-    } else {
-      throw Error(fmt::format("{}: no such file or directory", in));
-    }
-  }
-  return files;
-}
 
 void print_table(const Library& lib) {
   std::size_t w = 5;
@@ -84,7 +59,7 @@ void add_library_commands(CLI::App& app) {
   build->add_flag("--allow-open", b->options.allow_open, "Accept open meshes (flagged: faces may be missing)");
   build->add_flag("-q,--quiet", b->quiet, "No progress bar, no table");
   build->callback([b] {
-    const auto files = collect_meshes(b->inputs);
+    const auto files = collect_mesh_files(b->inputs);
     Library out;
     Progress progress(files.size(), b->quiet);
     for (std::size_t i = 0; i < files.size(); ++i) {
