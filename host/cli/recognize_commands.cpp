@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "common/error.hpp"
+#include "common/file_list.hpp"
 #include "host/cli/commands.hpp"
 #include "host/cli/live_commands.hpp"
 #include "host/cli/progress.hpp"
@@ -48,23 +49,7 @@ bool is_input_file(const stdfs::path& p) {
 }
 
 std::vector<stdfs::path> collect_inputs(const std::vector<std::string>& inputs) {
-  std::vector<stdfs::path> files;
-  for (const auto& in : inputs) {
-    const stdfs::path p(in);
-    if (stdfs::is_directory(p)) {
-      std::vector<stdfs::path> found;
-      for (const auto& e : stdfs::directory_iterator(p))
-        if (e.is_regular_file() && is_input_file(e.path())) found.push_back(e.path());
-      if (found.empty()) throw Error(in + ": no .fscan/.pcd/.ply files in this directory");
-      std::sort(found.begin(), found.end());
-      files.insert(files.end(), found.begin(), found.end());
-    } else if (stdfs::exists(p)) {
-      files.push_back(p);
-    } else {
-      throw Error(in + ": no such file or directory");
-    }
-  }
-  return files;
+  return collect_files(inputs, is_input_file, ".fscan/.pcd/.ply files");
 }
 
 std::string csv_field(const std::string& s) {

@@ -4,6 +4,7 @@
 #include <cctype>
 
 #include "common/error.hpp"
+#include "common/file_list.hpp"
 #include "common/mesh.hpp"
 
 namespace fs::host {
@@ -17,23 +18,7 @@ bool is_mesh_file(const stdfs::path& p) {
 }
 
 std::vector<stdfs::path> collect_mesh_files(const std::vector<std::string>& inputs) {
-  std::vector<stdfs::path> files;
-  for (const auto& in : inputs) {
-    const stdfs::path p(in);
-    if (stdfs::is_directory(p)) {
-      std::vector<stdfs::path> found;
-      for (const auto& e : stdfs::directory_iterator(p))
-        if (e.is_regular_file() && is_mesh_file(e.path())) found.push_back(e.path());
-      if (found.empty()) throw Error(in + ": no .off/.obj/.stl/.ply meshes in this directory");
-      std::sort(found.begin(), found.end());
-      files.insert(files.end(), found.begin(), found.end());
-    } else if (stdfs::exists(p)) {
-      files.push_back(p);
-    } else {
-      throw Error(in + ": no such file or directory");
-    }
-  }
-  return files;
+  return collect_files(inputs, is_mesh_file, ".off/.obj/.stl/.ply meshes");
 }
 
 Library load_or_build_library(const std::vector<std::string>& inputs, const BuildOptions& options,
