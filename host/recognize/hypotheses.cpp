@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace fs::host::rec {
 
@@ -91,7 +92,10 @@ int merge_compatible(const HypothesisContext& c, std::span<Hypothesis> hyps, std
       Hypothesis& a = hyps[i];
       Hypothesis& b = hyps[j];
       const Model& model = c.library.models[static_cast<std::size_t>(a.model)];
-      const bool close_t = (a.t - b.t).norm() <= c.params.merge_translation_mm;
+      // Compare where the model's centre lands: symmetry-equivalent poses differ in t when the model's origin
+      // is off its centre.
+      const bool close_t = ((a.R * model.center + a.t) - (b.R * model.center + b.t)).norm() <=
+                           c.params.merge_translation_mm;
       bool shared_scene = false, shared_ref = false;
       for (const FaceMatch& m : b.matches) {
         shared_scene = shared_scene || uses_scene(a, m.scene);
@@ -117,6 +121,53 @@ int merge_compatible(const HypothesisContext& c, std::span<Hypothesis> hyps, std
     }
   }
   return merges;
+}
+
+double prescore(const HypothesisContext& c, const Hypothesis& h) {
+  const Model& model = c.library.models[static_cast<std::size_t>(h.model)];
+  double predicted = 0.0, explained = 0.0, penalty = 1.0;
+  for (std::size_t f = 0; f < model.faces.size(); ++f) {
+    const ModelFace& mf = model.faces[f];
+    const Vec3 centre = h.R * mf.centroid + h.t;
+    const Vec3 to_view = c.viewpoint - centre;
+    const double cs = (h.R * mf.normal).dot(to_view) / std::max(to_view.norm(), 1e-9);
+    // Full weight from 30 degrees above grazing, none below 10 degrees (such faces are barely sampled).
+    const double w = std::clamp((cs - 0.17) / 0.33, 0.0, 1.0);
+    predicted += w * mf.area;
+    for (const FaceMatch& m : h.matches) {
+      if (m.ref != static_cast<int>(f)) continue;
+      const PfrgNode* n = scene_node(c, m.scene);
+      if (!n) continue;
+      explained += w * std::min(n->area, mf.area);
+      const double allowed = c.params.prescore_area_slack * mf.area + 10.0;
+      if (n->area > allowed) penalty *= allowed / n->area;
+    }
+  }
+  if (predicted <= 0.0) return 0.0;
+  return std::min(1.0, explained / predicted) * penalty;
+}
+
+double support_factor(const Model& model, const Mat3& R, const Vec3& t, const Plane& table,
+                      std::span<const Eigen::Vector3f> points, const SupportParams& p, double* lowest) {
+  double low = std::numeric_limits<double>::infinity();
+  Vec3 v_low = Vec3::Zero();
+  for (const ModelFace& f : model.faces)
+    for (const auto& loop : f.loops)
+      for (const Vec3& v : loop) {
+        const Vec3 w = R * v + t;
+        const double z = table.signed_distance(w);
+        if (z < low) low = z, v_low = w;
+      }
+  if (lowest) *lowest = low;
+  if (std::abs(low) <= p.tol_mm) return 1.0;
+  if (low > 0) {
+    const double r2 = p.radius_mm * p.radius_mm;
+    for (const Eigen::Vector3f& pf : points) {
+      const Vec3 q = pf.cast<double>();
+      if ((q - v_low).squaredNorm() <= r2 && table.signed_distance(q) < low - 1.0) return 1.0;
+    }
+  }
+  return p.unsupported;
 }
 
 int count_visible_faces(const Model& model, const Mat3& R, const Vec3& t, const Vec3& viewpoint) {
@@ -157,6 +208,7 @@ void copy_hypothesis(const Hypothesis& from, Hypothesis& to) {
   to.degenerate = from.degenerate;
   to.verify = from.verify;
   to.key = from.key;
+  to.prescore = from.prescore;
   to.instance = from.instance;
   to.merged = from.merged;
   to.inlier_cells.assign(from.inlier_cells.begin(), from.inlier_cells.end());

@@ -31,6 +31,25 @@ int expand(const HypothesisContext& c, Hypothesis& h, std::vector<PlanePair>& sc
 int merge_compatible(const HypothesisContext& c, std::span<Hypothesis> hyps, std::vector<char>& alive,
                      std::vector<PlanePair>& scratch);
 
+// Geometric plausibility of a hypothesis before the (costly) low-level verification, in [0, 1]: the share of
+// the model's predicted visible area (front faces, weighted down toward grazing view) that matched scene faces
+// explain, times a penalty for every matched scene face larger than its model face (a face cannot be seen
+// bigger than it is). Ranks the hypotheses of all references so that verification looks at the plausible ones
+// first even when the matching costs tie (preset t9.3 has no attribute costs).
+double prescore(const HypothesisContext& c, const Hypothesis& h);
+
+// Support (beyond the thesis): a solid object rests on the table or on something measured just below its
+// lowest point. Returns 1 when the model's lowest point in pose (R, t) lies within tol_mm of the table plane
+// (normal toward the sensor), or above it with a measured point within radius_mm of that point and more than
+// 1 mm lower; else `unsupported` (also when it sinks into the table). *lowest receives the lowest point's height.
+struct SupportParams {
+  double tol_mm = 3.0;
+  double radius_mm = 6.0;
+  double unsupported = 0.5;
+};
+double support_factor(const Model& model, const Mat3& R, const Vec3& t, const Plane& table,
+                      std::span<const Eigen::Vector3f> points, const SupportParams& p, double* lowest = nullptr);
+
 // Model faces whose outward normal faces the viewpoint in pose (R, t).
 int count_visible_faces(const Model& model, const Mat3& R, const Vec3& t, const Vec3& viewpoint);
 

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <limits>
 #include <numeric>
 
 #include "host/recognize/pose.hpp"
@@ -15,6 +17,7 @@ namespace fs::host::rec {
 namespace {
 
 using Clock = std::chrono::steady_clock;
+constexpr std::size_t kMaxMatches = 128;   // face matches of one hypothesis (matcher graphs hold <= 128 nodes)
 double ms_since(Clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 }
@@ -52,18 +55,19 @@ struct Recognizer::Impl {
     for (auto& pm : per_model) {
       pm.slots.resize(static_cast<std::size_t>(p.solutions_per_model));
       for (auto& s : pm.slots) {
-        s.path.reserve(64);
-        s.matches.reserve(64);
+        s.path.reserve(kMaxMatches);
+        s.matches.reserve(kMaxMatches);
       }
     }
     const std::size_t max_h = lib.models.size() * static_cast<std::size_t>(p.solutions_per_model);
     hyps.resize(max_h);
     for (auto& h : hyps) {
-      h.matches.reserve(64);
-      h.path.reserve(64);
-      h.inlier_cells.reserve(4096);
+      h.matches.reserve(kMaxMatches);
+      h.path.reserve(kMaxMatches);
     }
     order.reserve(max_h);
+    picked.reserve(max_h);
+    face_cover.reserve(8192);
     alive.reserve(max_h);
     pairs.reserve(256);
     node_used.reserve(8192);
@@ -84,7 +88,16 @@ struct Recognizer::Impl {
   std::vector<char> node_used;      // by scene node id
   std::vector<int> scene_index;     // scene node id -> index in scene.nodes (-1)
   std::vector<std::int32_t> cell_owner;
+  // Inlier cells of the refined hypotheses: slot k belongs to hyps[slot_owner[k]] during a scan (swapped into
+  // its inlier_cells and back afterwards, so no buffer is ever reallocated).
+  std::vector<std::vector<std::uint32_t>> slot_cells;
+  // Buffers of the reported objects: out.objects[k] holds spare_objects[k]'s buffers during a scan (swapped in
+  // when reported, swapped back at the next scan), so reporting never allocates.
+  std::vector<Hypothesis> spare_objects;
+  std::vector<std::size_t> slot_owner;
   std::vector<std::size_t> accepted;
+  std::vector<std::size_t> picked;  // scratch of select_covering
+  std::vector<int> face_cover;      // by scene node id
   // Matching context.
   const Pfrg* scene = nullptr;
   const Library* library = nullptr;
@@ -97,7 +110,45 @@ struct Recognizer::Impl {
   std::vector<std::uint32_t> region_coarse, region_fine;
   std::vector<std::uint32_t> region_hits;
   const std::vector<std::int32_t>* labels = nullptr;
+  // The table found in the scene (normal toward the sensor), for the support test.
+  bool have_table = false;
+  Plane table;
+  double support_tol = 3.0, support_radius = 6.0, unsupported_factor = 0.5;
+
+  void support_test(const Model& model, Hypothesis& h) const {
+    if (!have_table) return;
+    h.verify.support = support_factor(model, h.R, h.t, table, fine.points(),
+                                      SupportParams{support_tol, support_radius, unsupported_factor},
+                                      &h.verify.lowest_mm);
+    h.verify.confidence *= h.verify.support;
+  }
 };
+
+namespace {
+
+// Filters im.order (kept in order) to at most `limit` hypotheses that pass `ok` and hold a scene face that fewer
+// than `per_face` earlier picks hold.
+template <class Ok>
+void select_covering(Recognizer::Impl& im, int per_face, std::size_t limit, Ok ok) {
+  int max_id = 0;
+  for (std::size_t i : im.order)
+    for (const FaceMatch& m : im.hyps[i].matches) max_id = std::max(max_id, m.scene);
+  im.face_cover.assign(static_cast<std::size_t>(max_id) + 1, 0);
+  im.picked.clear();
+  for (std::size_t i : im.order) {
+    if (im.picked.size() >= limit) break;
+    const Hypothesis& h = im.hyps[i];
+    if (!ok(h)) continue;
+    bool wanted = false;
+    for (const FaceMatch& m : h.matches) wanted = wanted || im.face_cover[static_cast<std::size_t>(m.scene)] < per_face;
+    if (!wanted) continue;
+    for (const FaceMatch& m : h.matches) ++im.face_cover[static_cast<std::size_t>(m.scene)];
+    im.picked.push_back(i);
+  }
+  im.order.assign(im.picked.begin(), im.picked.end());
+}
+
+}  // namespace
 
 Recognizer::Recognizer(const Library& library, const RecognizeParams& params, std::size_t max_cells)
     : library_(library),
@@ -110,15 +161,21 @@ Recognizer::Recognizer(const Library& library, const RecognizeParams& params, st
   impl_->cell_owner.assign(max_cells, -1);
   impl_->coarse.reserve(max_cells);
   impl_->fine.reserve(max_cells);
+  // Fine samples of a grid of max_cells cells: at most ceil(h/s) * ceil(w/s) <= cells/s^2 + cells/s + 1.
+  const std::size_t step = static_cast<std::size_t>(std::max(1, params.verify.sample_step));
+  const std::size_t max_samples = max_cells / (step * step) + max_cells / step + 1;
+  impl_->slot_cells.resize(static_cast<std::size_t>(std::max(params.max_refined, 1)));
+  for (auto& b : impl_->slot_cells) b.reserve(max_samples);
+  impl_->slot_owner.reserve(impl_->slot_cells.size());
+  for (auto& v : impl_->verifiers) v.reserve(max_samples);
   result_.objects.reserve(static_cast<std::size_t>(std::max(params.max_objects, 1)));
-  for (std::size_t i = 0; i < result_.objects.capacity(); ++i) {
-    result_.objects.emplace_back();
-    result_.objects.back().matches.reserve(64);
-    result_.objects.back().path.reserve(64);
-    result_.objects.back().inlier_cells.reserve(4096);
+  impl_->spare_objects.resize(result_.objects.capacity());
+  for (Hypothesis& h : impl_->spare_objects) {
+    h.matches.reserve(kMaxMatches);
+    h.path.reserve(kMaxMatches);
+    h.inlier_cells.reserve(max_samples);
   }
-  result_.objects.clear();
-  result_.note.reserve(256);
+  result_.note.reserve(512);
 }
 
 Recognizer::~Recognizer() = default;
@@ -127,8 +184,9 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
   Impl& im = *impl_;
   const auto t_start = Clock::now();
   Recognition& out = result_;
-  // Keep the reserved Hypothesis buffers of out.objects: shrink by resize (no deallocation).
-  out.objects.resize(0);
+  // The reported objects' buffers go back to the spare pool (swapped, never freed), see spare_objects.
+  for (std::size_t k = 0; k < out.objects.size(); ++k) std::swap(out.objects[k], im.spare_objects[k]);
+  out.objects.clear();
   out.stats = RecognizeStats{};
   out.note.clear();
 
@@ -140,9 +198,15 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
   pfrg_builder_.build(seg_, scene_);
   out.stats.regions = static_cast<int>(seg_.regions.size());
   out.stats.known_regions = static_cast<int>(seg_.known_count());
-  if (params_.remove_table)
+  im.have_table = false;
+  if (params_.remove_table) {
     out.stats.table_removed = remove_table(scene_, table, cloud.viewpoint, params_.table_angle_deg,
-                                           params_.table_dist_mm) >= 0;
+                                           params_.table_dist_mm, &im.table) >= 0;
+    im.have_table = out.stats.table_removed;
+  }
+  im.support_tol = params_.support_tol_mm;
+  im.support_radius = params_.support_radius_mm;
+  im.unsupported_factor = params_.unsupported_factor;
   out.stats.pfrg_ms = ms_since(t0);
   int known_nodes = 0;
   for (const auto& n : scene_.nodes) known_nodes += n.supernode ? 0 : 1;
@@ -227,15 +291,22 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
   im.alive.assign(im.nhyp, 1);
   out.stats.merged = merge_compatible(hc, std::span<Hypothesis>(im.hyps.data(), im.nhyp), im.alive, im.pairs);
 
-  // 4. Low-level verification of the best hypotheses (by matching cost), in parallel.
+  // 4. Low-level verification of the most plausible hypotheses (prescore, then matching cost), in parallel.
   im.order.clear();
   for (std::size_t i = 0; i < im.nhyp; ++i)
     if (im.alive[i]) im.order.push_back(i);
+  for (std::size_t i : im.order) im.hyps[i].prescore = prescore(hc, im.hyps[i]);
   std::sort(im.order.begin(), im.order.end(), [&](std::size_t a, std::size_t b) {
-    return im.hyps[a].cost != im.hyps[b].cost ? im.hyps[a].cost < im.hyps[b].cost : a < b;
+    const Hypothesis& x = im.hyps[a];
+    const Hypothesis& y = im.hyps[b];
+    if (x.prescore != y.prescore) return x.prescore > y.prescore;
+    return x.cost != y.cost ? x.cost < y.cost : a < b;
   });
-  if (im.order.size() > static_cast<std::size_t>(params_.max_verified))
-    im.order.resize(static_cast<std::size_t>(params_.max_verified));
+  // Keep the order but give every scene face its share: a hypothesis is checked when one of its matched scene
+  // faces has been claimed by fewer than verify_per_face better hypotheses (so the faces of a small object are
+  // not crowded out by the many hypotheses of a large one).
+  select_covering(im, params_.verify_per_face, static_cast<std::size_t>(params_.max_verified),
+                  [](const Hypothesis&) { return true; });
   // Phase 1: coarse check of every candidate (no refinement).
   im.coarse.build(cloud, 2 * params_.verify.sample_step);
   im.fine.build(cloud, params_.verify.sample_step);
@@ -255,7 +326,13 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
     Verifier& v = m.verifiers[static_cast<std::size_t>(worker)];
     h.verify = v.verify(m.refine_phase ? m.fine : m.coarse, m.geometry[static_cast<std::size_t>(h.model)], h.R,
                         h.t, m.refine_phase);
-    h.inlier_cells.assign(v.inlier_cells().begin(), v.inlier_cells().end());
+    const std::vector<std::uint32_t>* cells = &v.inlier_cells();
+    if (m.refine_phase) {
+      m.slot_owner[task] = m.order[task];
+      std::swap(h.inlier_cells, m.slot_cells[task]);
+      h.inlier_cells.assign(v.inlier_cells().begin(), v.inlier_cells().end());
+      cells = &h.inlier_cells;
+    }
     // How much of the matched scene regions the model explains: a model smaller than the faces it claims
     // leaves measured points of those faces unexplained.
     const auto& counts = m.refine_phase ? m.region_fine : m.region_coarse;
@@ -264,7 +341,7 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
       const int r = fm.scene - 1;
       if (r >= 0 && static_cast<std::size_t>(r) < counts.size()) total += counts[static_cast<std::size_t>(r)];
     }
-    for (std::uint32_t cell : h.inlier_cells) {
+    for (std::uint32_t cell : *cells) {
       const std::int32_t r = (*m.labels)[cell];
       for (const FaceMatch& fm : h.matches)
         if (fm.scene - 1 == r) {
@@ -274,6 +351,7 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
     }
     h.verify.explained = total > 0 ? std::min(1.0, static_cast<double>(explained) / static_cast<double>(total)) : 0.0;
     h.verify.confidence *= h.verify.explained;
+    if (m.refine_phase) m.support_test(m.library->models[static_cast<std::size_t>(h.model)], h);
   };
   im.refine_phase = false;
   im.pool.run(im.order.size(), verify_task, &im);
@@ -282,16 +360,20 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
       Hypothesis& h = im.hyps[i];
       h.key = h.cost + params_.confidence_weight * (1.0 - h.verify.confidence);
     }
-    std::stable_sort(im.order.begin(), im.order.end(),
-                     [&](std::size_t a, std::size_t b) { return im.hyps[a].key < im.hyps[b].key; });
+    // std::sort with the index as tie-break (std::stable_sort would take a temporary buffer from the heap).
+    std::sort(im.order.begin(), im.order.end(), [&](std::size_t a, std::size_t b) {
+      return im.hyps[a].key != im.hyps[b].key ? im.hyps[a].key < im.hyps[b].key : a < b;
+    });
   };
   rekey();
   // Phase 2: the plausible ones are refined by ICP and verified on the fine sample set.
-  std::size_t plausible = 0;
-  while (plausible < im.order.size() && plausible < static_cast<std::size_t>(params_.max_refined) &&
-         im.hyps[im.order[plausible]].verify.confidence >= 0.5 * params_.min_confidence)
-    ++plausible;
+  const double min_plausible = 0.5 * params_.min_confidence;
+  select_covering(im, params_.refine_per_face, static_cast<std::size_t>(params_.max_refined),
+                  [&](const Hypothesis& h) { return h.verify.confidence >= min_plausible; });
+  std::size_t plausible = im.order.size();
   im.refine_phase = true;
+  im.slot_owner.resize(std::min(plausible, im.slot_cells.size()));
+  plausible = im.slot_owner.size();
   im.pool.run(plausible, verify_task, &im);
   im.order.resize(plausible);
   rekey();
@@ -337,18 +419,23 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
     h.instance = instance;
     canonical_pose(library_.models[static_cast<std::size_t>(h.model)], h.R, h.t);
     out.objects.emplace_back();
+    std::swap(out.objects.back(), im.spare_objects[out.objects.size() - 1]);
     copy_hypothesis(h, out.objects.back());
   }
-  // Reset the cell owners touched.
+  // Reset the cell owners touched; give the inlier buffers back to their slots.
   for (const Hypothesis& o : out.objects)
     for (std::uint32_t c : o.inlier_cells) im.cell_owner[c] = -1;
+  for (std::size_t k = 0; k < im.slot_owner.size(); ++k) std::swap(im.hyps[im.slot_owner[k]].inlier_cells, im.slot_cells[k]);
+  im.slot_owner.clear();
   if (out.objects.empty()) {
     if (im.nhyp == 0) {
       out.note = "no reference matched the scene graph";
     } else if (best_rejected_model >= 0) {
-      out.note = "no hypothesis passed verification (best: " +
-                 library_.models[static_cast<std::size_t>(best_rejected_model)].name + " with confidence " +
-                 std::to_string(best_rejected).substr(0, 5) + " < " + std::to_string(params_.min_confidence).substr(0, 4) + ")";
+      char buf[320];   // formatted without heap temporaries (out.note keeps its reserved capacity)
+      std::snprintf(buf, sizeof buf, "no hypothesis passed verification (best: %.200s with confidence %.3f < %.2f)",
+                    library_.models[static_cast<std::size_t>(best_rejected_model)].name.c_str(), best_rejected,
+                    params_.min_confidence);
+      out.note.assign(buf);
     } else {
       out.note = "all hypotheses were incompatible";
     }
@@ -360,6 +447,13 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
 std::vector<const Hypothesis*> Recognizer::candidates() const {
   std::vector<const Hypothesis*> out;
   for (std::size_t i : impl_->order) out.push_back(&impl_->hyps[i]);
+  return out;
+}
+
+std::vector<const Hypothesis*> Recognizer::all_hypotheses() const {
+  std::vector<const Hypothesis*> out;
+  for (std::size_t i = 0; i < impl_->nhyp; ++i)
+    if (i < impl_->alive.size() && impl_->alive[i]) out.push_back(&impl_->hyps[i]);
   return out;
 }
 

@@ -31,7 +31,7 @@ struct RecognizeParams {
   match::MatchParams match = match::preset("t9.3");
   seg::SegmentParams segment = seg::SegmentParams::laser();
   VerifyParams verify;
-  int solutions_per_model = 8;        // best solutions of each reference kept as hypotheses
+  int solutions_per_model = 32;       // best solutions of each reference kept as hypotheses (ranked by prescore)
   std::int64_t max_states = 20000;    // state budget of one match
   // The table (support plane) is absorbed into the supernode before matching.
   bool remove_table = true;
@@ -44,13 +44,23 @@ struct RecognizeParams {
   // Compatible-solution merge (ch. 8.1.3 / 9.4.1).
   double merge_rotation_deg = 10.0;
   double merge_translation_mm = 10.0;
+  // Support (beyond the thesis): a solid object rests on the table or on something measured below its lowest
+  // point. A hypothesis floating higher than support_tol_mm above the table (or sunk below it) with no
+  // measured point within support_radius_mm under its lowest point gets its confidence scaled by
+  // unsupported_factor (the top part of a taller model seen from above looks like a smaller model).
+  double support_tol_mm = 3.0;
+  double support_radius_mm = 6.0;
+  double unsupported_factor = 0.5;
   // Acceptance.
   double min_confidence = 0.6;
   double confidence_weight = 0.2;     // ordering key = cost + weight * (1 - confidence)
   double max_shared_inliers = 0.3;    // two objects may not explain more than this share of the same points
   int max_objects = 16;
-  int max_verified = 48;              // hypotheses checked against the cloud (lowest matching cost first)
-  int max_refined = 16;               // of those, the most plausible refined by ICP and verified finely
+  int max_verified = 64;              // hypotheses checked against the cloud (highest prescore first)
+  double prescore_area_slack = 1.1;   // a scene face may be this much larger than its model face (segmentation)
+  int max_refined = 24;               // of those, the most plausible refined by ICP and verified finely
+  int verify_per_face = 8;            // a scene face stops drawing hypotheses into verification after this many
+  int refine_per_face = 3;            // ... and into refinement
   int min_level = 3;                  // faces a search solution must match (TH_minlevel, as in the thesis)
   int threads = 0;                    // matching threads (0 = all cores)
 };
@@ -77,6 +87,7 @@ struct Hypothesis {
   bool degenerate = false;
   VerifyResult verify;
   double key = 0.0;                   // ordering key
+  double prescore = 0.0;              // geometric plausibility before verification (see hypotheses.hpp)
   int instance = 0;                   // 0 = first instance of its model, 1 = second, ...
   bool merged = false;                // a compatible solution was merged into it
   std::vector<std::uint32_t> inlier_cells;
@@ -112,11 +123,14 @@ class Recognizer {
   const RecognizeParams& params() const { return params_; }
   // The verified hypotheses of the last recognize(), in ordering-key order (diagnostics, reports).
   std::vector<const Hypothesis*> candidates() const;
+  // Every hypothesis of the last recognize() that survived the compatible merge (diagnostics).
+  std::vector<const Hypothesis*> all_hypotheses() const;
   // Cell -> object index (into objects) or -1, for colouring.
   void object_labels(const OrganizedCloud& cloud, std::vector<std::int32_t>& labels) const;
 
+  struct Impl;   // opaque (recognizer.cpp)
+
  private:
-  struct Impl;
   const Library& library_;
   RecognizeParams params_;
   seg::Segmenter segmenter_;

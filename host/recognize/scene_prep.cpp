@@ -39,7 +39,8 @@ void absorb_into_supernode(Pfrg& g, int id) {
   std::erase_if(g.nodes, [&](const PfrgNode& n) { return n.id == id; });
 }
 
-int remove_table(Pfrg& g, const Plane* table, const Vec3& viewpoint, double angle_deg, double dist_mm) {
+int remove_table(Pfrg& g, const Plane* table, const Vec3& viewpoint, double angle_deg, double dist_mm,
+                 Plane* found) {
   const double cos_max = std::cos(angle_deg * M_PI / 180.0);
   int best = -1;
   double best_area = 0.0, total = 0.0;
@@ -65,6 +66,16 @@ int remove_table(Pfrg& g, const Plane* table, const Vec3& viewpoint, double angl
   }
   if (best < 0) return -1;
   if (!table && best_area < 0.25 * total) return -1;
+  if (found) {
+    for (const auto& n : g.nodes)
+      if (n.id == best) {
+        // The measured plane (the given one may be nominal); normal toward the viewpoint.
+        const bool flip = n.has_plane ? n.normal.dot(viewpoint) - n.offset < 0 : false;
+        found->n = flip ? Vec3(-n.normal) : n.normal;
+        found->d = flip ? -n.offset : n.offset;
+        if (!n.has_plane && table) *found = *table;
+      }
+  }
   absorb_into_supernode(g, best);
   return best;
 }

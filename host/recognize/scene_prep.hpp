@@ -12,6 +12,8 @@ void absorb_into_supernode(Pfrg& g, int id);
 
 // Finds the table node (plane within angle_deg / dist_mm of `table` when given; otherwise the largest face
 // when it holds >= 25% of the known area and faces the viewpoint) and absorbs it. Returns its id or -1.
-int remove_table(Pfrg& g, const Plane* table, const Vec3& viewpoint, double angle_deg, double dist_mm);
+// `found` (optional) receives the table's plane, its normal toward the viewpoint (the scene's "up").
+int remove_table(Pfrg& g, const Plane* table, const Vec3& viewpoint, double angle_deg, double dist_mm,
+                 Plane* found = nullptr);
 
 }  // namespace fs::host::rec

@@ -32,6 +32,8 @@ struct VerifyResult {
   double confidence = 0.0;
   double coverage = 0.0;           // inliers / hits
   double explained = 1.0;          // share of the matched scene regions' samples that are inliers (recognizer)
+  double support = 1.0;            // 1 = rests on the table or on measured surface below it (recognizer)
+  double lowest_mm = 0.0;          // height of the model's lowest point above the table (when one is known)
   int refine_iterations = 0;
 };
 
@@ -88,6 +90,12 @@ class SampleSet {
 class Verifier {
  public:
   explicit Verifier(const VerifyParams& params = {}) : params_(params) {}
+  // Sizes the internal buffers for up to `samples` points (a warm verify() then never allocates).
+  void reserve(std::size_t samples) {
+    inlier_cells_.reserve(samples);
+    inlier_sample_.reserve(samples);
+    inlier_face_.reserve(samples);
+  }
   // Verifies (and, with refine, refines R and t in place). Reuses internal buffers (no allocation once warm).
   VerifyResult verify(const SampleSet& samples, const ModelGeometry& geometry, Mat3& R, Vec3& t, bool refine);
   // Cell indices of the inliers of the last verify() call (for colouring the cloud by object).

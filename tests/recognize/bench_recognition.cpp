@@ -3,7 +3,7 @@
 // positives, CPU time and the allocations of a warm recognize(), per scene category.
 //
 //   bench_recognition [--scenes N] [--seed S] [--categories single,separated,occluded,empty] [--steps 500]
-//                     [--noise 0.05] [--threads 1] [--alloc-every 1] [--verbose]
+//                     [--noise 0.05] [--threads 1] [--alloc-every 1] [--verbose] [--candidates] [--only I] [--preset NAME] [--min-level N] [--solutions N]
 //
 // --alloc-every K: the allocation count is taken in every K-th round of the categories (all categories).
 //
@@ -62,6 +62,11 @@ struct Args {
   int threads = 1;
   int alloc_every = 1;
   bool verbose = false;
+  bool candidates = false;
+  int only = -1;
+  std::string preset;        // matching preset (default: the recognizer's)
+  int min_level = 0;         // 0 = the recognizer's default
+  int solutions = 0;         // solutions kept per model (0 = default)             // run just this scene index (same catalog and seed as in the full run)   // print every verified hypothesis of every scene (diagnostics)
 };
 
 Args parse_args(int argc, char** argv) {
@@ -79,6 +84,11 @@ Args parse_args(int argc, char** argv) {
     else if (k == "--threads") a.threads = std::stoi(value());
     else if (k == "--alloc-every") a.alloc_every = std::stoi(value());
     else if (k == "--verbose") a.verbose = true;
+    else if (k == "--candidates") a.candidates = a.verbose = true;
+    else if (k == "--only") a.only = std::stoi(value());
+    else if (k == "--preset") a.preset = value();
+    else if (k == "--min-level") a.min_level = std::stoi(value());
+    else if (k == "--solutions") a.solutions = std::stoi(value());
     else if (k == "--categories") {
       a.categories.clear();
       std::string list = value();
@@ -109,6 +119,9 @@ int run(const Args& args) {
 
   fs::host::rec::RecognizeParams params;
   params.threads = args.threads;
+  if (!args.preset.empty()) params.match = fs::host::match::preset(args.preset);
+  if (args.min_level > 0) params.min_level = args.min_level;
+  if (args.solutions > 0) params.solutions_per_model = args.solutions;
   const std::size_t cells =
       static_cast<std::size_t>(args.steps) * fs::ScannerCalibration::bench_default().camera.height;
   fs::host::rec::Recognizer recognizer(library, params, cells);
@@ -117,6 +130,7 @@ int run(const Args& args) {
   std::map<std::string, int> missed_models, confused_with;
   fs::host::OrganizedCloud cloud;
   for (int i = 0; i < args.scenes; ++i) {
+    if (args.only >= 0 && i != args.only) continue;
     const SceneCategory cat = args.categories[static_cast<std::size_t>(i) % args.categories.size()];
     const std::uint64_t seed = args.seed + static_cast<std::uint64_t>(i);
     const auto rs = fs::sim::make_random_scene(catalog, {.category = cat, .steps = args.steps}, seed);
@@ -131,6 +145,54 @@ int run(const Args& args) {
     // Copy what we evaluate: the second recognize() overwrites the result.
     std::vector<fs::host::rec::Hypothesis> found_objects = r.objects;
     const std::string note = r.note;
+    if (args.candidates) {
+      std::printf("scene seed %llu: %d scene nodes, %d hypotheses\n", static_cast<unsigned long long>(seed),
+                  r.stats.scene_nodes, r.stats.hypotheses);
+      for (std::size_t oi = 0; oi < rs.scene.objects.size(); ++oi)
+        if (rs.catalog_index[oi] >= 0)
+          std::printf("  truth %s\n", library.models[static_cast<std::size_t>(rs.catalog_index[oi])].name.c_str());
+      for (const auto* h : recognizer.candidates())
+        std::printf("  cand %-44s lvl %d faces %zu pre %.3f conf %.3f expl %.2f sup %.1f low %.1f in %d viol %d occ %d rot-to-truth %.1f\n",
+                    library.models[static_cast<std::size_t>(h->model)].name.c_str(), h->level, h->matches.size(),
+                    h->prescore, h->verify.confidence, h->verify.explained, h->verify.support, h->verify.lowest_mm, h->verify.inliers, h->verify.violations,
+                    h->verify.occluded,
+                    h->model == rs.catalog_index[0]
+                        ? fs::host::rec::rotation_angle_deg_sym(rs.scene.objects[0].rotation, h->R,
+                                                                library.models[static_cast<std::size_t>(h->model)])
+                        : -1.0);
+      for (std::size_t oi = 0; oi < rs.scene.objects.size(); ++oi) {
+        if (rs.catalog_index[oi] < 0) continue;
+        const auto& tm = library.models[static_cast<std::size_t>(rs.catalog_index[oi])];
+        const auto& ob = rs.scene.objects[oi];
+        const fs::Vec3 c = ob.rotation * tm.center + ob.translation;
+        std::printf("  object %s: faces", tm.name.c_str());
+        for (const auto& f : tm.faces) {
+          const fs::Vec3 n = ob.rotation * f.normal;
+          if (n.z() > 0.05) std::printf(" [a %.0f nz %.2f]", f.area, n.z());
+        }
+        std::printf("\n    scene nodes near:");
+        for (const auto& n : recognizer.scene_graph().nodes)
+          if (!n.supernode && (n.centroid - c).norm() < tm.bounding_radius * 1.1)
+            std::printf(" [%d a %.0f nz %.2f]", n.id, n.area, n.normal.z());
+        std::printf("\n    arcs:");
+        for (const auto& a : recognizer.scene_graph().arcs) {
+          bool near = false;
+          for (const auto& n : recognizer.scene_graph().nodes)
+            if ((n.id == a.a || n.id == a.b) && !n.supernode && (n.centroid - c).norm() < tm.bounding_radius * 1.1) near = true;
+          if (near) std::printf(" %d-%d(%.0f)", a.a, a.b, a.border);
+        }
+        std::printf("\n");
+      }
+      for (const auto* h : recognizer.all_hypotheses())
+        for (std::size_t oi = 0; oi < rs.scene.objects.size(); ++oi)
+          if (h->model == rs.catalog_index[oi]) {
+            const auto& tm = library.models[static_cast<std::size_t>(h->model)];
+            std::printf("  truth-hyp %s lvl %d faces %zu pre %.3f cost %.4f rot-to-truth %.1f t-err %.1f\n",
+                        tm.name.c_str(), h->level, h->matches.size(), h->prescore, h->cost,
+                        fs::host::rec::rotation_angle_deg_sym(rs.scene.objects[oi].rotation, h->R, tm),
+                        (h->t - rs.scene.objects[oi].translation).norm());
+          }
+    }
 
     CategoryStats& s = stats[cat];
     ++s.scenes;

@@ -8,6 +8,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "common/alloc_counter/alloc_counter.hpp"
 #include "host/library/mesh_files.hpp"
 #include "host/recognize/pose.hpp"
 #include "host/recognize/recognizer.hpp"
@@ -49,17 +50,8 @@ void expect_scene_recognized(const std::string& name, const std::vector<std::str
   Recognizer rec(library(), params, s.cloud.points.size());
   const fs::Plane table = s.scene.calibration.table;
   const auto& r = rec.recognize(s.cloud, &table);
-  if (r.objects.size() != s.scene.objects.size()) {
-    std::cerr << "scene graph: " << fs::host::to_json(rec.scene_graph()).dump() << "\n";
-    for (const auto* h : rec.candidates())
-      std::cerr << library().models[static_cast<std::size_t>(h->model)].name << " cost " << h->cost << " conf "
-                << h->verify.confidence << " inl " << h->verify.inliers << " viol " << h->verify.violations
-                << " occ " << h->verify.occluded << " matches " << h->matches.size() << " t " << h->t.transpose()
-                << "\n";
-    std::cerr << fs::host::rec::to_json(r, library()).dump() << "\n";
-  }
   if (exact) {
-    ASSERT_EQ(r.objects.size(), s.scene.objects.size()) << name << ": " << r.note;
+    EXPECT_EQ(r.objects.size(), s.scene.objects.size()) << name << ": " << r.note;
   }
   std::vector<bool> used(r.objects.size(), false);
   for (const auto& obj : s.scene.objects) {
@@ -83,6 +75,24 @@ void expect_scene_recognized(const std::string& name, const std::vector<std::str
     }
     EXPECT_TRUE(found) << name << ": " << obj.name << " not recognized";
   }
+  if (::testing::Test::HasFailure()) {
+    std::cerr << "scene graph: " << fs::host::to_json(rec.scene_graph()).dump() << "\n";
+    for (const auto* h : rec.candidates())
+      std::cerr << library().models[static_cast<std::size_t>(h->model)].name << " cost " << h->cost << " conf "
+                << h->verify.confidence << " inl " << h->verify.inliers << " viol " << h->verify.violations
+                << " occ " << h->verify.occluded << " matches " << h->matches.size() << " support " << h->verify.support << " lowest "
+                << h->verify.lowest_mm << " prescore " << h->prescore << " t " << h->t.transpose()
+                << "\n";
+    for (const auto* h : rec.all_hypotheses())
+      for (const auto& obj : s.scene.objects)
+        if (library().models[static_cast<std::size_t>(h->model)].name == obj.name)
+          std::cerr << "  hypothesis " << obj.name << " level " << h->level << " prescore " << h->prescore
+                    << " coarse/fine conf " << h->verify.confidence << " cost " << h->cost << " rot err "
+                    << fs::host::rec::rotation_angle_deg_sym(obj.rotation, h->R,
+                                                             library().models[static_cast<std::size_t>(h->model)])
+                    << " t " << h->t.transpose() << "\n";
+    std::cerr << fs::host::rec::to_json(r, library()).dump() << "\n";
+  }
 }
 
 TEST(RecognizeScenes, Cube) { expect_scene_recognized("cube"); }
@@ -94,6 +104,33 @@ TEST(RecognizeScenes, CubeOccludesPyramidFindsThePyramid) {
   expect_scene_recognized("cube-occludes-pyramid", {"truncated_pyramid"}, false);
 }
 TEST(RecognizeScenes, DefaultDemoSceneFindsThePyramid) { expect_scene_recognized("default", {"truncated_pyramid"}, false); }
+
+// Issue 10: zero heap allocations per scan after warm-up, shown around a second recognize() of a scan in the
+// same process (all threads of the process are counted: the matching and verification workers too).
+TEST(RecognizeScenes, WarmRecognizeAllocatesNothing) {
+  SceneRun s = scan("cube-pyramid-separate");
+  fs::host::rec::RecognizeParams params;
+  params.threads = 2;
+  Recognizer rec(library(), params, s.cloud.points.size());
+  const fs::Plane table = s.scene.calibration.table;
+  const std::size_t first = rec.recognize(s.cloud, &table).objects.size();
+  ASSERT_EQ(first, 2u);
+  fs::AllocCounter counter;
+  const auto& r = rec.recognize(s.cloud, &table);
+  const auto allocations = counter.process_allocations();
+  EXPECT_EQ(allocations, 0u);
+  EXPECT_EQ(r.objects.size(), first);
+  // The empty-result path (its note) does not allocate either once warm.
+  SceneRun e = scan("cube-pyramid-separate");
+  fs::sim::Scene empty = e.scene;
+  empty.objects.clear();
+  fs::host::OrganizedCloud cloud;
+  fs::sim::make_ground_truth_grid(empty, {.depth_noise_mm = 0.05, .seed = 7}).export_to(cloud);
+  rec.recognize(cloud, &table);
+  counter.restart();
+  EXPECT_TRUE(rec.recognize(cloud, &table).objects.empty());
+  EXPECT_EQ(counter.process_allocations(), 0u);
+}
 
 TEST(RecognizeScenes, EmptyTableGivesNoObjectAndSaysWhy) {
   fs::sim::Scene scene = fs::sim::load_scene(fs::test::source_dir() / "hw-sim/scenes/cube.json");
