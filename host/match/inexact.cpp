@@ -39,18 +39,39 @@ double rel_diss(double a, double b) {
   return m > 0 ? std::abs(a - b) / m : 0.0;
 }
 
+// Hot fields first (heap keys, tree links, flags), the rotation fit matrices last.
 struct State {
-  NodeSet cr, cs, tr, ts;          // core / terminal sets (reference, scene); rest = complement
-  Mat4 B = Mat4::Zero();           // accumulated sum gamma A (7.5.8)
-  Mat3 R = Mat3::Identity();       // best fitting rotation
-  Eigen::Vector4d q{0, 0, 0, 1};   // its quaternion (x y z w): warm start of the children's fits
+  double cost = 0;                 // exact when fitted; otherwise a lower bound (see lazy fits below)
+  double sum_gamma = 0, d_area = 0, d_border = 0, rotfit = 0;
   double lambda = 0;               // smallest eigenvalue of B: lower bound of the children's
-  double sum_gamma = 0, d_area = 0, d_border = 0, rotfit = 0, cost = 0;
   std::uint64_t hash = 0;
   int parent = -1, child_index = 0, level = 0, r = -1, s = -1;
   int am = 0, ai = 0, ad = 0, children = 0, first_r = -1;
   bool expanded = false, degenerate = true;
+  bool fitted = true;              // R, q, lambda, rotfit and cost are final
+  NodeSet cr, cs, tr, ts;          // core / terminal sets (reference, scene); rest = complement
 };
+
+// The rotation fit data of a state, kept apart from State so that the tree walks, duplicate tests and heap keys
+// touch less memory.
+struct FitData {
+  Mat4 B = Mat4::Zero();           // accumulated sum gamma A (7.5.8)
+  Mat3 R = Mat3::Identity();       // best fitting rotation
+  Eigen::Vector4d q{0, 0, 0, 1};   // its quaternion (x y z w): warm start of the children's fits
+};
+
+// Priority queue entry: the ordering key is copied out of the state (no pool access while sifting).
+struct HeapItem {
+  double cost;
+  int level;
+  int id;
+};
+// Lowest cost first; among equal costs the deeper state (favours well developed paths, 7.2.4), then the older one.
+inline bool heap_less(const HeapItem& x, const HeapItem& y) {
+  if (x.cost != y.cost) return x.cost < y.cost;
+  if (x.level != y.level) return x.level > y.level;
+  return x.id < y.id;
+}
 
 }  // namespace
 
@@ -69,14 +90,37 @@ const MatchClock& steady_match_clock() {
   return clock;
 }
 
+// Speed (issue 9), without changing any result:
+//  - Lazy rotation fits. A new state of level >= 2 is created with B and
+//    sum gamma but without its eigen solve when the conditions that need e_rotfit (8 cost threshold, 9.3 rotation
+//    fit similarity) are already decided by bounds of lambda_min(B): from below the parent's lambda_min (Weyl:
+//    B = B_parent + gamma A, A PSD), from above the Rayleigh quotient of B at the parent's quaternion, both
+//    widened by 1e-9 trace(B) (far above the solver's error). Such a state enters the priority queue with the
+//    cost lower bound; when it reaches the top it is fitted (same solver, same inputs, so bit-identical) and
+//    re-queued if another state now comes first, so states are expanded in exactly the original order. Most
+//    created states are never expanded, and their fits are saved. Reported solutions are fitted on demand, and
+//    selected by a lazy top-k over the cost lower bounds instead of sorting every candidate.
+//  - The visibility check of new level-2 states (the one check that needs a rotation before the state exists)
+//    uses the closed-form two-pair fit (two_pair_fit, rotation_fit.hpp) when it is well conditioned and both
+//    rotated normals are more than 1e-7 away from the cone (the solver's rotation differs by < 1e-9 there);
+//    otherwise the solver, as before. lambda_min is then known in closed form (bounds +- 1e-9 trace B).
+//  - The duplicate-test table starts at 4096 slots and doubles inside its reserved memory; a 16 KB Bloom filter
+//    answers most misses without a table probe; the slot is prefetched once the match-set hash is known.
+//  - The rotation data (B, R, q) lives in a parallel array (FitData): tree walks, duplicate tests and heap keys
+//    touch smaller states.
+//  - Per-match tables of the pair-static quantities (gamma, D_area term, node degree condition), supernode
+//    candidates counted in bulk, heap entries that carry their key, hash slots that carry the hash, and the
+//    candidate state built in place in the pool (no 400-byte temporary per candidate).
 struct InexactMatcher::Impl {
   MatcherLimits limits;
   const MatchClock* clock = &steady_match_clock();
   std::unique_ptr<CompactGraph> S = std::make_unique<CompactGraph>();   // scene
   std::unique_ptr<CompactGraph> G = std::make_unique<CompactGraph>();   // reference
   std::vector<State> pool;
-  std::vector<int> heap;             // open states, min cost first
+  std::vector<FitData> fitdata;      // parallel to pool
+  std::vector<HeapItem> heap;        // open states, min key first
   struct Slot {
+    std::uint64_t hash = 0;
     std::uint32_t gen = 0;
     int state = -1;
   };
@@ -84,10 +128,17 @@ struct InexactMatcher::Impl {
   std::uint64_t mask = 0;
   std::uint32_t gen = 0;
   std::vector<int> leaves;           // solution candidates
+  std::vector<int> sorted;           // counting sort buffer of the leaves
+  std::vector<HeapItem> topk;        // lazy top-k selection of the reported solutions
+  std::vector<int> ranked;           // the reported solutions' states, best first
   std::vector<Solution> solutions;
   std::vector<NodeMatch> match_buf;
   std::vector<int> path_buf;
   std::array<int, kMaxNodes> r2s{}, s2r{}, mark{};
+  // Pair tables (index r * kMaxNodes + s), filled per match for the graphs' sizes.
+  std::vector<double> pair_gamma, pair_darea;
+  std::vector<std::uint8_t> pair_degree_fail;
+  bool unit_normals = false;         // every real normal of both graphs has length 1 within 1e-12
   MatchResult result;
   const MatchParams* P = nullptr;
   int n_states = 0;                  // used pool entries (root included)
@@ -97,56 +148,59 @@ struct InexactMatcher::Impl {
     if (limits.max_states < 1) limits.max_states = 1;
     if (limits.max_reported < 1) limits.max_reported = 1;
     const auto cap = static_cast<std::size_t>(limits.max_states) + 1;
-    pool.resize(cap);
+    pool.resize(cap + 1);            // + 1: the scratch entry a candidate is built in when the pool is full
+    fitdata.resize(cap + 1);
     heap.reserve(cap);
     std::size_t t = 16;
     while (t < 2 * cap) t <<= 1;
     table.resize(t);
     mask = t - 1;
     leaves.reserve(cap);
+    sorted.reserve(cap);
+    topk.reserve(cap);
+    ranked.resize(static_cast<std::size_t>(limits.max_reported));
     solutions.resize(static_cast<std::size_t>(limits.max_reported));
     match_buf.resize(static_cast<std::size_t>(limits.max_reported) * kMaxNodes);
     path_buf.resize(static_cast<std::size_t>(limits.max_reported) * kMaxNodes);
+    pair_gamma.resize(static_cast<std::size_t>(kMaxNodes) * kMaxNodes);
+    pair_darea.resize(static_cast<std::size_t>(kMaxNodes) * kMaxNodes);
+    pair_degree_fail.resize(static_cast<std::size_t>(kMaxNodes) * kMaxNodes);
     r2s.fill(-1);
     s2r.fill(-1);
     mark.fill(-1);
   }
 
-  // ---- priority queue (binary heap over pool indices; ties: lower state number first) ----
-  // Lowest cost first; among equal costs the deeper state (favours well developed paths, 7.2.4), then the
-  // older one.
-  bool less(int a, int b) const {
-    const State& x = pool[static_cast<std::size_t>(a)];
-    const State& y = pool[static_cast<std::size_t>(b)];
-    if (x.cost != y.cost) return x.cost < y.cost;
-    if (x.level != y.level) return x.level > y.level;
-    return a < b;
-  }
+  // ---- priority queue (binary heap of keyed entries) ----
   void heap_push(int x) {
-    heap.push_back(x);   // capacity reserved for every pool entry: never reallocates
+    const State& st = pool[static_cast<std::size_t>(x)];
+    heap.push_back(HeapItem{st.cost, st.level, x});   // capacity reserved for every pool entry: never reallocates
     std::size_t i = heap.size() - 1;
+    const HeapItem item = heap[i];
     while (i > 0) {
       const std::size_t p = (i - 1) / 2;
-      if (!less(heap[i], heap[p])) break;
-      std::swap(heap[i], heap[p]);
+      if (!heap_less(item, heap[p])) break;
+      heap[i] = heap[p];
       i = p;
     }
+    heap[i] = item;
   }
   int heap_pop() {
-    const int top = heap.front();
-    heap.front() = heap.back();
+    const int top = heap.front().id;
+    const HeapItem item = heap.back();
     heap.pop_back();
-    std::size_t i = 0;
     const std::size_t n = heap.size();
+    if (n == 0) return top;
+    std::size_t i = 0;
     for (;;) {
       const std::size_t l = 2 * i + 1, r = l + 1;
-      std::size_t m = i;
-      if (l < n && less(heap[l], heap[m])) m = l;
-      if (r < n && less(heap[r], heap[m])) m = r;
-      if (m == i) break;
-      std::swap(heap[i], heap[m]);
+      if (l >= n) break;
+      std::size_t m = l;
+      if (r < n && heap_less(heap[r], heap[l])) m = r;
+      if (!heap_less(heap[m], item)) break;
+      heap[i] = heap[m];
       i = m;
     }
+    heap[i] = item;
     return top;
   }
 
@@ -160,17 +214,49 @@ struct InexactMatcher::Impl {
     return true;
   }
   bool exists(std::uint64_t h, const NodeSet& cr, const NodeSet& cs, int r, int s) const {
+    if (!bloom_test(h)) return false;   // most candidates: no table probe
     for (std::uint64_t i = h & mask;; i = (i + 1) & mask) {
       const Slot& sl = table[i];
       if (sl.gen != gen) return false;
+      if (sl.hash != h) continue;
       const State& e = pool[static_cast<std::size_t>(sl.state)];
-      if (e.hash == h && e.cr == cr && e.cs == cs && same_matches(e, r, s)) return true;
+      if (e.cr == cr && e.cs == cs && same_matches(e, r, s)) return true;
     }
   }
-  void insert(std::uint64_t h, int state) {
+  // The table starts small (cache-resident for the usual few thousand states) and doubles inside the slots
+  // reserved up front when it becomes half full: a new generation, and the created states re-inserted.
+  static constexpr std::uint64_t kInitialSlots = 4096;
+  void next_gen() {
+    if (++gen == 0) {   // wrapped: clear the table once every 2^32 generations
+      for (auto& sl : table) sl = Slot{};
+      gen = 1;
+    }
+  }
+  // A one-hash Bloom filter of the table's hashes (16 KB, stays in L1/L2): a clear bit proves absence.
+  static constexpr std::uint64_t kBloomBits = std::uint64_t{1} << 17;
+  std::vector<std::uint64_t> bloom = std::vector<std::uint64_t>(kBloomBits / 64);
+  static std::uint64_t bloom_bit(std::uint64_t h) { return (h >> 40) & (kBloomBits - 1); }
+  bool bloom_test(std::uint64_t h) const { return (bloom[bloom_bit(h) >> 6] >> (bloom_bit(h) & 63)) & 1U; }
+  void bloom_set(std::uint64_t h) { bloom[bloom_bit(h) >> 6] |= std::uint64_t{1} << (bloom_bit(h) & 63); }
+  void reset_table() {
+    std::fill(bloom.begin(), bloom.end(), 0);
+    next_gen();
+    mask = std::min<std::uint64_t>(kInitialSlots, table.size()) - 1;
+  }
+  void place(std::uint64_t h, int state) {
     std::uint64_t i = h & mask;
     while (table[i].gen == gen) i = (i + 1) & mask;
-    table[i] = Slot{gen, state};
+    table[i] = Slot{h, gen, state};
+  }
+  void insert(std::uint64_t h, int state) {
+    // state - 1 states are in the table (every created state, root excluded).
+    if (2 * static_cast<std::uint64_t>(state) > mask + 1 && mask + 1 < table.size()) {
+      mask = 2 * mask + 1;
+      next_gen();
+      for (int k = 1; k < state; ++k) place(pool[static_cast<std::size_t>(k)].hash, k);
+    }
+    place(h, state);
+    bloom_set(h);
   }
 
   void load_map(int st, int value_sign) {
@@ -181,21 +267,63 @@ struct InexactMatcher::Impl {
     }
   }
 
-  double cost_of(const State& c) const {
+  double cost_of(const State& c) const { return cost_with(c, c.rotfit); }
+  // The cost with a given rotation fit error (monotone non-decreasing in it: epsilon >= 0).
+  double cost_with(const State& c, double rotfit) const {
     double cost = 0;
-    if (c.level > 0) cost += (P->alpha * c.d_area + P->epsilon * c.rotfit) / c.level;
+    if (c.level > 0) cost += (P->alpha * c.d_area + P->epsilon * rotfit) / c.level;
     const int arcs = c.am + c.ai + c.ad;
     if (arcs > 0) cost += (P->beta * c.d_border + P->gamma * c.ai + P->delta * c.ad) / arcs;
     return cost;
   }
+  static double rotfit_of(const State& c, double lambda) { return c.sum_gamma > 0 ? lambda / (2.0 * c.sum_gamma) : 0.0; }
 
   FastFitStats fit_stats;
-  void fit(State& c, const State& par) {
-    const RotationFit f = solve_rotation_fast(c.B, par.lambda, par.q, &fit_stats);
-    c.R = f.R;
-    c.q = f.q;
+  void fit(int ci, int pi) {
+    State& c = pool[static_cast<std::size_t>(ci)];
+    FitData& cf = fitdata[static_cast<std::size_t>(ci)];
+    const RotationFit f = solve_rotation_fast(cf.B, pool[static_cast<std::size_t>(pi)].lambda,
+                                              fitdata[static_cast<std::size_t>(pi)].q, &fit_stats);
+    cf.R = f.R;
+    cf.q = f.q;
     c.lambda = f.lambda_min;
-    c.rotfit = c.sum_gamma > 0 ? f.lambda_min / (2.0 * c.sum_gamma) : 0.0;
+    c.rotfit = rotfit_of(c, f.lambda_min);
+  }
+  // Completes a lazily created state: the fit its creation skipped, and the exact cost.
+  void finish(int id) {
+    State& c = pool[static_cast<std::size_t>(id)];
+    if (c.fitted) return;
+    fit(id, c.parent);
+    c.cost = cost_of(c);
+    c.fitted = true;
+  }
+
+  void fill_pair_tables() {
+    const MatchParams& p = *P;
+    const CompactGraph& gr = *G;
+    const CompactGraph& gs = *S;
+    unit_normals = true;
+    for (const CompactGraph* g : {&gr, &gs})
+      for (int i = 0; i < g->n; ++i)
+        if (!g->supernode[static_cast<std::size_t>(i)] && !(std::abs(g->normal[static_cast<std::size_t>(i)].squaredNorm() - 1.0) <= 1e-12))
+          unit_normals = false;
+    NodeSet gs_super;
+    for (int i = 0; i < gs.n; ++i)
+      if (gs.supernode[static_cast<std::size_t>(i)]) gs_super.set(i);
+    for (int r = 0; r < gr.n; ++r) {
+      const auto ur = static_cast<std::size_t>(r);
+      for (int s = 0; s < gs.n; ++s) {
+        const auto us = static_cast<std::size_t>(s);
+        const std::size_t k = ur * kMaxNodes + us;
+        pair_gamma[k] = std::sqrt(gs.area[us] * gr.area[ur]);
+        pair_darea[k] = rel_diss(gr.area[ur], gs.area[us]);
+        // 6 node degree (7.3.6: only faces not adjacent to invisible parts have comparable degrees; a scene face
+        // bordering the supernode may have lost neighbours, so for it only a surplus of scene neighbours counts.)
+        const int dr = gr.degree[ur], ds = gs.degree[us];
+        const bool open = (gs.adj[us] & gs_super).any();
+        pair_degree_fail[k] = open ? (ds - 1 - dr > p.th_nodedegree) : (std::abs(dr - ds) > p.th_nodedegree);
+      }
+    }
   }
 
   void run(MatchStats& st) {
@@ -206,23 +334,28 @@ struct InexactMatcher::Impl {
     const double cos_vis = std::cos(p.th_visibility_deg * std::numbers::pi / 180.0);
     const double sin_degen = std::sin(p.degenerate_deg * std::numbers::pi / 180.0);
     const bool always_vis = p.th_visibility_deg >= 180.0, always_rigid = p.th_omega_deg >= 180.0;
+    const bool vis_on = p.on(Condition::kVisibility) && !always_vis;
+    const bool rigid_on = p.on(Condition::kRigidity) && !always_rigid;
+    const bool super_on = p.on(Condition::kSupernode);
+    const bool cost_on = p.on(Condition::kCostThreshold);
+    const bool rotsim_on = p.on(Condition::kRotfitSimilarity);
+    const bool lazy_ok = p.epsilon >= 0;   // the cost bounds need a cost non-decreasing in e_rotfit
     const Vec3 obs = gs.observer;
     const std::int64_t t0 = clock->now_ns();
     const bool timed = std::isfinite(p.max_time_ms);
     std::int64_t solutions_found = 0;
     int best_leaf = -1;
 
-    const NodeSet gs_super = [&] {
-      NodeSet x;
-      for (int i = 0; i < gs.n; ++i)
-        if (gs.supernode[static_cast<std::size_t>(i)]) x.set(i);
-      return x;
-    }();
+    fill_pair_tables();
+    NodeSet gs_super;
+    for (int i = 0; i < gs.n; ++i)
+      if (gs.supernode[static_cast<std::size_t>(i)]) gs_super.set(i);
     NodeSet all_r, all_s;
     for (int i = 0; i < gr.n; ++i) all_r.set(i);
     for (int i = 0; i < gs.n; ++i) all_s.set(i);
 
     pool[0] = State{};
+    fitdata[0] = FitData{};
     n_states = 1;
     heap.clear();
     heap_push(0);
@@ -240,8 +373,18 @@ struct InexactMatcher::Impl {
         st.stop = StopReason::kTimeBudget;
         break;
       }
-      const int pi = heap_pop();
+      // Pop the state with the lowest exact key: a lazily created state on top is fitted first and goes back
+      // when its exact key is no longer the lowest.
+      int pi = heap_pop();
+      while (!pool[static_cast<std::size_t>(pi)].fitted) {
+        finish(pi);
+        const State& x = pool[static_cast<std::size_t>(pi)];
+        if (heap.empty() || !heap_less(heap.front(), HeapItem{x.cost, x.level, pi})) break;
+        heap_push(pi);
+        pi = heap_pop();
+      }
       const State& par = pool[static_cast<std::size_t>(pi)];
+      const FitData& pf = fitdata[static_cast<std::size_t>(pi)];
       const bool root = pi == 0;
       load_map(pi, +1);
 
@@ -257,126 +400,189 @@ struct InexactMatcher::Impl {
             all - static_cast<std::int64_t>(cand_r.count()) * cand_s.count();
       }
       const bool use_rot = par.level >= 2 && !par.degenerate;
+      // 2 supernode: scene supernode candidates are counted in bulk, the loop visits the others.
+      const NodeSet scan_s = super_on ? cand_s.minus(gs_super) : cand_s;
+      const NodeSet super_s = super_on ? (cand_s & gs_super) : NodeSet{};
+      const int n_cand_s = cand_s.count(), n_super_s = super_s.count();
+      // 3 rigidity applies to every candidate of this parent, 4 visibility forward too.
+      const bool rigid_now = rigid_on && use_rot;
+      const bool vis_forward = vis_on && use_rot;
+      const bool vis_backward = vis_on && !use_rot && par.level == 1;
       int created = 0;
       auto removed = [&](Condition c) { ++st.removed[static_cast<std::size_t>(c)]; };
 
       cand_r.for_each([&](int r) {
         if (stop) return;
-        const Vec3 nr = gr.normal[static_cast<std::size_t>(r)];
-        const Vec3 pred = par.R * nr;   // predicted scene normal
-        cand_s.for_each([&](int s) {
+        const auto ur = static_cast<std::size_t>(r);
+        if (super_on && gr.supernode[ur]) {
+          st.candidates += n_cand_s;
+          st.removed[static_cast<std::size_t>(Condition::kSupernode)] += n_cand_s;
+          return;
+        }
+        const Vec3 nr = gr.normal[ur];
+        const Vec3 pred = pf.R * nr;   // predicted scene normal
+        const bool pred_invisible = vis_forward && pred.dot(obs) < cos_vis;
+        int stop_s = -1;
+        scan_s.for_each([&](int s) {
           if (stop) return;
           ++st.candidates;
-          // 2 supernode
-          if (p.on(Condition::kSupernode) && (gr.supernode[static_cast<std::size_t>(r)] || gs.supernode[static_cast<std::size_t>(s)]))
-            return removed(Condition::kSupernode);
-          const Vec3& ns = gs.normal[static_cast<std::size_t>(s)];
+          const auto us = static_cast<std::size_t>(s);
+          const Vec3& ns = gs.normal[us];
           // 3 rigidity (forward check from parents of level >= 2)
-          if (p.on(Condition::kRigidity) && use_rot && !always_rigid && pred.dot(ns) < cos_omega)
-            return removed(Condition::kRigidity);
-          State c;
-          bool fitted = false;
-          auto build = [&] {
-            c.level = par.level + 1;
+          if (rigid_now && pred.dot(ns) < cos_omega) return removed(Condition::kRigidity);
+          // 4 visibility: forward from level >= 2 parents; backward check of new level-2 states
+          if (pred_invisible) return removed(Condition::kVisibility);
+          const std::size_t pk = ur * kMaxNodes + us;
+          // The match-set hash, and its table slot fetched early (probed by condition 5, written on creation).
+          const std::uint64_t h = par.hash ^ pair_key(r, s);
+          __builtin_prefetch(&table[h & mask]);
+          State& c = pool[static_cast<std::size_t>(n_states)];   // built in place; committed by ++n_states
+          FitData& cf = fitdata[static_cast<std::size_t>(n_states)];
+          c.level = par.level + 1;
+          bool built = false;
+          // Bounds of e_rotfit while the state is not fitted (lazy path): [rot_lo, rot_hi].
+          double rot_lo = 0, rot_hi = 0;
+          bool lazy = false;
+          auto lazy_bounds = [&](double lam_lo, double lam_hi) {
+            const double tol = 1e-9 * cf.B.trace();
+            rot_lo = rotfit_of(c, std::max(0.0, lam_lo - tol));
+            rot_hi = rotfit_of(c, lam_hi + tol);
+            lazy = true;
+          };
+          // Weyl: lambda_min(B) >= the parent's; the Rayleigh quotient at the parent's quaternion bounds it above.
+          auto lazy_from_parent = [&] { lazy_bounds(par.lambda, pf.q.dot(cf.B * pf.q)); };
+          auto build = [&] {   // B and the flags; the fit separately (fit_now)
             c.sum_gamma = par.sum_gamma;
-            c.B = par.B;
-            const double g = std::sqrt(gs.area[static_cast<std::size_t>(s)] * gr.area[static_cast<std::size_t>(r)]);
-            add_pair(c.B, nr, ns, g);
+            cf.B = pf.B;
+            const double g = pair_gamma[pk];
+            add_pair(cf.B, nr, ns, g);
             c.sum_gamma += g;
+            c.first_r = root ? r : par.first_r;
+            c.degenerate = root || (par.degenerate && nr.cross(gr.normal[static_cast<std::size_t>(c.first_r)]).norm() < sin_degen);
+            built = true;
+          };
+          auto fit_now = [&] {
             if (root) {
               // One pair: zero error, a one-parameter family of rotations; take the smallest one (no solve).
               const Eigen::Quaterniond q1 = Eigen::Quaterniond::FromTwoVectors(nr, ns);
-              c.R = q1.toRotationMatrix();
-              c.q = Eigen::Vector4d(q1.x(), q1.y(), q1.z(), q1.w());
+              cf.R = q1.toRotationMatrix();
+              cf.q = Eigen::Vector4d(q1.x(), q1.y(), q1.z(), q1.w());
               c.lambda = 0.0;
               c.rotfit = 0.0;
             } else {
-              fit(c, par);
+              fit(n_states, pi);
             }
-            c.first_r = root ? r : par.first_r;
-            c.degenerate = root || (par.degenerate && nr.cross(gr.normal[static_cast<std::size_t>(c.first_r)]).norm() < sin_degen);
-            fitted = true;
           };
-          // 4 visibility: forward from level >= 2 parents; backward check of new level-2 states
-          if (p.on(Condition::kVisibility) && !always_vis) {
-            if (use_rot) {
-              if (pred.dot(obs) < cos_vis) return removed(Condition::kVisibility);
-            } else if (par.level == 1) {
-              build();
-              if (!c.degenerate &&
-                  ((c.R * nr).dot(obs) < cos_vis || (c.R * gr.normal[static_cast<std::size_t>(par.r)]).dot(obs) < cos_vis))
-                return removed(Condition::kVisibility);
+          if (vis_backward) {
+            build();
+            if (c.degenerate && lazy_ok) {
+              lazy_from_parent();   // no visibility check for a degenerate pair: no fit needed yet
+            } else {
+              const std::size_t pk1 = static_cast<std::size_t>(par.r) * kMaxNodes + static_cast<std::size_t>(par.s);
+              const Vec3& n1 = gr.normal[static_cast<std::size_t>(par.r)];
+              const TwoPairFit tp = unit_normals && lazy_ok && !c.degenerate
+                                        ? two_pair_fit(n1, gs.normal[static_cast<std::size_t>(par.s)], pair_gamma[pk1],
+                                                       nr, ns, pair_gamma[pk])
+                                        : TwoPairFit{};
+              // The closed form decides when both rotated normals are clearly (1e-7) on one side of the cone.
+              const double d1 = tp.ok ? tp.Rr1.dot(obs) : 0.0, d2 = tp.ok ? tp.Rr2.dot(obs) : 0.0;
+              if (tp.ok && std::abs(d1 - cos_vis) > 1e-7 && std::abs(d2 - cos_vis) > 1e-7) {
+                if (d2 < cos_vis || d1 < cos_vis) return removed(Condition::kVisibility);
+                lazy_bounds(tp.lambda, tp.lambda);
+              } else {
+                fit_now();
+                if (!c.degenerate && ((cf.R * nr).dot(obs) < cos_vis || (cf.R * n1).dot(obs) < cos_vis))
+                  return removed(Condition::kVisibility);
+              }
             }
           }
           // 5 new match (no duplicate match sets)
-          const std::uint64_t h = par.hash ^ pair_key(r, s);
           NodeSet cr = par.cr, cs = par.cs;
           cr.set(r);
           cs.set(s);
           if (p.on(Condition::kNewMatch) && par.level >= 1 && exists(h, cr, cs, r, s))
             return removed(Condition::kNewMatch);
           // 6 node degree
-          // (7.3.6: only faces not adjacent to invisible parts have comparable degrees; a scene face bordering
-          // the supernode may have lost neighbours, so for it only a surplus of scene neighbours counts.)
-          if (p.on(Condition::kNodeDegree)) {
-            const int dr = gr.degree[static_cast<std::size_t>(r)], ds = gs.degree[static_cast<std::size_t>(s)];
-            const bool open = (gs.adj[static_cast<std::size_t>(s)] & gs_super).any();
-            if (open ? (ds - 1 - dr > p.th_nodedegree) : (std::abs(dr - ds) > p.th_nodedegree))
-              return removed(Condition::kNodeDegree);
-          }
+          if (p.on(Condition::kNodeDegree) && pair_degree_fail[pk]) return removed(Condition::kNodeDegree);
           // arcs to the core: matched / inserted (reference only) / deleted (scene only)
           int dam = 0, dai = 0;
           double dborder = 0;
-          const NodeSet nrc = gr.adj[static_cast<std::size_t>(r)] & par.cr;
+          const NodeSet nrc = gr.adj[ur] & par.cr;
           nrc.for_each([&](int rc) {
             const int sc = r2s[static_cast<std::size_t>(rc)];
-            if (gs.adj[static_cast<std::size_t>(s)].test(sc)) {
+            if (gs.adj[us].test(sc)) {
               ++dam;
-              dborder += rel_diss(gr.border[static_cast<std::size_t>(r)][static_cast<std::size_t>(rc)],
-                                  gs.border[static_cast<std::size_t>(s)][static_cast<std::size_t>(sc)]);
+              dborder += rel_diss(gr.border[ur][static_cast<std::size_t>(rc)], gs.border[us][static_cast<std::size_t>(sc)]);
             } else {
               ++dai;
             }
           });
-          const int dad = (gs.adj[static_cast<std::size_t>(s)] & par.cs).count() - dam;
+          const int dad = (gs.adj[us] & par.cs).count() - dam;
           // 7 neighbour match
           if (p.on(Condition::kNeighborMatch) && par.level >= 1 && dam == 0) return removed(Condition::kNeighborMatch);
           c.am = par.am + dam;
           c.ai = par.ai + dai;
           c.ad = par.ad + dad;
-          const double darea = rel_diss(gr.area[static_cast<std::size_t>(r)], gs.area[static_cast<std::size_t>(s)]);
+          const double darea = pair_darea[pk];
           c.d_area = par.d_area + darea;
           c.d_border = par.d_border + dborder;
-          if (!fitted) {
+          if (!built) {
             // 8 cost threshold, early: the cost without the rotation fit term (epsilon e_rotfit / level >= 0) is
             // a lower bound, so a candidate failing it fails condition 8 anyway; skip its eigen solve.
-            if (p.on(Condition::kCostThreshold) && p.epsilon >= 0) {
-              c.level = par.level + 1;
-              c.rotfit = 0.0;
-              if (cost_of(c) - par.cost > p.th_cost) return removed(Condition::kCostThreshold);
+            if (cost_on && p.epsilon >= 0) {
+              if (cost_with(c, 0.0) - par.cost > p.th_cost) return removed(Condition::kCostThreshold);
             }
             build();
+            if (!root && lazy_ok)
+              lazy_from_parent();
+            else
+              fit_now();
           }
-          c.cost = cost_of(c);
           // 8 cost threshold
-          if (p.on(Condition::kCostThreshold) && c.cost - par.cost > p.th_cost) return removed(Condition::kCostThreshold);
+          if (cost_on) {
+            if (lazy) {
+              if (cost_with(c, rot_lo) - par.cost > p.th_cost) return removed(Condition::kCostThreshold);
+              if (cost_with(c, rot_hi) - par.cost > p.th_cost) {   // undecided by the bounds: fit now
+                fit_now();
+                lazy = false;
+              }
+            }
+            if (!lazy && cost_of(c) - par.cost > p.th_cost) return removed(Condition::kCostThreshold);
+          }
           // 9.1 node, 9.2 arc attribute, 9.3 rotation fit similarity
           if (p.on(Condition::kNodeSimilarity) && darea > p.th_node) return removed(Condition::kNodeSimilarity);
           if (p.on(Condition::kArcSimilarity) && dborder > p.th_arcatt) return removed(Condition::kArcSimilarity);
-          if (p.on(Condition::kRotfitSimilarity) && c.rotfit - par.rotfit > p.th_rotfit)
-            return removed(Condition::kRotfitSimilarity);
+          if (rotsim_on) {
+            if (lazy) {
+              if (rot_lo - par.rotfit > p.th_rotfit) return removed(Condition::kRotfitSimilarity);
+              if (rot_hi - par.rotfit > p.th_rotfit) {
+                fit_now();
+                lazy = false;
+              }
+            }
+            if (!lazy && c.rotfit - par.rotfit > p.th_rotfit) return removed(Condition::kRotfitSimilarity);
+          }
           // 10 search depth
           if (p.on(Condition::kSearchDepth) && c.level > p.th_maxlevel) return removed(Condition::kSearchDepth);
           // create the state
           if (n_states > budget) {
             st.stop = StopReason::kStateBudget;
             stop = true;
+            stop_s = s;
             return;
+          }
+          if (lazy) {
+            c.rotfit = rot_lo;
+            c.cost = cost_with(c, rot_lo);   // a lower bound of the exact cost: the heap key until fitted
+            c.fitted = false;
+          } else {
+            c.cost = cost_of(c);
+            c.fitted = true;
           }
           c.cr = cr;
           c.cs = cs;
-          NodeSet tr = par.tr | gr.adj[static_cast<std::size_t>(r)];
-          NodeSet ts = par.ts | gs.adj[static_cast<std::size_t>(s)];
+          NodeSet tr = par.tr | gr.adj[ur];
+          NodeSet ts = par.ts | gs.adj[us];
           c.tr = tr.minus(cr);
           c.ts = ts.minus(cs);
           c.hash = h;
@@ -384,12 +590,23 @@ struct InexactMatcher::Impl {
           c.child_index = ++created;
           c.r = r;
           c.s = s;
+          c.children = 0;
+          c.expanded = false;
           const int ci = n_states++;
-          pool[static_cast<std::size_t>(ci)] = c;
           insert(h, ci);
           heap_push(ci);
           ++st.states_created;
         });
+        // Scene supernode candidates of this r (all of them, or those before the stop).
+        if (n_super_s > 0) {
+          int k = n_super_s;
+          if (stop_s >= 0) {
+            k = 0;
+            super_s.for_each([&](int s) { k += s < stop_s ? 1 : 0; });
+          }
+          st.candidates += k;
+          st.removed[static_cast<std::size_t>(Condition::kSupernode)] += k;
+        }
       });
       load_map(pi, -1);
       State& pm = pool[static_cast<std::size_t>(pi)];
@@ -413,8 +630,6 @@ struct InexactMatcher::Impl {
       }
     }
     st.time_ms = static_cast<double>(clock->now_ns() - t0) * 1e-6;
-    st.fits_fast = fit_stats.fast;
-    st.fits_fallback = fit_stats.fallback;
   }
 
   // Subset condition: is a's match set a proper subset of b's?
@@ -445,13 +660,20 @@ struct InexactMatcher::Impl {
     // Subset condition (7.7.2, 7.7.3): a traditional solution is dropped when its match set is a subset of
     // another traditional solution's; an incomplete one when it is a subset of a traditional solution's.
     // Traditional (complete) solutions first, by level descending, then the incomplete ones.
-    std::sort(leaves.begin(), leaves.end(), [&](int a, int b) {
-      const State& x = pool[static_cast<std::size_t>(a)];
-      const State& y = pool[static_cast<std::size_t>(b)];
-      if (x.expanded != y.expanded) return x.expanded;
-      if (x.level != y.level) return x.level > y.level;
-      return a < b;
-    });
+    // (Counting sort by that key: leaves are gathered by ascending state number, so the result is the order of
+    // a comparison sort by (complete first, level descending, state number).)
+    {
+      std::array<int, 2 * (kMaxNodes + 1) + 1> start{};
+      auto bucket = [&](int id) {
+        const State& x = pool[static_cast<std::size_t>(id)];
+        return (x.expanded ? 0 : kMaxNodes + 1) + (kMaxNodes - x.level);
+      };
+      for (int id : leaves) ++start[static_cast<std::size_t>(bucket(id)) + 1];
+      for (std::size_t b = 1; b < start.size(); ++b) start[b] += start[b - 1];
+      sorted.resize(leaves.size());   // capacity reserved for every pool entry: no allocation
+      for (int id : leaves) sorted[static_cast<std::size_t>(start[static_cast<std::size_t>(bucket(id))]++)] = id;
+      leaves.swap(sorted);
+    }
     std::size_t n_complete = 0;
     while (n_complete < leaves.size() && pool[static_cast<std::size_t>(leaves[n_complete])].expanded) ++n_complete;
     std::size_t kept = 0, kept_complete = 0;
@@ -475,22 +697,38 @@ struct InexactMatcher::Impl {
       if (i < n_complete) kept_complete = kept;
     }
     leaves.resize(kept);   // shrinking: no allocation
-    std::sort(leaves.begin(), leaves.end(), [&](int a, int b) {
-      const double ca = pool[static_cast<std::size_t>(a)].cost, cb = pool[static_cast<std::size_t>(b)].cost;
-      return ca < cb || (ca == cb && a < b);
-    });
     st.solutions = static_cast<std::int64_t>(kept);
+    // The best n by (cost, state number), as a full sort would give them: a min-heap over the keys, where a
+    // lazily created state's key is its cost lower bound until it reaches the top and is fitted.
     const std::size_t n = std::min(kept, solutions.size());
+    auto later = [](const HeapItem& a, const HeapItem& b) { return a.cost > b.cost || (a.cost == b.cost && a.id > b.id); };
+    topk.clear();
+    for (int id : leaves) topk.push_back(HeapItem{pool[static_cast<std::size_t>(id)].cost, 0, id});
+    std::make_heap(topk.begin(), topk.end(), later);
+    std::size_t got = 0;
+    while (got < n) {
+      std::pop_heap(topk.begin(), topk.end(), later);
+      const int id = topk.back().id;
+      topk.pop_back();
+      State& x = pool[static_cast<std::size_t>(id)];
+      if (!x.fitted) {
+        finish(id);
+        topk.push_back(HeapItem{x.cost, 0, id});
+        std::push_heap(topk.begin(), topk.end(), later);
+        continue;
+      }
+      ranked[got++] = id;
+    }
     for (std::size_t k = 0; k < n; ++k) {
-      const State& x = pool[static_cast<std::size_t>(leaves[k])];
+      const State& x = pool[static_cast<std::size_t>(ranked[k])];
       Solution& sol = solutions[k];
       sol.rank = static_cast<int>(k) + 1;
-      sol.state = leaves[k];
+      sol.state = ranked[k];
       sol.level = x.level;
       NodeMatch* m = &match_buf[k * kMaxNodes];
       int* path = &path_buf[k * kMaxNodes];
       int j = x.level;
-      for (int q = leaves[k]; q > 0; q = pool[static_cast<std::size_t>(q)].parent) {
+      for (int q = ranked[k]; q > 0; q = pool[static_cast<std::size_t>(q)].parent) {
         const State& y = pool[static_cast<std::size_t>(q)];
         --j;
         m[j] = NodeMatch{S->id[static_cast<std::size_t>(y.s)], G->id[static_cast<std::size_t>(y.r)]};
@@ -505,7 +743,7 @@ struct InexactMatcher::Impl {
       sol.arc_attr_diss = x.d_border;
       sol.arc_struct_diss = x.ai + x.ad;
       sol.rotfit_error = x.rotfit;
-      sol.rotation = x.R;
+      sol.rotation = fitdata[static_cast<std::size_t>(ranked[k])].R;
       sol.cost = x.cost;
       sol.complete = x.expanded;
       sol.partial = x.level < p.th_minlevel;
@@ -518,6 +756,8 @@ struct InexactMatcher::Impl {
                                             : std::numeric_limits<double>::infinity();
     else
       st.cost_ratio = std::numeric_limits<double>::quiet_NaN();
+    st.fits_fast = fit_stats.fast;
+    st.fits_fallback = fit_stats.fallback;
   }
 };
 
@@ -531,10 +771,7 @@ const MatchResult& InexactMatcher::match(const Pfrg& scene, const Pfrg& ref, con
   m.S->load(scene);
   m.G->load(ref);
   m.P = &params;
-  if (++m.gen == 0) {   // wrapped: clear the table once every 2^32 matches
-    for (auto& s : m.table) s = Impl::Slot{};
-    m.gen = 1;
-  }
+  m.reset_table();
   m.budget = std::min<std::int64_t>(m.limits.max_states, std::max<std::int64_t>(params.max_states, 1));
   m.result = MatchResult{};
   m.run(m.result.stats);

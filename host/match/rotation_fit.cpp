@@ -136,6 +136,26 @@ RotationFit solve_rotation_fast(const Mat4& B, double lambda_lower, const Eigen:
   return f;
 }
 
+TwoPairFit two_pair_fit(const Vec3& r1, const Vec3& s1, double g1, const Vec3& r2, const Vec3& s2, double g2) {
+  TwoPairFit f;
+  const Vec3 sxs = s1.cross(s2);
+  const double car = r1.dot(r2), sar = r1.cross(r2).norm(), cas = s1.dot(s2), sas = sxs.norm();
+  if (!(sas > 1e-6)) return f;
+  const double cd = cas * car + sas * sar, sd = sas * car - cas * sar;
+  const double x = g1 + g2 * cd, y = g2 * sd, rho = std::sqrt(x * x + y * y);
+  const double cs = cas * car - sas * sar, ss = sas * car + cas * sar;
+  const double rho2 = std::sqrt((g1 + g2 * cs) * (g1 + g2 * cs) + g2 * ss * g2 * ss);
+  if (!(2.0 * (rho - rho2) >= 1e-4 * (g1 + g2))) return f;
+  const Vec3 b3 = sxs / sas;
+  const Vec3 f2 = b3.cross(s1);
+  const double cp = x / rho, sp = y / rho;
+  f.Rr1 = cp * s1 + sp * f2;
+  f.Rr2 = (car * cp - sar * sp) * s1 + (sar * cp + car * sp) * f2;
+  f.lambda = std::max(0.0, 2.0 * (g1 + g2 - rho));
+  f.ok = true;
+  return f;
+}
+
 Mat3 kabsch_rotation(std::span<const Vec3> r, std::span<const Vec3> s, std::span<const double> w) {
   Mat3 H = Mat3::Zero();
   for (std::size_t i = 0; i < r.size(); ++i) H += w[i] * r[i] * s[i].transpose();

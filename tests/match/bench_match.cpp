@@ -4,6 +4,7 @@
 //  - BM_PolyhedronView/i:  polyhedron i alone, first-solution mode
 //  - BM_ByGraphSize/n:     prisms with n faces, growth with graph size (both modes)
 //  - BM_Library/N/T:       one scene against the first N polyhedra, ParallelMatcher with T threads
+//  - BM_RecognizerLibrary/scene/N: a hw-sim scan's scene graph against N polyhedra, the recognizer's parameters
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
@@ -17,6 +18,7 @@
 #include "host/match/inexact.hpp"
 #include "host/match/parallel.hpp"
 #include "host/match/params.hpp"
+#include "host/pfrg/pfrg.hpp"
 #include "support/test_paths.hpp"
 #include "match_helpers.hpp"
 #include "test_graphs.hpp"
@@ -163,17 +165,59 @@ void BM_Library(benchmark::State& state) {
   const Pfrg& scene = polyhedra()[7].scene;
   ParallelMatcher pm(threads);
   const MatchParams params = mode_params(0);
-  std::int64_t states = 0, k = 0;
+  std::int64_t states = 0, k = 0, expanded = 0, fits = 0, candidates = 0;
   for (auto _ : state) {
     const auto res = pm.match(scene, refs, params, 4);
-    for (const auto& r : res) states += r.stats.states_created;
+    for (const auto& r : res) {
+      states += r.stats.states_created;
+      expanded += r.stats.states_expanded;
+      fits += r.stats.fits_fast + r.stats.fits_fallback;
+      candidates += r.stats.candidates;
+    }
     ++k;
   }
   report(state, states, k);
+  const auto per = [&](std::int64_t v) { return benchmark::Counter(static_cast<double>(v) / static_cast<double>(k)); };
+  state.counters["expanded/match"] = per(expanded);
+  state.counters["fits/match"] = per(fits);
+  state.counters["candidates/match"] = per(candidates);
+}
+
+// One hw-sim scan's scene PFRG (tests/match/data/hwsim_*.json, written by `facetscan graph` from `facetscan demo`
+// recordings) against the 120 polyhedra with the recognizer's matching parameters: preset t9.3, all solutions,
+// a 20000-state budget (host/recognize RecognizeParams::max_states), one thread.
+void BM_RecognizerLibrary(benchmark::State& state) {
+  static const char* kScenes[] = {"hwsim_default_scene.json", "hwsim_occlusion_scene.json"};
+  const auto idx = static_cast<std::size_t>(state.range(0));
+  const Pfrg scene = fs::host::read_pfrg_json(fs::test::source_dir() / "tests/match/data" / kScenes[idx]);
+  const auto n = static_cast<std::size_t>(state.range(1));
+  std::vector<Pfrg> refs;
+  for (std::size_t i = 0; i < n; ++i) refs.push_back(polyhedra()[i % polyhedra().size()].model);
+  MatchParams params = preset(std::getenv("FS_BENCH_PRESET") ? std::getenv("FS_BENCH_PRESET") : "t9.3");
+  params.max_states = 20000;
+  ParallelMatcher pm(1, MatcherLimits{20000, 64});
+  std::int64_t states = 0, k = 0, expanded = 0, fits = 0, budget_stops = 0;
+  for (auto _ : state) {
+    const auto res = pm.match(scene, refs, params, 16);
+    for (const auto& r : res) {
+      states += r.stats.states_created;
+      expanded += r.stats.states_expanded;
+      fits += r.stats.fits_fast + r.stats.fits_fallback;
+      budget_stops += r.stats.stop == StopReason::kStateBudget;
+    }
+    ++k;
+  }
+  report(state, states, k);
+  const auto per = [&](std::int64_t v) { return benchmark::Counter(static_cast<double>(v) / static_cast<double>(k)); };
+  state.counters["expanded/match"] = per(expanded);
+  state.counters["fits/match"] = per(fits);
+  state.counters["budget_stops"] = per(budget_stops);
+  state.SetLabel(std::string(kScenes[idx]) + ", " + std::to_string(fs::test::real_ids(scene).size()) + " faces");
 }
 
 }  // namespace
 
+BENCHMARK(BM_RecognizerLibrary)->ArgsProduct({{0, 1}, {30, 120}})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_AllPolyhedra)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->Iterations(1);
 BENCHMARK(BM_PolyhedronView)->DenseRange(0, 119)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_ByGraphSize)->ArgsProduct({{6, 8, 10, 14, 18, 22, 26, 30}, {0, 1}})->Unit(benchmark::kMicrosecond);
