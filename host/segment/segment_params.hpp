@@ -25,6 +25,9 @@ struct SegmentParams {
   // Edge refinement: unassigned cells next to a region join it when within edge_dist_factor * dist.
   double edge_dist_factor = 2.0;
   int refine_passes = 4;
+  // Boundary relabelling after the merge pass: a border cell moves to the adjacent region whose plane is
+  // closer (and within its distance tolerance); at most this many passes (0 = off).
+  int relabel_passes = 8;
   // Merge pass: adjacent regions with normals within merge_angle_deg whose centroids lie within
   // merge_dist_factor * dist of each other's plane are one face.
   double merge_angle_deg = 4.0;
@@ -55,6 +58,10 @@ struct SegmentParams {
     p.min_region_cells = 150;
     p.min_region_area_mm2 = 300.0;
     p.min_grow_cells = 40;
+    // Kinect depth noise (~3 mm at 1 m) is of the order of the distance tolerance, so near a crease the
+    // nearer plane is decided by noise: relabelling only moved noisy cells into small regions (mOSD: known
+    // regions +50 %, pure area 99.70 -> 99.52 %). Off.
+    p.relabel_passes = 0;
     return p;
   }
   // "laser" or "kinect"; returns false for an unknown name.

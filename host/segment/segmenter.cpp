@@ -8,12 +8,18 @@
 #include <Eigen/Eigenvalues>
 
 #include "common/error.hpp"
+#include "host/segment/grid_kernels.hpp"
 
 namespace fs::host::seg {
 namespace {
 
 constexpr std::int32_t kUnassigned = -3;
-constexpr std::uint8_t kValid = 1, kHasNormal = 2, kSeed = 4, kTried = 8;
+constexpr std::uint8_t kValid = 1, kHasNormal = 2, kSeed = 4, kTried = 8, kQueued = 16;
+// continuity bits (cont_): cell i is depth-continuous toward its left / right / upper / lower neighbour
+using kernels::kContD;
+using kernels::kContL;
+using kernels::kContR;
+using kernels::kContU;
 constexpr double kPi = 3.14159265358979323846;
 
 // Points with any non-finite coordinate carry no data (NaN = no data by contract; inf is treated alike).
@@ -61,8 +67,9 @@ Segmenter::Segmenter(const SegmentParams& params, const SegmentLimits& limits) :
 }
 
 void Segmenter::reserve(std::size_t n) {
-  if (normal_.size() >= n) return;
-  normal_.resize(n);
+  if (area_.size() >= n) return;
+  for (auto* v : {&px_, &py_, &pz_, &nx_, &ny_, &nz_}) v->resize(n);
+  cont_.resize(n);
   area_.resize(n);
   lenu_.resize(n);
   lenv_.resize(n);
@@ -115,48 +122,51 @@ void Segmenter::segment(const OrganizedCloud& cloud, Segmentation& out) {
   grow_regions(cloud, out);
   refine_edges(cloud);
   merge_regions(cloud, out);
+  relabel_borders(cloud);
   group_leftovers(cloud, out);
   finalize_regions(cloud, out);
   compute_borders(cloud, out);
 }
 
 void Segmenter::compute_normals(const OrganizedCloud& cloud) {
+  using namespace kernels;
   const int w = int(width_), h = int(height_);
+  if (w == 0 || h == 0) return;
+  const std::size_t W = std::size_t(w);
   const auto& P = cloud.points;
-  const Eigen::Vector3f vp = viewpoint_.cast<float>();
   const float nan = std::numeric_limits<float>::quiet_NaN();
   const int span = std::max(1, params_.normal_span);
-  const float jump_abs = float(params_.jump_abs_mm), jump_rel = float(params_.jump_rel);
-  const float dist_abs = float(params_.dist_abs_mm), dist_rel = float(params_.dist_rel);
-  // One streaming pass over the rows (the rows a step needs are still in cache): thresholds of row r, normals
-  // of row r - span (its tangents need the thresholds / validity up to row r), seeds of row r - span - 1 (they
-  // need the normals of the rows around them).
-  // thresholds (continuity is needed by the tangents)
+  const Viewpoint vpk{vp_f_.x(), vp_f_.y(), vp_f_.z()};
+  float* X = px_.data();
+  float* Y = py_.data();
+  float* Z = pz_.data();
+  float* NX = nx_.data();
+  float* NY = ny_.data();
+  float* NZ = nz_.data();
+  float* AR = area_.data();
+  float* LU = lenu_.data();
+  float* LV = lenv_.data();
+  float* J2 = jump2_.data();
+  std::uint8_t* ST = state_.data();
+  std::uint8_t* CT = cont_.data();
+  // One streaming pass over the rows (the rows a step needs are still in cache): structure-of-arrays copy and
+  // thresholds of row r, normals of row r - span (its tangents need rows up to r), continuity bits and seeds
+  // of row r - span - 1 (they need the normals of the rows around them). The common interior cases run in the
+  // vectorized kernels of grid_kernels.hpp; the rest (image border, missing data, depth jumps) takes the
+  // scalar path with one-sided tangents.
   auto thresholds_row = [&](int r) {
-    for (int i = r * w; i < (r + 1) * w; ++i) {
-      const Eigen::Vector3f& p = P[std::size_t(i)];
-      if (!finite(p)) {
-        state_[std::size_t(i)] = 0;
-        lab_[std::size_t(i)] = kNil;
-        jump2_[std::size_t(i)] = 0.f;
-        dist_[std::size_t(i)] = 0.f;
-        continue;
-      }
-      state_[std::size_t(i)] = kValid;
-      lab_[std::size_t(i)] = kUnassigned;
-      const float range2 = (p - vp).squaredNorm();
-      const float jump = jump_abs + (jump_rel != 0.f ? jump_rel * std::sqrt(range2) : 0.f);
-      jump2_[std::size_t(i)] = jump * jump;
-      dist_[std::size_t(i)] = dist_abs + dist_rel * range2;
-    }
+    const std::size_t b = std::size_t(r) * W;
+    soa_row(P[b].data(), w, vpk, float(params_.jump_abs_mm), float(params_.jump_rel), float(params_.dist_abs_mm),
+            float(params_.dist_rel), X + b, Y + b, Z + b, J2 + b, dist_.data() + b, ST + b);
+    for (std::size_t i = b; i < b + W; ++i) lab_[i] = ST[i] ? kUnassigned : kNil;   // ST: 1 = kValid or 0
   };
   // One tangent along a grid axis: central difference over +-s cells when both sides are continuous,
   // else one-sided; tries span, then 1. Returns false when no continuous neighbour exists.
   auto tangent = [&](int r, int c, int dr, int dc, Eigen::Vector3f& t) {
-    const std::size_t i = std::size_t(r) * std::size_t(w) + std::size_t(c);
+    const std::size_t i = std::size_t(r) * W + std::size_t(c);
     const Eigen::Vector3f& p = P[i];
     for (int s = span; s >= 1; s = (s == 1 ? 0 : 1)) {
-      const float lim = jump2_[i] * float(s * s);
+      const float lim = J2[i] * float(s * s);
       const int r1 = r + dr * s, c1 = c + dc * s, r0 = r - dr * s, c0 = c - dc * s;
       auto ok = [&](const Eigen::Vector3f& q) {
         const Eigen::Vector3f d = q - p;
@@ -167,84 +177,81 @@ void Segmenter::compute_normals(const OrganizedCloud& cloud) {
         const float cr = ray.dot(d);
         return cr * cr < cos2_jump_ * dd * ray.squaredNorm();
       };
-      const bool fwd = r1 < h && c1 < w && (state_[std::size_t(r1) * w + c1]) && ok(P[std::size_t(r1) * w + c1]);
-      const bool bwd = r0 >= 0 && c0 >= 0 && (state_[std::size_t(r0) * w + c0]) && ok(P[std::size_t(r0) * w + c0]);
+      const bool fwd = r1 < h && c1 < w && (ST[std::size_t(r1) * W + c1]) && ok(P[std::size_t(r1) * W + c1]);
+      const bool bwd = r0 >= 0 && c0 >= 0 && (ST[std::size_t(r0) * W + c0]) && ok(P[std::size_t(r0) * W + c0]);
       if (fwd && bwd) {
-        t = (P[std::size_t(r1) * w + c1] - P[std::size_t(r0) * w + c0]) / float(2 * s);
+        t = (P[std::size_t(r1) * W + c1] - P[std::size_t(r0) * W + c0]) / float(2 * s);
         return true;
       }
       if (fwd) {
-        t = (P[std::size_t(r1) * w + c1] - p) / float(s);
+        t = (P[std::size_t(r1) * W + c1] - p) / float(s);
         return true;
       }
       if (bwd) {
-        t = (p - P[std::size_t(r0) * w + c0]) / float(s);
+        t = (p - P[std::size_t(r0) * W + c0]) / float(s);
         return true;
       }
       if (s == 1) break;
     }
     return false;
   };
+  const Eigen::Vector3f vp = vp_f_;
   auto normals_row = [&](int r) {
+    const std::size_t b = std::size_t(r) * W;
+    const bool inner_row = r >= span && r + span < h && w > 2 * span;
+    const int c0 = inner_row ? span : 0, c1 = inner_row ? w - span : 0;
+    if (inner_row) {
+      normals_row_fast(X + b, Y + b, Z + b, J2 + b, c0, c1, std::size_t(span), W * std::size_t(span), vpk, NX + b,
+                       NY + b, NZ + b, AR + b, LU + b, LV + b);
+    }
     for (int c = 0; c < w; ++c) {
-      const std::size_t i = std::size_t(r) * std::size_t(w) + std::size_t(c);
-      normal_[i] = Eigen::Vector3f(nan, nan, nan);
-      area_[i] = 0.f;
-      lenu_[i] = 0.f;
-      lenv_[i] = 0.f;
-      if (!(state_[i] & kValid)) continue;
+      const std::size_t i = b + std::size_t(c);
+      if (c >= c0 && c < c1 && NX[i] == NX[i]) continue;   // done by the fast path
+      NX[i] = NY[i] = NZ[i] = nan;
+      AR[i] = LU[i] = LV[i] = 0.f;
+      if (!(ST[i] & kValid)) continue;
       Eigen::Vector3f du, dv;
-      bool hu, hv;
-      // fast path: all four neighbours at +-span valid and close (the common interior case)
-      const std::size_t ws = std::size_t(w) * std::size_t(span);
-      if (r >= span && r + span < h && c >= span && c + span < w && state_[i - std::size_t(span)] &&
-          state_[i + std::size_t(span)] && state_[i - ws] && state_[i + ws]) {
-        const float lim = jump2_[i] * float(span * span);
-        const Eigen::Vector3f& p = P[i];
-        const Eigen::Vector3f &pl = P[i - std::size_t(span)], &pr = P[i + std::size_t(span)], &pu = P[i - ws],
-                              &pd = P[i + ws];
-        if ((pl - p).squaredNorm() <= lim && (pr - p).squaredNorm() <= lim && (pu - p).squaredNorm() <= lim &&
-            (pd - p).squaredNorm() <= lim) {
-          const float inv = 0.5f / float(span);
-          du = (pr - pl) * inv;
-          dv = (pd - pu) * inv;
-          hu = hv = true;
-        } else {
-          hu = tangent(r, c, 0, 1, du);
-          hv = tangent(r, c, 1, 0, dv);
-        }
-      } else {
-        hu = tangent(r, c, 0, 1, du);
-        hv = tangent(r, c, 1, 0, dv);
-      }
-      if (hu) lenu_[i] = du.squaredNorm();   // squared here, sqrt where borders need it
-      if (hv) lenv_[i] = dv.squaredNorm();
+      const bool hu = tangent(r, c, 0, 1, du);
+      const bool hv = tangent(r, c, 1, 0, dv);
+      if (hu) LU[i] = du.squaredNorm();   // squared here, sqrt where borders need it
+      if (hv) LV[i] = dv.squaredNorm();
       if (!hu || !hv) continue;
       Eigen::Vector3f nn = du.cross(dv);
       const float a = nn.norm();
       if (!(a > 0.f)) continue;
       nn /= a;
       if (nn.dot(vp - P[i]) < 0.f) nn = -nn;
-      normal_[i] = nn;
-      area_[i] = a;
-      state_[i] |= kHasNormal;
+      NX[i] = nn.x();
+      NY[i] = nn.y();
+      NZ[i] = nn.z();
+      AR[i] = a;
     }
+    for (std::size_t i = b; i < b + W; ++i) ST[i] |= NX[i] == NX[i] ? kHasNormal : 0;
   };
-  // seeds: the normal agrees with the 4 neighbours' normals
+  // continuity bits toward the 4 neighbours, and seeds: the normal agrees with the 4 neighbours' normals
+  // (within seed_angle_deg) and all 4 are depth-continuous
   const float cs = float(cos_deg(params_.seed_angle_deg));
   auto seeds_row = [&](int r) {
-    for (int c = 1; c + 1 < w; ++c) {
-      const std::size_t i = std::size_t(r) * std::size_t(w) + std::size_t(c);
-      if (!(state_[i] & kHasNormal)) continue;
-      const std::size_t nb[4] = {i - 1, i + 1, i - std::size_t(w), i + std::size_t(w)};
-      bool ok = true;
-      for (std::size_t j : nb) {
-        if (!(state_[j] & kHasNormal) || normal_[j].dot(normal_[i]) < cs || !continuous(cloud, i, j)) {
-          ok = false;
-          break;
-        }
+    const std::size_t b = std::size_t(r) * W;
+    const bool inner_row = r >= 1 && r + 1 < h && w > 2;
+    const int c0 = inner_row ? 1 : 0, c1 = inner_row ? w - 1 : 0;
+    if (inner_row) {
+      cont_seeds_row_fast(X + b, Y + b, Z + b, J2 + b, NX + b, NY + b, NZ + b, c0, c1, W, vpk, jump_max2_, cos2_jump_,
+                          cs, CT + b);
+    }
+    for (int c = 0; c < w; ++c) {
+      const std::size_t i = b + std::size_t(c);
+      if (c >= c0 && c < c1) {
+        ST[i] |= (CT[i] & kContSeed) ? kSeed : 0;
+        CT[i] &= std::uint8_t(~kContSeed);
+        continue;
       }
-      if (ok) state_[i] |= kSeed;
+      std::uint8_t bits = 0;
+      if (c > 0 && kernels::continuous(X, Y, Z, J2, i, i - 1, vpk, jump_max2_, cos2_jump_)) bits |= kContL;
+      if (c + 1 < w && kernels::continuous(X, Y, Z, J2, i, i + 1, vpk, jump_max2_, cos2_jump_)) bits |= kContR;
+      if (r > 0 && kernels::continuous(X, Y, Z, J2, i, i - W, vpk, jump_max2_, cos2_jump_)) bits |= kContU;
+      if (r + 1 < h && kernels::continuous(X, Y, Z, J2, i, i + W, vpk, jump_max2_, cos2_jump_)) bits |= kContD;
+      CT[i] = bits;
     }
   };
   for (int r = 0; r < h + span + 1; ++r) {
@@ -252,15 +259,8 @@ void Segmenter::compute_normals(const OrganizedCloud& cloud) {
     const int rn = r - span;
     if (rn >= 0 && rn < h) normals_row(rn);
     const int rs = rn - 1;
-    if (rs >= 1 && rs + 1 < h) seeds_row(rs);
+    if (rs >= 0 && rs < h) seeds_row(rs);
   }
-}
-
-Segmenter::Acc& Segmenter::acc_add_cell(int region, const OrganizedCloud& cloud, std::size_t i) {
-  Acc& a = acc_[std::size_t(region)];
-  const std::size_t row = i / width_;
-  a.add(cloud.points[i].cast<double>() - origin_, area_[i], double(i - row * width_), double(row));
-  return a;
 }
 
 void Segmenter::fit(const Acc& a, Eigen::Vector3d& n, Eigen::Vector3d& c, double& rms) const {
@@ -289,59 +289,154 @@ void Segmenter::refit(int region) {
   plane_[std::size_t(region)].c = c.cast<float>();
 }
 
-void Segmenter::grow_regions(const OrganizedCloud& cloud, Segmentation& out) {
-  const std::size_t w = width_, h = height_, n = w * h;
-  const auto& P = cloud.points;
+void Segmenter::accumulate(Acc& a, const std::uint32_t* cells, std::size_t count) const {
+  const float* X = px_.data();
+  const float* Y = py_.data();
+  const float* Z = pz_.data();
+  const double ox = origin_.x(), oy = origin_.y(), oz = origin_.z();
+  double sx = 0, sy = 0, sz = 0, sxx = 0, sxy = 0, sxz = 0, syy = 0, syz = 0, szz = 0;
+  for (std::size_t q = 0; q < count; ++q) {
+    const std::size_t i = cells[q];
+    const double x = double(X[i]) - ox, y = double(Y[i]) - oy, z = double(Z[i]) - oz;
+    sx += x; sy += y; sz += z;
+    sxx += x * x; sxy += x * y; sxz += x * z;
+    syy += y * y; syz += y * z; szz += z * z;
+  }
+  a.n += double(count);
+  a.sx += sx; a.sy += sy; a.sz += sz;
+  a.sxx += sxx; a.sxy += sxy; a.sxz += sxz;
+  a.syy += syy; a.syz += syz; a.szz += szz;
+}
+
+void Segmenter::accumulate_run(Acc& a, std::size_t first, std::size_t last) const {
+  const float* X = px_.data();
+  const float* Y = py_.data();
+  const float* Z = pz_.data();
+  const double ox = origin_.x(), oy = origin_.y(), oz = origin_.z();
+  double sx = 0, sy = 0, sz = 0, sxx = 0, sxy = 0, sxz = 0, syy = 0, syz = 0, szz = 0;
+  for (std::size_t i = first; i <= last; ++i) {
+    const double x = double(X[i]) - ox, y = double(Y[i]) - oy, z = double(Z[i]) - oz;
+    sx += x; sy += y; sz += z;
+    sxx += x * x; sxy += x * y; sxz += x * z;
+    syy += y * y; syz += y * z; szz += z * z;
+  }
+  a.n += double(last + 1 - first);
+  a.sx += sx; a.sy += sy; a.sz += sz;
+  a.sxx += sxx; a.sxy += sxy; a.sxz += sxz;
+  a.syy += syy; a.syz += syz; a.szz += szz;
+}
+
+// Region growing as a scanline flood fill: the region is a list of row runs [SA[k], SB[k]]; a run taken from
+// the list is first extended left / right along its row, then the cells above / below it that qualify become
+// new runs. Same acceptance as a cell-by-cell breadth-first growth (a neighbour joins when it is depth-
+// continuous from an accepted cell - the cont_ bit, which also implies that it exists -, has a normal within
+// angle_deg of the region's and lies within its distance tolerance of the region's plane), but the grid is read
+// row-wise, not along a diamond-shaped front. The plane is refitted each time the region doubles. The first
+// kScanlineAfter cells grow breadth-first (runs of one cell), so the early fits see a 2D patch.
+void Segmenter::grow_regions(const OrganizedCloud& /*cloud*/, Segmentation& out) {
+  constexpr std::size_t kScanlineAfter = 256;   // cells grown breadth-first before the runs take over
+  const std::size_t w = width_, n = w * height_;
+  const float* X = px_.data();
+  const float* Y = py_.data();
+  const float* Z = pz_.data();
+  const float* NX = nx_.data();
+  const float* NY = ny_.data();
+  const float* NZ = nz_.data();
+  const float* DI = dist_.data();
+  const std::uint8_t* CT = cont_.data();
+  std::int32_t* LB = lab_.data();
+  std::uint32_t* SA = queue_.data();       // run starts (cell index)
+  std::uint32_t* SB = pend_cell_.data();   // run ends (inclusive, same row)
   const float ca = float(cos_deg(params_.angle_deg));
   const std::size_t max_grown = limits_.max_regions;
   for (std::size_t seed = 0; seed < n; ++seed) {
-    if (lab_[seed] != kUnassigned || (state_[seed] & (kSeed | kTried)) != kSeed) continue;
+    if (LB[seed] != kUnassigned || (state_[seed] & (kSeed | kTried)) != kSeed) continue;
     if (region_count_ >= max_grown) {
       out.truncated = true;
       break;
     }
-    const int r = int(region_count_);
-    acc_[std::size_t(r)] = Acc{};
+    const std::int32_t r = std::int32_t(region_count_);
+    Acc& acc = acc_[std::size_t(r)];
+    acc = Acc{};
     PlaneF& pl = plane_[std::size_t(r)];
-    pl.n = normal_[seed];
-    pl.c = P[seed];
+    pl.n = Eigen::Vector3f(NX[seed], NY[seed], NZ[seed]);
+    pl.c = Eigen::Vector3f(X[seed], Y[seed], Z[seed]);
+    float pnx = pl.n.x(), pny = pl.n.y(), pnz = pl.n.z(), pcx = pl.c.x(), pcy = pl.c.y(), pcz = pl.c.z();
+    std::size_t cells = 0, next_refit = 8;
+    auto ok = [&](std::size_t j) {
+      return LB[j] == kUnassigned && NX[j] * pnx + NY[j] * pny + NZ[j] * pnz >= ca &&
+             std::abs(pnx * (X[j] - pcx) + pny * (Y[j] - pcy) + pnz * (Z[j] - pcz)) <= DI[j];
+    };
+    auto add = [&](std::size_t first, std::size_t last) {
+      accumulate_run(acc, first, last);
+      cells += last + 1 - first;
+      if (cells >= next_refit) {
+        refit(int(r));
+        pnx = pl.n.x(); pny = pl.n.y(); pnz = pl.n.z();
+        pcx = pl.c.x(); pcy = pl.c.y(); pcz = pl.c.z();
+        while (next_refit <= cells) next_refit *= 2;
+      }
+    };
     std::size_t head = 0, tail = 0;
-    queue_[tail++] = std::uint32_t(seed);
-    lab_[seed] = r;
-    acc_add_cell(r, cloud, seed);
-    double next_refit = 8;
+    LB[seed] = r;
+    SA[tail] = SB[tail] = std::uint32_t(seed);
+    ++tail;
+    add(seed, seed);
     while (head < tail) {
-      const std::size_t i = queue_[head++];
-      const std::size_t row = i / w, col = i - row * w;
-      std::size_t nb[4];
-      int k = 0;
-      if (col > 0) nb[k++] = i - 1;
-      if (col + 1 < w) nb[k++] = i + 1;
-      if (row > 0) nb[k++] = i - w;
-      if (row + 1 < h) nb[k++] = i + w;
-      for (int t = 0; t < k; ++t) {
-        const std::size_t j = nb[t];
-        if (lab_[j] != kUnassigned || !(state_[j] & kHasNormal)) continue;
-        if (!continuous(cloud, i, j)) continue;
-        if (normal_[j].dot(pl.n) < ca) continue;
-        if (std::abs(pl.n.dot(P[j] - pl.c)) > dist_[j]) continue;
-        lab_[j] = r;
-        queue_[tail++] = std::uint32_t(j);
-        const Acc& a = acc_add_cell(r, cloud, j);
-        if (a.n >= next_refit) {
-          refit(r);
-          next_refit *= 2;
+      if (cells < kScanlineAfter) {
+        // the first cells grow breadth-first, one cell per run: a run along one row would refit the plane
+        // on (nearly) collinear points
+        const std::size_t i = SA[head++];
+        const std::uint8_t ct = CT[i];
+        const std::size_t nb[4] = {i - 1, i + 1, i - w, i + w};
+        const std::uint8_t bits[4] = {kContL, kContR, kContU, kContD};
+        for (int t = 0; t < 4; ++t) {
+          if (!(ct & bits[t]) || !ok(nb[t])) continue;
+          LB[nb[t]] = r;
+          SA[tail] = SB[tail] = std::uint32_t(nb[t]);
+          ++tail;
+          add(nb[t], nb[t]);
+        }
+        continue;
+      }
+      const std::size_t a0 = SA[head], b0 = SB[head];
+      std::size_t a = a0, b = b0;
+      while ((CT[a] & kContL) && ok(a - 1)) LB[--a] = r;
+      while ((CT[b] & kContR) && ok(b + 1)) LB[++b] = r;
+      if (a < a0) add(a, a0 - 1);
+      if (b > b0) add(b0 + 1, b);
+      SA[head] = std::uint32_t(a);
+      SB[head] = std::uint32_t(b);
+      ++head;
+      for (int side = 0; side < 2; ++side) {
+        const std::uint8_t bit = side == 0 ? kContU : kContD;
+        for (std::size_t k = a; k <= b; ++k) {
+          if (!(CT[k] & bit)) continue;
+          const std::size_t j0 = side == 0 ? k - w : k + w;
+          if (!ok(j0)) continue;
+          LB[j0] = r;
+          std::size_t j1 = j0;
+          while (k + 1 <= b && (CT[k + 1] & bit) && ok(j1 + 1)) {
+            LB[++j1] = r;
+            ++k;
+          }
+          SA[tail] = std::uint32_t(j0);
+          SB[tail] = std::uint32_t(j1);
+          ++tail;
+          add(j0, j1);
         }
       }
     }
-    if (tail < params_.min_grow_cells) {
+    if (cells < params_.min_grow_cells) {
       for (std::size_t q = 0; q < tail; ++q) {
-        lab_[queue_[q]] = kUnassigned;
-        state_[queue_[q]] |= kTried;
+        for (std::size_t i = SA[q]; i <= SB[q]; ++i) {
+          LB[i] = kUnassigned;
+          state_[i] |= kTried;
+        }
       }
       continue;
     }
-    refit(r);
+    refit(int(r));
     grown_[std::size_t(r)] = 1;
     ++region_count_;
   }
@@ -357,16 +452,17 @@ void Segmenter::refine_edges(const OrganizedCloud& cloud) {
       if (lab_[i] != kUnassigned) continue;
       const std::size_t row = i / w, col = i - row * w;
       std::size_t nb[4];
+      std::uint8_t bit[4];
       int k = 0;
-      if (col > 0) nb[k++] = i - 1;
-      if (col + 1 < w) nb[k++] = i + 1;
-      if (row > 0) nb[k++] = i - w;
-      if (row + 1 < h) nb[k++] = i + w;
+      if (col > 0) { nb[k] = i - 1; bit[k++] = kContL; }
+      if (col + 1 < w) { nb[k] = i + 1; bit[k++] = kContR; }
+      if (row > 0) { nb[k] = i - w; bit[k++] = kContU; }
+      if (row + 1 < h) { nb[k] = i + w; bit[k++] = kContD; }
       float best = std::numeric_limits<float>::max();
       std::int32_t bl = -1;
       for (int t = 0; t < k; ++t) {
         const std::int32_t l = lab_[nb[t]];
-        if (l < 0 || !continuous(cloud, i, nb[t])) continue;
+        if (l < 0 || !(cont_[i] & bit[t])) continue;
         const PlaneF& pl = plane_[std::size_t(l)];
         const float d = std::abs(pl.n.dot(P[i] - pl.c));
         if (d <= f * dist_[i] && d < best) {
@@ -383,7 +479,7 @@ void Segmenter::refine_edges(const OrganizedCloud& cloud) {
     if (np == 0) break;
     for (std::size_t q = 0; q < np; ++q) {
       lab_[pend_cell_[q]] = pend_label_[q];
-      acc_add_cell(pend_label_[q], cloud, pend_cell_[q]);
+      accumulate(acc_[std::size_t(pend_label_[q])], &pend_cell_[q], 1);
     }
   }
   for (std::size_t r = 0; r < region_count_; ++r) refit(int(r));
@@ -415,7 +511,7 @@ int Segmenter::border_slot(Segmentation& out, std::int32_t a, std::int32_t b) {
   return bval_[s];
 }
 
-void Segmenter::merge_regions(const OrganizedCloud& cloud, Segmentation& out) {
+void Segmenter::merge_regions(const OrganizedCloud& /*cloud*/, Segmentation& out) {
   const std::size_t w = width_, h = height_;
   const std::size_t R = region_count_;
   for (std::size_t r = 0; r < R; ++r) parent_[r] = std::int32_t(r);
@@ -428,9 +524,11 @@ void Segmenter::merge_regions(const OrganizedCloud& cloud, Segmentation& out) {
       const std::int32_t li = lab_[i];
       if (li < 0) continue;
       const std::size_t nb[2] = {col + 1 < w ? i + 1 : i, row + 1 < h ? i + w : i};
-      for (std::size_t j : nb) {
+      const std::uint8_t bit[2] = {kContR, kContD};
+      for (int t = 0; t < 2; ++t) {
+        const std::size_t j = nb[t];
         const std::int32_t lj = lab_[j];
-        if (j == i || lj < 0 || lj == li || !continuous(cloud, i, j)) continue;
+        if (j == i || lj < 0 || lj == li || !(cont_[i] & bit[t])) continue;
         border_slot(out, std::min(li, lj), std::max(li, lj));
       }
     }
@@ -471,7 +569,87 @@ void Segmenter::merge_regions(const OrganizedCloud& cloud, Segmentation& out) {
   }
 }
 
-void Segmenter::group_leftovers(const OrganizedCloud& cloud, Segmentation& out) {
+// Boundary relabelling: a cell of region A next to (depth-continuous) region B moves to B when it is closer to
+// B's plane and within B's distance tolerance. Near a crease, cells of the neighbouring face lie within the
+// distance tolerance of both planes; growth / edge refinement hand them to whichever region reached them
+// first, which lets a face seen at a grazing angle (few cells per mm^2) take a strip of dense cells of its
+// neighbours (hw-sim `default`: the cube's front face took rows of the table and of the top). Passes are
+// Jacobi-style (decided on the old labels, then applied), planes stay fixed, every move strictly reduces the
+// cell's plane distance, so it converges.
+void Segmenter::relabel_borders(const OrganizedCloud& cloud) {
+  const std::size_t w = width_, h = height_, n = w * h;
+  const auto& P = cloud.points;
+  if (region_count_ < 2 || params_.relabel_passes <= 0) return;
+  // the cell's best other region (closer plane, within tolerance, depth-continuous), or -1
+  auto better = [&](std::size_t i) -> std::int32_t {
+    const std::int32_t l = lab_[i];
+    const std::size_t row = i / w, col = i - row * w;
+    std::size_t nb[4];
+    std::uint8_t bit[4];
+    int k = 0;
+    if (col > 0) { nb[k] = i - 1; bit[k++] = kContL; }
+    if (col + 1 < w) { nb[k] = i + 1; bit[k++] = kContR; }
+    if (row > 0) { nb[k] = i - w; bit[k++] = kContU; }
+    if (row + 1 < h) { nb[k] = i + w; bit[k++] = kContD; }
+    const PlaneF& own = plane_[std::size_t(l)];
+    float best = -1.f;
+    std::int32_t bl = -1;
+    for (int t = 0; t < k; ++t) {
+      const std::int32_t m = lab_[nb[t]];
+      if (m < 0 || m == l) continue;
+      if (best < 0.f) best = std::abs(own.n.dot(P[i] - own.c));
+      const PlaneF& pm = plane_[std::size_t(m)];
+      const float d = std::abs(pm.n.dot(P[i] - pm.c));
+      if (d < best && d <= dist_[i] && (cont_[i] & bit[t])) {
+        best = d;
+        bl = m;
+      }
+    }
+    return bl;
+  };
+  // pass 1 looks at every cell on a region border, later passes only at the neighbours of moved cells
+  std::size_t nc = 0;
+  for (std::size_t row = 0, i = 0; row < h; ++row) {
+    for (std::size_t col = 0; col < w; ++col, ++i) {
+      const std::int32_t l = lab_[i];
+      if (l < 0) continue;
+      if ((col + 1 < w && lab_[i + 1] != l && lab_[i + 1] >= 0) ||
+          (row + 1 < h && lab_[i + w] != l && lab_[i + w] >= 0) || (col > 0 && lab_[i - 1] != l && lab_[i - 1] >= 0) ||
+          (row > 0 && lab_[i - w] != l && lab_[i - w] >= 0))
+        queue_[nc++] = std::uint32_t(i);
+    }
+  }
+  for (int pass = 0; pass < params_.relabel_passes && nc > 0; ++pass) {
+    std::size_t np = 0;
+    for (std::size_t q = 0; q < nc; ++q) {
+      const std::size_t i = queue_[q];
+      state_[i] &= std::uint8_t(~kQueued);
+      const std::int32_t bl = better(i);
+      if (bl >= 0) {
+        pend_cell_[np] = std::uint32_t(i);
+        pend_label_[np] = bl;
+        ++np;
+      }
+    }
+    nc = 0;
+    for (std::size_t q = 0; q < np; ++q) {
+      const std::size_t i = pend_cell_[q];
+      lab_[i] = pend_label_[q];
+      const std::size_t row = i / w, col = i - row * w;
+      const std::size_t nb[5] = {i, col > 0 ? i - 1 : i, col + 1 < w ? i + 1 : i, row > 0 ? i - w : i,
+                                 row + 1 < h ? i + w : i};
+      for (std::size_t j : nb) {
+        if (lab_[j] < 0 || (state_[j] & kQueued)) continue;
+        state_[j] |= kQueued;
+        queue_[nc++] = std::uint32_t(j);
+      }
+    }
+  }
+  for (std::size_t q = 0; q < nc; ++q) state_[queue_[q]] &= std::uint8_t(~kQueued);
+  (void)n;
+}
+
+void Segmenter::group_leftovers(const OrganizedCloud& /*cloud*/, Segmentation& out) {
   const std::size_t w = width_, h = height_, n = w * h;
   const std::size_t R0 = region_count_;
   // compact the grown regions: remap_[old] = new id, roots only
@@ -506,14 +684,15 @@ void Segmenter::group_leftovers(const OrganizedCloud& cloud, Segmentation& out) 
       const std::size_t i = queue_[head++];
       const std::size_t row = i / w, col = i - row * w;
       std::size_t nb[4];
+      std::uint8_t bit[4];
       int k = 0;
-      if (col > 0) nb[k++] = i - 1;
-      if (col + 1 < w) nb[k++] = i + 1;
-      if (row > 0) nb[k++] = i - w;
-      if (row + 1 < h) nb[k++] = i + w;
+      if (col > 0) { nb[k] = i - 1; bit[k++] = kContL; }
+      if (col + 1 < w) { nb[k] = i + 1; bit[k++] = kContR; }
+      if (row > 0) { nb[k] = i - w; bit[k++] = kContU; }
+      if (row + 1 < h) { nb[k] = i + w; bit[k++] = kContD; }
       for (int t = 0; t < k; ++t) {
         const std::size_t j = nb[t];
-        if (lab_[j] != kUnassigned || !continuous(cloud, i, j)) continue;
+        if (lab_[j] != kUnassigned || !(cont_[i] & bit[t])) continue;
         lab_[j] = r;
         queue_[tail++] = std::uint32_t(j);
       }
@@ -555,37 +734,76 @@ void Segmenter::finalize_regions(const OrganizedCloud& cloud, Segmentation& out)
     if (has_next && (state_[next] & kValid)) d = std::min(d, (P[next] - P[i]).norm());
     return d;
   };
+  // Area (and tangent lengths) of a cell with a neighbour outside its region or the image.
+  auto border_cell_area = [&](std::size_t i, std::int32_t l, bool hl, bool hr, bool hu, bool hd) {
+    Eigen::Vector3f du, dv;
+    const bool tu = tangent(i, l, hl, hl ? i - 1 : i, hr, hr ? i + 1 : i, du);
+    const bool tv = tangent(i, l, hu, hu ? i - w : i, hd, hd ? i + w : i, dv);
+    float a = 0.f;
+    if (tu && tv) {
+      a = du.cross(dv).norm();
+      lenu_[i] = du.squaredNorm();
+      lenv_[i] = dv.squaredNorm();
+    } else if (tu || tv) {
+      const float len = tu ? du.norm() : dv.norm();
+      const float other = tu ? fallback(i, hu, hu ? i - w : i, hd, hd ? i + w : i, std::sqrt(lenv_[i]))
+                             : fallback(i, hl, hl ? i - 1 : i, hr, hr ? i + 1 : i, std::sqrt(lenu_[i]));
+      a = len * other;
+      lenu_[i] = tu ? len * len : other * other;
+      lenv_[i] = tv ? len * len : other * other;
+    } else {
+      const float lu = fallback(i, hl, hl ? i - 1 : i, hr, hr ? i + 1 : i, std::sqrt(lenu_[i]));
+      const float lv = fallback(i, hu, hu ? i - w : i, hd, hd ? i + w : i, std::sqrt(lenv_[i]));
+      a = lu * lv;
+      lenu_[i] = lu * lu;
+      lenv_[i] = lv * lv;
+    }
+    return a;
+  };
+  // Moments are summed per run of equal labels along a row (in locals) and added to the region at the run's end.
+  const float* X = px_.data();
+  const float* Y = py_.data();
+  const float* Z = pz_.data();
+  const std::int32_t* LB = lab_.data();
+  const double ox = origin_.x(), oy = origin_.y(), oz = origin_.z();
+  Acc run;
+  std::int32_t run_label = -1;
+  auto flush = [&]() {
+    if (run_label >= 0) acc_[std::size_t(run_label)].merge(run);
+    run = Acc{};
+  };
   for (std::size_t row = 0, i = 0; row < h; ++row) {
     for (std::size_t col = 0; col < w; ++col, ++i) {
-      const std::int32_t l = lab_[i];
+      const std::int32_t l = LB[i];
       out.labels[i] = l < 0 ? kNil : l;
+      if (l != run_label) {
+        flush();
+        run_label = l;
+      }
       if (l < 0) continue;
       const bool hl = col > 0, hr = col + 1 < w, hu = row > 0, hd = row + 1 < h;
-      Eigen::Vector3f du, dv;
-      const bool tu = tangent(i, l, hl, hl ? i - 1 : i, hr, hr ? i + 1 : i, du);
-      const bool tv = tangent(i, l, hu, hu ? i - w : i, hd, hd ? i + w : i, dv);
       float a = 0.f;
-      if (tu && tv) {
-        a = du.cross(dv).norm();
-        lenu_[i] = du.squaredNorm();
-        lenv_[i] = dv.squaredNorm();
-      } else if (tu || tv) {
-        const float len = tu ? du.norm() : dv.norm();
-        const float other = tu ? fallback(i, hu, hu ? i - w : i, hd, hd ? i + w : i, std::sqrt(lenv_[i]))
-                               : fallback(i, hl, hl ? i - 1 : i, hr, hr ? i + 1 : i, std::sqrt(lenu_[i]));
-        a = len * other;
-        lenu_[i] = tu ? len * len : other * other;
-        lenv_[i] = tv ? len * len : other * other;
+      if (hl && hr && hu && hd && LB[i - 1] == l && LB[i + 1] == l && LB[i - w] == l && LB[i + w] == l) {
+        // inside the region: central differences on both axes
+        const float ux = 0.5f * (X[i + 1] - X[i - 1]), uy = 0.5f * (Y[i + 1] - Y[i - 1]), uz = 0.5f * (Z[i + 1] - Z[i - 1]);
+        const float vx = 0.5f * (X[i + w] - X[i - w]), vy = 0.5f * (Y[i + w] - Y[i - w]), vz = 0.5f * (Z[i + w] - Z[i - w]);
+        const float cx = uy * vz - uz * vy, cy = uz * vx - ux * vz, cz = ux * vy - uy * vx;
+        a = std::sqrt(cx * cx + cy * cy + cz * cz);
+        lenu_[i] = ux * ux + uy * uy + uz * uz;
+        lenv_[i] = vx * vx + vy * vy + vz * vz;
       } else {
-        const float lu = fallback(i, hl, hl ? i - 1 : i, hr, hr ? i + 1 : i, std::sqrt(lenu_[i]));
-        const float lv = fallback(i, hu, hu ? i - w : i, hd, hd ? i + w : i, std::sqrt(lenv_[i]));
-        a = lu * lv;
-        lenu_[i] = lu * lu;
-        lenv_[i] = lv * lv;
+        a = border_cell_area(i, l, hl, hr, hu, hd);
       }
       area_[i] = a;
-      acc_[std::size_t(l)].add(P[i].cast<double>() - origin_, a, double(col), double(row));
+      const double x = double(X[i]) - ox, y = double(Y[i]) - oy, z = double(Z[i]) - oz;
+      run.n += 1;
+      run.sx += x; run.sy += y; run.sz += z;
+      run.sxx += x * x; run.sxy += x * y; run.sxz += x * z;
+      run.syy += y * y; run.syz += y * z; run.szz += z * z;
+      run.area += a; run.pc += double(col); run.pr += double(row);
     }
+    flush();
+    run_label = -1;
   }
   out.regions.resize(R);
   for (std::size_t r = 0; r < R; ++r) {
@@ -644,11 +862,11 @@ void Segmenter::compute_borders(const OrganizedCloud& cloud, Segmentation& out) 
       const std::size_t i = row * w + col;
       const std::int32_t li = L[i];
       if (col + 1 < w && L[i + 1] != li) {
-        const bool cont = li >= 0 && L[i + 1] >= 0 && continuous(cloud, i, i + 1);
+        const bool cont = li >= 0 && L[i + 1] >= 0 && (cont_[i] & kContR) != 0;
         add(li, L[i + 1], edge_len(lenv_[i], lenv_[i + 1]), cont, std::uint32_t(i * 2));
       }
       if (row + 1 < h && L[i + w] != li) {
-        const bool cont = li >= 0 && L[i + w] >= 0 && continuous(cloud, i, i + w);
+        const bool cont = li >= 0 && L[i + w] >= 0 && (cont_[i] & kContD) != 0;
         add(li, L[i + w], edge_len(lenu_[i], lenu_[i + w]), cont, std::uint32_t(i * 2 + 1));
       }
       if (li < 0) continue;

@@ -1,8 +1,10 @@
 #pragma once
 // Planar segmentation of an organized grid (thesis ch. 2.4, 3.5.1): normals from the grid tangents
-// (one-sided at depth jumps), region growing (normal angle + point-to-plane distance + depth continuity),
-// edge refinement, plane refit, merge pass of adjacent coplanar regions, leftover cells grouped into
-// unknown regions, and the border lengths between everything.
+// (one-sided at depth jumps; vectorized row kernels in grid_kernels.hpp), depth-continuity bits per cell,
+// region growing (normal angle + point-to-plane distance + depth continuity; breadth-first start, then a
+// scanline flood fill), edge refinement, plane refit, merge pass of adjacent coplanar regions, boundary
+// relabelling (border cells go to the nearer adjacent plane), leftover cells grouped into unknown regions,
+// and the border lengths between everything.
 //
 // Memory: all working buffers are sized once (constructor / reserve()) by the largest grid and the region
 // budget; segment() then runs without heap allocation for grids within that size. When the region or border
@@ -38,8 +40,8 @@ class Segmenter {
   // Segments `cloud` into `out` (reused). Grids larger than the reserved size grow the buffers first.
   void segment(const OrganizedCloud& cloud, Segmentation& out);
 
-  // Per-cell unit normal from the last segment() call (NaN where undefined).
-  const std::vector<Eigen::Vector3f>& normals() const { return normal_; }
+  // Unit normal of cell i (row-major) from the last segment() call (NaN where undefined).
+  Eigen::Vector3f normal(std::size_t i) const { return {nx_[i], ny_[i], nz_[i]}; }
 
  private:
   struct Acc {   // moments relative to origin_ (double)
@@ -57,24 +59,19 @@ class Segmenter {
   void grow_regions(const OrganizedCloud& cloud, Segmentation& out);
   void refine_edges(const OrganizedCloud& cloud);
   void merge_regions(const OrganizedCloud& cloud, Segmentation& out);
+  void relabel_borders(const OrganizedCloud& cloud);
   void group_leftovers(const OrganizedCloud& cloud, Segmentation& out);
   void finalize_regions(const OrganizedCloud& cloud, Segmentation& out);
   void compute_borders(const OrganizedCloud& cloud, Segmentation& out);
 
-  Acc& acc_add_cell(int region, const OrganizedCloud& cloud, std::size_t i);
+  // Adds the point moments of `cells` to `a` (relative to origin_; no area / pixel sums).
+  void accumulate(Acc& a, const std::uint32_t* cells, std::size_t count) const;
+  void accumulate_run(Acc& a, std::size_t first, std::size_t last) const;   // cells first..last (inclusive)
   void fit(const Acc& a, Eigen::Vector3d& n, Eigen::Vector3d& c, double& rms) const;
   void refit(int region);
-  // Depth continuity of grid neighbours: close enough, or (up to jump_max_mm) a step that is not along the
-  // viewing ray, i.e. a surface seen at a grazing angle rather than a jump edge.
-  bool continuous(const OrganizedCloud& cloud, std::size_t i, std::size_t j) const {
-    const Eigen::Vector3f d = cloud.points[j] - cloud.points[i];
-    const float dd = d.squaredNorm();
-    if (dd <= jump2_[i]) return true;
-    if (!(dd <= jump_max2_)) return false;
-    const Eigen::Vector3f ray = cloud.points[i] - vp_f_;
-    const float c = ray.dot(d);
-    return c * c < cos2_jump_ * dd * ray.squaredNorm();
-  }
+  // Depth continuity of grid neighbours (kernels::continuous, computed once per scan into cont_): close
+  // enough, or (up to jump_max_mm) a step that is not along the viewing ray, i.e. a surface seen at a grazing
+  // angle rather than a jump edge.
   float jump_max2_ = 0.f, cos2_jump_ = 1.f;
   Eigen::Vector3f vp_f_ = Eigen::Vector3f::Zero();
   // Border pair table (open addressing); returns the index in out.borders or -1 when full.
@@ -87,8 +84,9 @@ class Segmenter {
   Eigen::Vector3d viewpoint_ = Eigen::Vector3d::Zero();
   std::uint32_t width_ = 0, height_ = 0;
 
-  // per cell
-  std::vector<Eigen::Vector3f> normal_;
+  // per cell (structure of arrays: the normal pass is vectorized); points with NaN = no data
+  std::vector<float> px_, py_, pz_, nx_, ny_, nz_;
+  std::vector<std::uint8_t> cont_;   // depth-continuity bits toward the 4 grid neighbours
   std::vector<float> area_, lenu_, lenv_, jump2_, dist_;
   std::vector<std::uint8_t> state_;
   std::vector<std::int32_t> lab_;

@@ -5,6 +5,8 @@
 #include "common/error.hpp"
 #include "host/segment/scene_pfrg.hpp"
 #include "host/segment/segmenter.hpp"
+#include "hw-sim/scene/ground_truth_grid.hpp"
+#include "support/test_paths.hpp"
 #include "synthetic_scene.hpp"
 
 namespace {
@@ -41,6 +43,52 @@ TEST(SegmentAlloc, NoAllocationPerScanAfterWarmUp) {
   builder.build(s, g);
   EXPECT_EQ(counter.allocations(), 0u);
   EXPECT_GE(g.nodes.size(), 7u);   // the work was done: SN + table + >= 5 faces
+}
+
+// The realistic case: full-size bench-scanner scans (500 galvo steps x 1024 rows) of the hw-sim scenes, with the
+// segmenter / builder set up the way the recognizer does it (one per process, limits from the grid size).
+// Warm-up on the simplest scene; then the 4-object demo scene (more regions, borders, runs, relabelled cells)
+// runs without a single heap allocation, twice (the second time over the first one's leftovers).
+TEST(SegmentAlloc, NoAllocationPerHwsimScanAfterWarmUp) {
+  auto scan = [](const char* name, std::uint64_t seed) {
+    const auto gt = fs::sim::make_ground_truth_grid(fs::test::source_dir() / "hw-sim/scenes" / name,
+                                                    {.depth_noise_mm = 0.05, .seed = seed});
+    OrganizedCloud c;
+    gt.export_to(c, true);
+    return c;
+  };
+  const OrganizedCloud warm = scan("cube.json", 1), demo = scan("default.json", 2);
+  ASSERT_EQ(warm.points.size(), demo.points.size());
+  ASSERT_GE(demo.points.size(), 500u * 1024u);
+
+  SegmentLimits lim;
+  lim.max_cells = warm.points.size();
+  Segmenter segmenter(SegmentParams::laser(), lim);
+  Segmentation s;
+  segmenter.prepare(s);
+  ScenePfrgBuilder builder(lim.max_regions, lim.max_borders);
+  Pfrg g;
+  builder.prepare(g);
+  segmenter.segment(warm, s);
+  builder.build(s, g);
+  const std::size_t warm_nodes = g.nodes.size();
+
+  fs::AllocCounter counter;
+  segmenter.segment(demo, s);
+  builder.build(s, g);
+  const std::size_t demo_nodes = g.nodes.size(), demo_arcs = g.arcs.size();
+  segmenter.segment(warm, s);
+  builder.build(s, g);
+  segmenter.segment(demo, s);
+  builder.build(s, g);
+  EXPECT_EQ(counter.allocations(), 0u);
+  EXPECT_FALSE(s.truncated);
+  // the work was done: table + 13 object faces + supernode in the demo scene, more than in the warm-up scene
+  EXPECT_EQ(demo_nodes, 15u);
+  EXPECT_GE(demo_arcs, 29u);
+  EXPECT_GT(demo_nodes, warm_nodes);
+  EXPECT_EQ(g.nodes.size(), demo_nodes);
+  EXPECT_EQ(g.arcs.size(), demo_arcs);
 }
 
 TEST(SegmentLimits, RegionBudgetExhaustionIsFlaggedNotFatal) {

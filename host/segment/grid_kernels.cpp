@@ -1,0 +1,83 @@
+#include "host/segment/grid_kernels.hpp"
+
+#include <cmath>
+#include <limits>
+
+namespace fs::host::seg::kernels {
+
+void soa_row(const float* __restrict S, int w, Viewpoint vp, float jump_abs, float jump_rel, float dist_abs,
+             float dist_rel, float* __restrict X, float* __restrict Y, float* __restrict Z, float* __restrict J2,
+             float* __restrict DI, std::uint8_t* __restrict valid) {
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  for (int c = 0; c < w; ++c) {
+    const float x = S[3 * c], y = S[3 * c + 1], z = S[3 * c + 2];
+    // Points with any non-finite coordinate carry no data (NaN = no data by contract; inf is treated alike).
+    const bool ok = (int(std::abs(x) < 1e7f) & int(std::abs(y) < 1e7f) & int(std::abs(z) < 1e7f)) != 0;
+    const float dx = x - vp.x, dy = y - vp.y, dz = z - vp.z;
+    const float r2 = dx * dx + dy * dy + dz * dz;
+    const float jump = jump_abs + (jump_rel != 0.f ? jump_rel * std::sqrt(r2) : 0.f);
+    X[c] = ok ? x : nan;
+    Y[c] = ok ? y : nan;
+    Z[c] = ok ? z : nan;
+    J2[c] = ok ? jump * jump : 0.f;
+    DI[c] = ok ? dist_abs + dist_rel * r2 : 0.f;
+  }
+  for (int c = 0; c < w; ++c) valid[c] = X[c] == X[c] ? 1 : 0;
+}
+
+void normals_row_fast(const float* __restrict X, const float* __restrict Y, const float* __restrict Z,
+                      const float* __restrict J2, int c0, int c1, std::size_t s, std::size_t ws, Viewpoint vp,
+                      float* __restrict NX, float* __restrict NY, float* __restrict NZ, float* __restrict AR,
+                      float* __restrict LU, float* __restrict LV) {
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const float inv = 0.5f / float(s), s2 = float(s * s);
+  for (int c = c0; c < c1; ++c) {
+    const std::size_t i = std::size_t(c);
+    const float px = X[i], py = Y[i], pz = Z[i];
+    const float xl = X[i - s], yl = Y[i - s], zl = Z[i - s];
+    const float xr = X[i + s], yr = Y[i + s], zr = Z[i + s];
+    const float xu = X[i - ws], yu = Y[i - ws], zu = Z[i - ws];
+    const float xd = X[i + ws], yd = Y[i + ws], zd = Z[i + ws];
+    const float lim = J2[i] * s2;
+    const float dl = (xl - px) * (xl - px) + (yl - py) * (yl - py) + (zl - pz) * (zl - pz);
+    const float dr = (xr - px) * (xr - px) + (yr - py) * (yr - py) + (zr - pz) * (zr - pz);
+    const float du = (xu - px) * (xu - px) + (yu - py) * (yu - py) + (zu - pz) * (zu - pz);
+    const float dd = (xd - px) * (xd - px) + (yd - py) * (yd - py) + (zd - pz) * (zd - pz);
+    const float ux = (xr - xl) * inv, uy = (yr - yl) * inv, uz = (zr - zl) * inv;
+    const float tx = (xd - xu) * inv, ty = (yd - yu) * inv, tz = (zd - zu) * inv;
+    const float cx = uy * tz - uz * ty, cy = uz * tx - ux * tz, cz = ux * ty - uy * tx;
+    const float a = std::sqrt(cx * cx + cy * cy + cz * cz);
+    const bool ok = (int(dl <= lim) & int(dr <= lim) & int(du <= lim) & int(dd <= lim) & int(a > 0.f)) != 0;
+    const float sgn = (vp.x - px) * cx + (vp.y - py) * cy + (vp.z - pz) * cz < 0.f ? -1.f : 1.f;
+    const float ia = sgn / a;
+    NX[i] = ok ? cx * ia : nan;
+    NY[i] = ok ? cy * ia : nan;
+    NZ[i] = ok ? cz * ia : nan;
+    AR[i] = ok ? a : 0.f;
+    LU[i] = ok ? ux * ux + uy * uy + uz * uz : 0.f;
+    LV[i] = ok ? tx * tx + ty * ty + tz * tz : 0.f;
+  }
+}
+
+void cont_seeds_row_fast(const float* __restrict X, const float* __restrict Y, const float* __restrict Z,
+                         const float* __restrict J2, const float* __restrict NX, const float* __restrict NY,
+                         const float* __restrict NZ, int c0, int c1, std::size_t W, Viewpoint vp, float jmax2,
+                         float cos2, float cos_seed, std::uint8_t* __restrict CT) {
+  for (int c = c0; c < c1; ++c) {
+    const std::size_t i = std::size_t(c);
+    const bool l = continuous(X, Y, Z, J2, i, i - 1, vp, jmax2, cos2);
+    const bool r = continuous(X, Y, Z, J2, i, i + 1, vp, jmax2, cos2);
+    const bool u = continuous(X, Y, Z, J2, i, i - W, vp, jmax2, cos2);
+    const bool d = continuous(X, Y, Z, J2, i, i + W, vp, jmax2, cos2);
+    const float nx = NX[i], ny = NY[i], nz = NZ[i];
+    const bool seed = (int(NX[i - 1] * nx + NY[i - 1] * ny + NZ[i - 1] * nz >= cos_seed) &
+                       int(NX[i + 1] * nx + NY[i + 1] * ny + NZ[i + 1] * nz >= cos_seed) &
+                       int(NX[i - W] * nx + NY[i - W] * ny + NZ[i - W] * nz >= cos_seed) &
+                       int(NX[i + W] * nx + NY[i + W] * ny + NZ[i + W] * nz >= cos_seed) & int(l) & int(r) & int(u) &
+                       int(d)) != 0;
+    CT[i] = std::uint8_t((l ? kContL : 0) | (r ? kContR : 0) | (u ? kContU : 0) | (d ? kContD : 0) |
+                         (seed ? kContSeed : 0));
+  }
+}
+
+}  // namespace fs::host::seg::kernels
