@@ -8,6 +8,8 @@
 #include <type_traits>
 
 #include "common/error.hpp"
+#include "firmware/extract/gauss_ml.hpp"
+#include "firmware/extract/row_scan.hpp"
 
 namespace fs::fw {
 
@@ -17,6 +19,7 @@ const char* to_string(SubpixelMethod m) {
     case SubpixelMethod::Gaussian3: return "gauss3";
     case SubpixelMethod::BlaisRioux: return "blais-rioux";
     case SubpixelMethod::GaussFit: return "gauss-fit";
+    case SubpixelMethod::GaussMl: return "gauss-ml";
   }
   return "unknown";
 }
@@ -27,83 +30,64 @@ SubpixelMethod parse_subpixel_method(const char* text) {
   if (t == "gauss3") return SubpixelMethod::Gaussian3;
   if (t == "blais-rioux") return SubpixelMethod::BlaisRioux;
   if (t == "gauss-fit") return SubpixelMethod::GaussFit;
-  throw Error("unknown sub-pixel method '" + t + "' (expected cog, gauss3, blais-rioux or gauss-fit)");
+  if (t == "gauss-ml") return SubpixelMethod::GaussMl;
+  throw Error("unknown sub-pixel method '" + t + "' (expected cog, gauss3, blais-rioux, gauss-fit or gauss-ml)");
 }
 
 namespace {
 
-constexpr std::uint32_t kBlock = 64;
-constexpr std::uint32_t kMaxBlocks = 256;  // rows up to 16384 samples
+using detail::kBlock;
 
 template <typename T>
 inline double at(const T* row, std::uint32_t step, std::int64_t i) {
   return static_cast<double>(row[static_cast<std::size_t>(i) * step]);
 }
 
-// Max and sum of a block of samples; written as a plain loop over a fixed count so it vectorizes.
-// 8-bit samples: a block of 64 sums to at most 16320, so a 16-bit accumulator suffices (twice the lanes).
-template <typename T>
-using BlockSum = std::conditional_t<sizeof(T) == 1, std::uint16_t, std::uint32_t>;
-
+// Index of the first sample equal to the row maximum `mx`.
 template <typename T, std::uint32_t Step>
-inline void block_max_sum(const T* p, std::uint32_t count, T& mx, std::uint64_t& sum) {
-  T m = 0;
-  BlockSum<T> s = 0;
-  if (count == kBlock) {  // the common case: a fixed trip count the compiler unrolls and vectorizes
-    for (std::uint32_t i = 0; i < kBlock; ++i) {
-      const T v = p[i * Step];
-      m = v > m ? v : m;
-      s = static_cast<BlockSum<T>>(s + v);
-    }
+std::uint32_t first_argmax(const T* row, const detail::RowScan<T>& s, T mx) {
+  if constexpr (sizeof(T) == 1 && Step == 1) {
+    const void* hit = std::memchr(row, mx, s.n);  // libc's vectorized byte search; mx is in the row
+    return hit ? static_cast<std::uint32_t>(static_cast<const std::uint8_t*>(hit) - row) : 0;
   } else {
-    for (std::uint32_t i = 0; i < count; ++i) {
-      const T v = p[i * Step];
-      m = v > m ? v : m;
-      s = static_cast<BlockSum<T>>(s + v);
-    }
+    std::uint32_t b = 0;
+    while (b + 1 < s.nblocks && s.block_max(b) != mx) ++b;
+    std::uint32_t i = b * kBlock;
+    while (i + 1 < s.n && row[static_cast<std::size_t>(i) * Step] != mx) ++i;
+    return i;
   }
-  mx = m;
-  sum += s;
 }
 
 template <typename T, std::uint32_t Step>
 RowPeak extract_row_impl(const T* row, std::uint32_t n, double full_scale, const ExtractParams& p) {
   RowPeak r;
   if (n < 5) return r;
-  const std::uint32_t nblocks = std::min((n + kBlock - 1) / kBlock, kMaxBlocks);
-  if (static_cast<std::uint64_t>(nblocks) * kBlock < n) n = nblocks * kBlock;  // clamp absurd widths
-  std::array<T, kMaxBlocks> bmax;
-  std::uint64_t sum = 0;
-  T mx = 0;
-  for (std::uint32_t b = 0; b < nblocks; ++b) {
-    const std::uint32_t begin = b * kBlock;
-    const std::uint32_t count = std::min(kBlock, n - begin);
-    block_max_sum<T, Step>(row + static_cast<std::size_t>(begin) * Step, count, bmax[b], sum);
-    mx = bmax[b] > mx ? bmax[b] : mx;
-  }
+  detail::RowScan<T> scan;
+  detail::scan_row<T, Step>(row, n, scan);
+  n = scan.n;  // clamps absurd widths
   const double scale = full_scale / 255.0;
-  double bg = static_cast<double>(sum) / n;
+  double bg = static_cast<double>(scan.sum) / n;
+  const T mx = scan.max;
   const double peak = static_cast<double>(mx);
   if (peak - bg < p.min_contrast * scale) return r;
-
-  // First sample equal to the maximum.
-  std::uint32_t b0 = 0;
-  while (bmax[b0] != mx) ++b0;
-  std::uint32_t imax = b0 * kBlock;
-  while (row[static_cast<std::size_t>(imax) * Step] != mx) ++imax;
+  const std::uint32_t imax = first_argmax<T, Step>(row, scan, mx);
+  const std::uint64_t sum = scan.sum;
 
   // Support of the peak: contiguous samples above bg + 20 % of the contrast, at most max_half_width away.
+  // Integer samples: v > low  <=>  v > floor(low).
   const double low = bg + 0.2 * (peak - bg);
+  const std::int64_t low_i = static_cast<std::int64_t>(std::floor(low));
+  const auto iat = [&](std::int64_t i) { return static_cast<std::int64_t>(row[static_cast<std::size_t>(i) * Step]); };
   const std::int64_t hw = p.max_half_width;
   std::int64_t lo = imax, hi = imax;
-  while (lo > 0 && imax - lo < hw && at(row, Step, lo - 1) > low) --lo;
-  while (hi + 1 < n && hi - imax < hw && at(row, Step, hi + 1) > low) ++hi;
+  while (lo > 0 && imax - lo < hw && iat(lo - 1) > low_i) --lo;
+  while (hi + 1 < n && hi - imax < hw && iat(hi + 1) > low_i) ++hi;
 
   // Background without the stripe's own energy.
-  double support_sum = 0.0;
-  for (std::int64_t i = lo; i <= hi; ++i) support_sum += at(row, Step, i);
+  std::int64_t support_sum = 0;
+  for (std::int64_t i = lo; i <= hi; ++i) support_sum += iat(i);
   const std::int64_t rest = static_cast<std::int64_t>(n) - (hi - lo + 1);
-  if (rest > 0) bg = (static_cast<double>(sum) - support_sum) / static_cast<double>(rest);
+  if (rest > 0) bg = static_cast<double>(static_cast<std::int64_t>(sum) - support_sum) / static_cast<double>(rest);
   const double contrast = peak - bg;
   if (contrast < p.min_contrast * scale) return r;
   r.peak = peak;
@@ -118,39 +102,25 @@ RowPeak extract_row_impl(const T* row, std::uint32_t n, double full_scale, const
     }
   }
 
-  // Second peak outside the support: block maxima for whole blocks, exact scan for partial ones.
+  // Second peak outside the support (and the flank sample next to it on each side).
   const double second_limit = bg + p.ambiguous_ratio * contrast;
-  double second = 0.0;
-  const std::int64_t lo_excl = std::max<std::int64_t>(0, lo - 1);  // the flank sample next to the support
-  const std::int64_t hi_excl = std::min<std::int64_t>(n - 1, hi + 1);
-  for (std::uint32_t b = 0; b < nblocks; ++b) {
-    const std::int64_t begin = static_cast<std::int64_t>(b) * kBlock;
-    const std::int64_t end = std::min<std::int64_t>(begin + kBlock, n);  // exclusive
-    if (static_cast<double>(bmax[b]) <= second_limit) continue;
-    if (end <= lo_excl || begin > hi_excl) {
-      second = std::max(second, static_cast<double>(bmax[b]));
-      continue;
-    }
-    for (std::int64_t i = begin; i < end; ++i) {
-      if (i >= lo_excl && i <= hi_excl) continue;
-      second = std::max(second, at(row, Step, i));
-    }
-  }
+  const double second = static_cast<double>(detail::max_outside<T, Step>(row, scan, lo - 1, hi + 1));
   if (second > second_limit || (hi - lo) >= 2 * hw) {
     r.status = RowStatus::Ambiguous;
     return r;
   }
 
-  // Full width at half maximum by linear interpolation on both flanks.
+  // Full width at half maximum by linear interpolation on both flanks (integer walks: v > half <=> v > floor).
   const double half = bg + 0.5 * contrast;
+  const std::int64_t half_i = static_cast<std::int64_t>(std::floor(half));
   double left = static_cast<double>(imax), right = static_cast<double>(imax);
   {
     std::int64_t i = imax;
-    while (i > lo && at(row, Step, i - 1) > half) --i;
+    while (i > lo && iat(i - 1) > half_i) --i;
     const double a = at(row, Step, i - (i > 0 ? 1 : 0)), b = at(row, Step, i);
     left = (i > 0 && b != a) ? static_cast<double>(i) - (b - half) / (b - a) : static_cast<double>(i);
     std::int64_t j = imax;
-    while (j < hi && at(row, Step, j + 1) > half) ++j;
+    while (j < hi && iat(j + 1) > half_i) ++j;
     const double c = at(row, Step, j), d = at(row, Step, j + (j + 1 < n ? 1 : 0));
     right = (j + 1 < n && c != d) ? static_cast<double>(j) + (c - half) / (c - d) : static_cast<double>(j);
   }
@@ -163,7 +133,7 @@ RowPeak extract_row_impl(const T* row, std::uint32_t n, double full_scale, const
   double col = static_cast<double>(imax);
   // A flat top of several equal samples: start from its middle.
   std::int64_t top_end = imax;
-  while (top_end + 1 <= hi && at(row, Step, top_end + 1) >= peak) ++top_end;
+  while (top_end + 1 <= hi && iat(top_end + 1) >= static_cast<std::int64_t>(mx)) ++top_end;
   const std::int64_t ic = (imax + top_end) / 2;
   switch (p.method) {
     case SubpixelMethod::CentreOfGravity: {
@@ -214,6 +184,35 @@ RowPeak extract_row_impl(const T* row, std::uint32_t n, double full_scale, const
       }
       break;
     }
+    case SubpixelMethod::GaussMl: {
+      // Samples minus background in 8-bit DN over ic +- (3 sigma + 3), sigma from the FWHM.
+      constexpr std::int64_t kMaxK = 64;
+      const std::int64_t k = std::clamp<std::int64_t>(static_cast<std::int64_t>(std::ceil(r.width * (3.0 / 2.3548))) + 3,
+                                                      4, kMaxK);
+      const std::int64_t first = std::max<std::int64_t>(0, ic - k);
+      const std::int64_t last = std::min<std::int64_t>(static_cast<std::int64_t>(n) - 1, ic + k);
+      std::array<float, 2 * kMaxK + 1 + detail::kChunk> y;
+      const double inv = 1.0 / scale;
+      const std::int64_t count = last - first + 1;
+      for (std::int64_t i = 0; i < count; ++i)
+        y[static_cast<std::size_t>(i)] = static_cast<float>((at(row, Step, first + i) - bg) * inv);
+      std::fill_n(y.begin() + count, detail::kChunk, 0.0f);  // the fit reads (and masks out) up to kChunk more
+      const double clip = (full_scale - bg) * inv;
+      const detail::SensorNoise noise{p.read_noise, p.shot_noise, p.speckle};
+      double c = 0.0;
+      if (detail::gauss_ml_centre(y.data(), static_cast<int>(last - first + 1), static_cast<int>(ic - first),
+                                  contrast * inv, clip, noise, c)) {
+        col = static_cast<double>(first) + c;
+      } else {  // no Gaussian fits (e.g. a clipped narrow top): centre of gravity of the support
+        double s = 0.0, sw = 0.0;
+        for (std::int64_t i = lo; i <= hi; ++i) {
+          s += v(i);
+          sw += v(i) * static_cast<double>(i);
+        }
+        col = s > 0.0 ? sw / s : static_cast<double>(ic);
+      }
+      break;
+    }
     case SubpixelMethod::BlaisRioux: {
       // 4th-order derivative filter g(j) = f(j-2) + f(j-1) - f(j+1) - f(j+2); the centre is its zero crossing.
       const auto g = [&](std::int64_t j) { return v(j - 2) + v(j - 1) - v(j + 1) - v(j + 2); };
@@ -225,7 +224,8 @@ RowPeak extract_row_impl(const T* row, std::uint32_t n, double full_scale, const
       break;
     }
   }
-  r.col = col;
+  // A stripe's centre lies within its support (guards every method against edge extrapolation).
+  r.col = std::clamp(col, static_cast<double>(lo) - 0.5, static_cast<double>(hi) + 0.5);
   r.status = RowStatus::Ok;
   return r;
 }

@@ -1,10 +1,15 @@
 // bench_extract: stripe extraction throughput on a 1280x1024 Mono8 frame of the cube scene (scene renderer,
 // default noise) next to memcpy of the same frame in the same run. bytes_per_second = pixels per second.
+// BM_ScanRow: the per-row pass alone over the frame, 0 = the portable auto-vectorized loop, 1 = the path
+// extraction uses (SIMD on x86-64; label says which).
 #include <benchmark/benchmark.h>
 
 #include <cstring>
+#include <memory>
+#include <string>
 #include <vector>
 
+#include "firmware/extract/row_scan.hpp"
 #include "firmware/extract/stripe_extractor.hpp"
 #include "hw-sim/scene/scene.hpp"
 #include "hw-sim/scene/stripe_renderer.hpp"
@@ -57,7 +62,25 @@ void BM_Extract(benchmark::State& state) {
   state.SetBytesProcessed(static_cast<std::int64_t>(state.iterations() * f.pixels.size()));
   state.SetLabel(std::string(fs::fw::to_string(p.method)) + ", " + std::to_string(points) + " points/frame");
 }
-BENCHMARK(BM_Extract)->Arg(0)->Arg(1)->Arg(2)->Arg(3);
+void BM_ScanRow(benchmark::State& state) {
+  Frame& f = frame();
+  auto scan = std::make_unique<fs::fw::detail::RowScan<std::uint8_t>>();
+  std::uint64_t check = 0;
+  for (auto _ : state) {
+    for (std::uint32_t y = 0; y < f.view.height; ++y) {
+      const std::uint8_t* row = f.view.data + static_cast<std::size_t>(y) * f.view.stride;
+      if (state.range(0) == 0) fs::fw::detail::scan_row_portable<std::uint8_t, 1>(row, f.view.width, *scan);
+      else fs::fw::detail::scan_row<std::uint8_t, 1>(row, f.view.width, *scan);
+      check += scan->sum + scan->max;
+    }
+    benchmark::DoNotOptimize(check);
+  }
+  state.SetBytesProcessed(static_cast<std::int64_t>(state.iterations() * f.pixels.size()));
+  state.SetLabel(state.range(0) == 0 ? "portable" : fs::fw::detail::scan_row_u8_isa());
+}
+BENCHMARK(BM_ScanRow)->Arg(0)->Arg(1);
+
+BENCHMARK(BM_Extract)->Arg(0)->Arg(1)->Arg(2)->Arg(3)->Arg(4);
 
 }  // namespace
 

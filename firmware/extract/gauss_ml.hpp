@@ -1,0 +1,44 @@
+#pragma once
+// Maximum-likelihood Gaussian centre of a stripe profile under the sensor noise model (the default sub-pixel
+// method, SubpixelMethod::GaussMl).
+//
+// The profile y(x) = A exp(-(x - u)^2 / (2 s^2)) is observed with independent per-pixel noise of variance
+//   var(S) = read^2 + 1/12 + shot^2 S + speckle^2 S^2        (S = signal above background, 8-bit DN)
+// (read noise, quantization, shot noise, multiplicative laser speckle). Speckle dominates on the stripe, so
+// the information about u sits in the flanks as much as at the top; weighting by intensity (the earlier
+// GaussFit) throws most of it away. Two steps, both closed form:
+//   1. unweighted least squares of ln y = a + b x + c x^2 over the contiguous samples above 10 % of the
+//      contrast (this is already the ML fit when speckle alone is present);
+//   2. one Gauss-Newton step of the weighted least squares in the intensity domain, weights 1 / var(S(x)) from
+//      that model, over |x - u| <= 3 s.
+// Speed: the per-sample work (log, exp, weights, the moment sums) is branch-free float arithmetic over chunks
+// of kChunk samples with one accumulator per lane, which the compiler vectorizes (SSE2/AVX2/NEON); the 3x3
+// solves are in double.
+// On the scene renderer's stripes this reaches the Cramer-Rao bound within 3 % (tests/firmware/
+// extract_scene_test.cpp prints both). Samples at full scale are censored (left out of both steps).
+#include <cstdint>
+
+namespace fs::fw::detail {
+
+struct SensorNoise {
+  double read = 1.5;      // read noise sigma, DN
+  double shot = 0.35;     // shot noise sigma = shot * sqrt(S), DN
+  double speckle = 0.12;  // relative sigma of the speckle
+};
+
+constexpr int kChunk = 8;
+
+// y[0..n): samples minus background in 8-bit DN; y[k] >= clip marks a sample at full scale. y must hold
+// n + kChunk floats (the tail is read, masked out, never used: fill it with anything finite, e.g. 0). `ic` is
+// the index of the peak sample, `contrast` the peak's height above background (DN). On success returns true
+// and sets `centre` (in index units of y, e.g. ic + 0.31); false when no Gaussian fits (caller falls back).
+bool gauss_ml_centre(const float* y, int n, int ic, double contrast, double clip, const SensorNoise& noise,
+                     double& centre);
+
+// The Cramer-Rao lower bound on the variance of any unbiased estimate of u (px^2) for a stripe of peak A (DN
+// above background) and sigma s (px) centred at u on integer pixels, with A and s unknown too (Fisher
+// information of the Gaussian likelihood with signal-dependent variance, 3x3, inverted). Pixels at full scale
+// (background + A >= full_scale_dn) carry no information. For the accuracy study and its tests.
+double centre_crb(double u, double s, double A, double background, double full_scale_dn, const SensorNoise& noise);
+
+}  // namespace fs::fw::detail

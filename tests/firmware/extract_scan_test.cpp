@@ -1,0 +1,173 @@
+// The building blocks of stripe extraction (firmware/extract/): the row pass (SIMD path == portable path,
+// bit for bit, on rows of every length and content), the max outside a window, fast_ln against std::log, and
+// the Cramer-Rao bound helper.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <memory>
+#include <random>
+#include <vector>
+
+#include "firmware/extract/fast_log.hpp"
+#include "firmware/extract/gauss_ml.hpp"
+#include "firmware/extract/row_scan.hpp"
+
+namespace fs::fw::detail {
+namespace {
+
+template <typename T>
+void expect_same_scan(const RowScan<T>& a, const RowScan<T>& b) {
+  ASSERT_EQ(a.n, b.n);
+  ASSERT_EQ(a.nblocks, b.nblocks);
+  EXPECT_EQ(a.sum, b.sum);
+  EXPECT_EQ(a.max, b.max);
+  for (std::uint32_t k = 0; k < a.nblocks; ++k)
+    ASSERT_EQ(0, std::memcmp(a.lane_max[k], b.lane_max[k], sizeof(a.lane_max[k]))) << "block " << k;
+}
+
+TEST(ExtractScan, SimdPassEqualsPortablePass) {
+  std::printf("8-bit row pass: %s\n", scan_row_u8_isa());
+  std::mt19937 rng(42);
+  std::vector<std::uint8_t> row(kMaxBlocks * kBlock + 100);
+  for (std::uint32_t n : {1u, 5u, 63u, 64u, 65u, 127u, 640u, 1280u, 1283u, 4096u, kMaxBlocks * kBlock,
+                          kMaxBlocks * kBlock + 100}) {
+    for (int fill = 0; fill < 3; ++fill) {
+      for (auto& v : row) v = static_cast<std::uint8_t>(fill == 0 ? rng() : fill == 1 ? 255 : rng() % 3);
+      auto a = std::make_unique<RowScan<std::uint8_t>>();
+      auto b = std::make_unique<RowScan<std::uint8_t>>();
+      scan_row<std::uint8_t, 1>(row.data(), n, *a);
+      scan_row_portable<std::uint8_t, 1>(row.data(), n, *b);
+      expect_same_scan(*a, *b);
+      // Against a plain loop.
+      const std::uint32_t m = std::min(n, kMaxBlocks * kBlock);
+      std::uint64_t sum = 0;
+      std::uint8_t mx = 0;
+      for (std::uint32_t i = 0; i < m; ++i) {
+        sum += row[i];
+        mx = std::max(mx, row[i]);
+      }
+      EXPECT_EQ(a->sum, sum) << n;
+      EXPECT_EQ(a->max, mx) << n;
+      for (std::uint32_t k = 0; k < a->nblocks; ++k) {
+        std::uint8_t bm = 0;
+        for (std::uint32_t i = k * kBlock; i < std::min(m, (k + 1) * kBlock); ++i) bm = std::max(bm, row[i]);
+        ASSERT_EQ(a->block_max(k), bm) << "n " << n << " block " << k;
+      }
+    }
+  }
+}
+
+TEST(ExtractScan, SixteenBitAndStridedPasses) {
+  std::mt19937 rng(7);
+  std::vector<std::uint16_t> row16(3000);
+  for (auto& v : row16) v = static_cast<std::uint16_t>(rng());
+  auto s = std::make_unique<RowScan<std::uint16_t>>();
+  scan_row<std::uint16_t, 1>(row16.data(), 3000, *s);
+  std::uint64_t sum = 0;
+  for (auto v : row16) sum += v;
+  EXPECT_EQ(s->sum, sum);
+  EXPECT_EQ(s->max, *std::max_element(row16.begin(), row16.end()));
+  std::vector<std::uint8_t> yuyv(2 * 700);
+  for (auto& v : yuyv) v = static_cast<std::uint8_t>(rng());
+  auto y = std::make_unique<RowScan<std::uint8_t>>();
+  scan_row<std::uint8_t, 2>(yuyv.data(), 700, *y);
+  std::uint64_t ysum = 0;
+  std::uint8_t ymax = 0;
+  for (std::size_t i = 0; i < 700; ++i) {
+    ysum += yuyv[2 * i];
+    ymax = std::max(ymax, yuyv[2 * i]);
+  }
+  EXPECT_EQ(y->sum, ysum);
+  EXPECT_EQ(y->max, ymax);
+}
+
+TEST(ExtractScan, MaxOutsideMatchesBruteForce) {
+  std::mt19937 rng(9);
+  std::vector<std::uint8_t> row(1000);
+  auto s = std::make_unique<RowScan<std::uint8_t>>();
+  for (int t = 0; t < 3000; ++t) {
+    for (auto& v : row) v = static_cast<std::uint8_t>(rng() % 200);
+    row[rng() % 1000] = 250;  // a spike somewhere
+    scan_row<std::uint8_t, 1>(row.data(), 1000, *s);
+    const std::int64_t lo = static_cast<std::int64_t>(rng() % 995) - 5, hi = lo + static_cast<std::int64_t>(rng() % 120);
+    std::uint8_t want = 0;
+    for (std::int64_t i = 0; i < 1000; ++i)
+      if (i < lo || i > hi) want = std::max(want, row[static_cast<std::size_t>(i)]);
+    ASSERT_EQ((max_outside<std::uint8_t, 1>(row.data(), *s, lo, hi)), want) << lo << ".." << hi;
+  }
+}
+
+TEST(ExtractScan, FastLogMatchesStdLog) {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> e(-30.0, 30.0);
+  double worst = 0.0;
+  for (int i = 0; i < 200000; ++i) {
+    const double x = std::exp(e(rng));
+    worst = std::max(worst, std::abs(fast_ln(x) - std::log(x)));
+  }
+  for (double x : {1.0, 2.0, 0.5, 1.4142135623730951, 1.4142135623730954, 255.0, 1e-300, 1e300})
+    worst = std::max(worst, std::abs(fast_ln(x) - std::log(x)));
+  EXPECT_LT(worst, 1e-9);
+}
+
+TEST(ExtractScan, FastFloatLogAndExpMatchLibm) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> e(-80.0f, 80.0f);
+  double worst_ln = 0.0, worst_exp = 0.0;
+  for (int i = 0; i < 200000; ++i) {
+    const float z = e(rng);
+    const double x = std::exp(static_cast<double>(z));
+    const float xf = static_cast<float>(x);
+    worst_ln = std::max(worst_ln, std::abs(static_cast<double>(fast_lnf(xf)) - std::log(static_cast<double>(xf))));
+    worst_exp = std::max(worst_exp, std::abs(static_cast<double>(fast_expf(z)) / x - 1.0));
+  }
+  EXPECT_LT(worst_ln, 2e-7 * 60);  // absolute; |ln x| up to 80: a few ulp of the result
+  EXPECT_LT(worst_exp, 3e-7);
+  EXPECT_GT(fast_expf(-80.0f), 0.0f);
+}
+
+TEST(ExtractScan, CramerRaoBoundBehaves) {
+  const SensorNoise noise;
+  // More signal and narrower stripes give a tighter bound; speckle sets a floor that signal cannot beat.
+  const double a = centre_crb(100.3, 2.4, 160.0, 14.0, 255.0, noise);
+  EXPECT_GT(a, 0.0);
+  EXPECT_LT(centre_crb(100.3, 1.2, 160.0, 14.0, 255.0, noise), a);
+  EXPECT_GT(centre_crb(100.3, 4.8, 160.0, 14.0, 255.0, noise), a);
+  const SensorNoise half{0.75, 0.175, 0.06};
+  EXPECT_NEAR(centre_crb(100.3, 2.4, 160.0, 14.0, 255.0, half), a / 4.0, a * 0.02);  // variance ~ noise^2
+  // Additive noise only: the bound falls with the amplitude squared, exactly.
+  const SensorNoise read_only{2.0, 0.0, 0.0};
+  const double r1 = centre_crb(50.3, 2.0, 100.0, 0.0, 1e9, read_only);
+  EXPECT_NEAR(centre_crb(50.3, 2.0, 200.0, 0.0, 1e9, read_only), r1 / 4.0, r1 * 1e-9);
+  // Speckle only (plus the 1/12 DN^2 of quantization): doubling the signal barely helps (only the far tails
+  // gain), unlike the additive case.
+  const SensorNoise speckle_only{0.0, 0.0, 0.12};
+  const double s1 = centre_crb(50.3, 2.0, 1e4, 0.0, 1e9, speckle_only);
+  const double s2 = centre_crb(50.3, 2.0, 2e4, 0.0, 1e9, speckle_only);
+  EXPECT_LT(s2, s1);
+  EXPECT_GT(s2, 0.8 * s1);
+}
+
+TEST(ExtractScan, GaussMlRecoversExactGaussian) {
+  for (double u : {0.0, 0.27, -0.41, 0.5}) {
+    for (double s : {0.8, 1.5, 3.0, 6.0}) {
+      std::vector<float> y(61 + kChunk, 0.0f);
+      for (int k = 0; k < 61; ++k) y[k] = static_cast<float>(150.0 * std::exp(-(k - 30 - u) * (k - 30 - u) / (2 * s * s)));
+      const int ic = 30 + static_cast<int>(std::lround(u));
+      double c = 0.0;
+      ASSERT_TRUE(gauss_ml_centre(y.data(), 61, ic, 150.0, 1e9, SensorNoise{}, c)) << u << " " << s;
+      EXPECT_NEAR(c, 30.0 + u, 2e-4) << u << " " << s;  // float samples and sums
+    }
+  }
+  // No Gaussian: a flat run, or a valley.
+  std::vector<float> flat(21 + kChunk, 50.0f), valley(21 + kChunk, 0.0f);
+  for (int k = 0; k < 21; ++k) valley[k] = static_cast<float>(10 + (k - 10) * (k - 10));
+  double c = 0.0;
+  EXPECT_FALSE(gauss_ml_centre(flat.data(), 21, 10, 50.0, 1e9, SensorNoise{}, c));
+  EXPECT_FALSE(gauss_ml_centre(valley.data(), 21, 10, 110.0, 1e9, SensorNoise{}, c));
+}
+
+}  // namespace
+}  // namespace fs::fw::detail
