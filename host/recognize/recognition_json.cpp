@@ -47,6 +47,7 @@ nlohmann::json to_json(const Recognition& r, const Library& library) {
                           {"total_ms", s.total_ms},       {"regions", s.regions},
                           {"known_regions", s.known_regions}, {"scene_nodes", s.scene_nodes},
                           {"scene_arcs", s.scene_arcs},   {"table_removed", s.table_removed},
+                          {"components", s.components},
                           {"references", s.references},   {"states", s.states},
                           {"hypotheses", s.hypotheses},   {"merged", s.merged},
                           {"expanded_faces", s.expanded_faces}, {"rejected", s.rejected},

@@ -110,6 +110,81 @@ struct Recognizer::Impl {
   std::vector<std::uint32_t> region_coarse, region_fine;
   std::vector<std::uint32_t> region_hits;
   const std::vector<std::int32_t>* labels = nullptr;
+  // Connected parts of the scene graph (supernode arcs do not connect), each with >= min_level faces; the
+  // matcher searches each on its own. parts[k] holds the supernode(s) and the part's faces and arcs.
+  std::vector<Pfrg> parts;
+  std::size_t nparts = 0;
+  std::vector<int> uf;          // union-find parent by node id
+  std::vector<int> part_of;     // node id -> part index (-1)
+  std::vector<int> comp_size;   // by root id
+  static constexpr std::size_t kMaxParts = 32;   // further parts are searched together with the last one
+
+  int find(int x) {
+    while (uf[static_cast<std::size_t>(x)] != x) x = uf[static_cast<std::size_t>(x)] = uf[static_cast<std::size_t>(uf[static_cast<std::size_t>(x)])];
+    return x;
+  }
+
+  void split_components(const Pfrg& g, int min_faces) {
+    int max_id = 0;
+    for (const auto& n : g.nodes) max_id = std::max(max_id, n.id);
+    const auto size = static_cast<std::size_t>(max_id) + 1;
+    uf.resize(size);
+    for (std::size_t i = 0; i < size; ++i) uf[i] = static_cast<int>(i);
+    part_of.assign(size, -1);
+    comp_size.assign(size, 0);
+    auto is_super = [&](int id) {
+      const PfrgNode* n = g.find(id);
+      return n == nullptr || n->supernode;
+    };
+    for (const auto& a : g.arcs)
+      if (!is_super(a.a) && !is_super(a.b)) {
+        const int ra = find(a.a), rb = find(a.b);
+        if (ra != rb) uf[static_cast<std::size_t>(ra)] = rb;
+      }
+    for (const auto& n : g.nodes)
+      if (!n.supernode) ++comp_size[static_cast<std::size_t>(find(n.id))];
+    // Observer of the whole scene, so that every part sees the same viewing direction.
+    Vec3 observer = g.observer;
+    if (!g.has_observer) {
+      Vec3 sum = Vec3::Zero();
+      for (const auto& n : g.nodes)
+        if (!n.supernode) sum += n.area * n.normal;
+      observer = sum.norm() > 1e-12 ? Vec3(sum.normalized()) : Vec3(Vec3::UnitZ());
+    }
+    nparts = 0;
+    for (const auto& n : g.nodes) {
+      if (n.supernode) continue;
+      const int root = find(n.id);
+      if (comp_size[static_cast<std::size_t>(root)] < min_faces) continue;
+      int& p = part_of[static_cast<std::size_t>(root)];
+      if (p < 0) {
+        if (nparts < kMaxParts) {
+          p = static_cast<int>(nparts++);
+          Pfrg& part = parts[static_cast<std::size_t>(p)];
+          part.nodes.clear();
+          part.arcs.clear();
+          part.name = g.name;
+          part.observer = observer;
+          part.has_observer = true;
+          for (const auto& sn : g.nodes)
+            if (sn.supernode) part.nodes.push_back(sn);
+        } else {
+          p = static_cast<int>(kMaxParts) - 1;
+        }
+      }
+      part_of[static_cast<std::size_t>(n.id)] = p;
+      parts[static_cast<std::size_t>(p)].nodes.push_back(n);
+    }
+    for (const auto& a : g.arcs) {
+      const bool sa = is_super(a.a), sb = is_super(a.b);
+      const int pa = sa ? -1 : part_of[static_cast<std::size_t>(a.a)];
+      const int pb = sb ? -1 : part_of[static_cast<std::size_t>(a.b)];
+      const int p = pa >= 0 ? pa : pb;
+      if (p < 0 || (pa >= 0 && pb >= 0 && pa != pb)) continue;
+      parts[static_cast<std::size_t>(p)].arcs.push_back(a);
+    }
+  }
+
   // The table found in the scene (normal toward the sensor), for the support test.
   bool have_table = false;
   Plane table;
@@ -161,6 +236,15 @@ Recognizer::Recognizer(const Library& library, const RecognizeParams& params, st
   impl_->cell_owner.assign(max_cells, -1);
   impl_->coarse.reserve(max_cells);
   impl_->fine.reserve(max_cells);
+  impl_->parts.resize(Impl::kMaxParts);
+  for (Pfrg& part : impl_->parts) {
+    part.nodes.reserve(256);
+    part.arcs.reserve(2048);
+    part.name.reserve(64);
+  }
+  impl_->uf.reserve(8192);
+  impl_->part_of.reserve(8192);
+  impl_->comp_size.reserve(8192);
   // Fine samples of a grid of max_cells cells: at most ceil(h/s) * ceil(w/s) <= cells/s^2 + cells/s + 1.
   const std::size_t step = static_cast<std::size_t>(std::max(1, params.verify.sample_step));
   const std::size_t max_samples = max_cells / (step * step) + max_cells / step + 1;
@@ -226,18 +310,27 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
   im.mparams = params_.match;
   im.mparams.max_states = std::min<std::int64_t>(params_.match.max_states, params_.max_states);
   im.mparams.th_minlevel = params_.min_level;
-  im.pool.run(library_.models.size(),
+  im.split_components(scene_, params_.min_level);
+  out.stats.components = static_cast<int>(im.nparts);
+  im.pool.run(im.nparts == 0 ? 0 : library_.models.size(),
               [](void* ctx, std::size_t task, int worker) {
                 auto& m = *static_cast<Impl*>(ctx);
                 const Model& model = m.library->models[task];
                 ModelSlots& ms = m.per_model[task];
-                const match::MatchResult& r = m.matchers[static_cast<std::size_t>(worker)]->match(
-                    *m.scene, model.graph, m.mparams);
-                ms.states = r.stats.states_created;
+                ms.states = 0;
                 ms.count = 0;
+                // Each connected part of the scene graph is searched on its own (a solution is connected, so
+                // it lies in one part); the model's solution slots are shared out evenly among the parts.
+                const int per_part = static_cast<int>((ms.slots.size() + m.nparts - 1) / m.nparts);
+                for (std::size_t part = 0; part < m.nparts; ++part) {
+                const match::MatchResult& r = m.matchers[static_cast<std::size_t>(worker)]->match(
+                    m.parts[part], model.graph, m.mparams);
+                ms.states += r.stats.states_created;
+                int taken = 0;
                 for (const match::Solution& s : r.solutions) {
-                  if (ms.count >= static_cast<int>(ms.slots.size())) break;
+                  if (ms.count >= static_cast<int>(ms.slots.size()) || taken >= per_part) break;
                   if (s.partial) continue;
+                  ++taken;
                   SolutionSlot& slot = ms.slots[static_cast<std::size_t>(ms.count++)];
                   slot.path.assign(s.path.begin(), s.path.end());
                   slot.matches.assign(s.matches.begin(), s.matches.end());
@@ -247,6 +340,7 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
                   slot.level = s.level;
                   slot.rank = s.rank;
                   slot.degenerate = s.degenerate;
+                }
                 }
               },
               &im);

@@ -96,6 +96,7 @@ struct Hypothesis {
 struct RecognizeStats {
   double segment_ms = 0, pfrg_ms = 0, match_ms = 0, verify_ms = 0, total_ms = 0;
   int regions = 0, known_regions = 0, scene_nodes = 0, scene_arcs = 0;
+  int components = 0;                 // connected parts of the scene graph searched (>= min_level faces)
   bool table_removed = false;
   int references = 0;
   std::int64_t states = 0;            // search states over all references

@@ -3,7 +3,7 @@
 // positives, CPU time and the allocations of a warm recognize(), per scene category.
 //
 //   bench_recognition [--scenes N] [--seed S] [--categories single,separated,occluded,empty] [--steps 500]
-//                     [--noise 0.05] [--threads 1] [--alloc-every 1] [--verbose] [--candidates] [--only I] [--preset NAME] [--min-level N] [--solutions N]
+//                     [--noise 0.05] [--threads 1] [--alloc-every 1] [--verbose] [--candidates] [--only I] [--preset NAME] [--min-level N] [--solutions N] [--max-states N]
 //
 // --alloc-every K: the allocation count is taken in every K-th round of the categories (all categories).
 //
@@ -49,7 +49,7 @@ double quantile(std::vector<double> v, double q) {
 
 struct CategoryStats {
   int scenes = 0, objects = 0, found = 0, identity_ok = 0, reported = 0, extra = 0, scenes_with_fp = 0;
-  std::vector<double> rot_err, trans_err, cpu, wall, allocs;
+  std::vector<double> rot_err, trans_err, cpu, wall, allocs, seg_ms, match_ms, verify_ms;
 };
 
 struct Args {
@@ -66,7 +66,8 @@ struct Args {
   int only = -1;
   std::string preset;        // matching preset (default: the recognizer's)
   int min_level = 0;         // 0 = the recognizer's default
-  int solutions = 0;         // solutions kept per model (0 = default)             // run just this scene index (same catalog and seed as in the full run)   // print every verified hypothesis of every scene (diagnostics)
+  int solutions = 0;         // solutions kept per model (0 = default)
+  long max_states = 0;       // state budget of one match (0 = default)             // run just this scene index (same catalog and seed as in the full run)   // print every verified hypothesis of every scene (diagnostics)
 };
 
 Args parse_args(int argc, char** argv) {
@@ -89,6 +90,7 @@ Args parse_args(int argc, char** argv) {
     else if (k == "--preset") a.preset = value();
     else if (k == "--min-level") a.min_level = std::stoi(value());
     else if (k == "--solutions") a.solutions = std::stoi(value());
+    else if (k == "--max-states") a.max_states = std::stol(value());
     else if (k == "--categories") {
       a.categories.clear();
       std::string list = value();
@@ -122,6 +124,7 @@ int run(const Args& args) {
   if (!args.preset.empty()) params.match = fs::host::match::preset(args.preset);
   if (args.min_level > 0) params.min_level = args.min_level;
   if (args.solutions > 0) params.solutions_per_model = args.solutions;
+  if (args.max_states > 0) params.max_states = args.max_states;
   const std::size_t cells =
       static_cast<std::size_t>(args.steps) * fs::ScannerCalibration::bench_default().camera.height;
   fs::host::rec::Recognizer recognizer(library, params, cells);
@@ -197,6 +200,9 @@ int run(const Args& args) {
     CategoryStats& s = stats[cat];
     ++s.scenes;
     s.cpu.push_back(cpu);
+    s.seg_ms.push_back(r.stats.segment_ms + r.stats.pfrg_ms);
+    s.match_ms.push_back(r.stats.match_ms);
+    s.verify_ms.push_back(r.stats.verify_ms);
     s.wall.push_back(wall);
     if (args.alloc_every > 0 && (i / static_cast<int>(args.categories.size())) % args.alloc_every == 0) {
       fs::AllocCounter counter;
@@ -281,6 +287,10 @@ int run(const Args& args) {
                 pct(s.scenes_with_fp, s.scenes), quantile(s.cpu, 0.5), quantile(s.cpu, 0.9), quantile(s.wall, 0.5),
                 quantile(s.wall, 0.9), quantile(s.allocs, 0.5), quantile(s.allocs, 1.0));
   }
+  std::printf("\nwall time per stage (median ms; stages run on --threads workers): \n");
+  for (const auto& [cat, s] : stats)
+    std::printf("  %-10s segmentation + PFRG %.1f, matching %.1f, hypotheses + verification %.1f\n",
+                fs::sim::to_string(cat), quantile(s.seg_ms, 0.5), quantile(s.match_ms, 0.5), quantile(s.verify_ms, 0.5));
   if (!missed_models.empty()) {
     std::printf("\nmissed models (count):");
     for (const auto& [name, n] : missed_models) std::printf(" %s:%d", name.c_str(), n);
