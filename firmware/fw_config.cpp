@@ -102,6 +102,9 @@ void apply_config_json(FwConfig& c, const std::string& text, const std::string& 
         } else if (ek == "min_contrast") e.min_contrast = get_num<double>(ev, src, f, 1, 255);
         else if (ek == "ambiguous_ratio") e.ambiguous_ratio = get_num<double>(ev, src, f, 0.05, 1);
         else if (ek == "saturation_run") e.saturation_run = get_num<std::uint32_t>(ev, src, f, 1, 1000);
+        else if (ek == "read_noise") e.read_noise = get_num<double>(ev, src, f, 0, 1000);
+        else if (ek == "shot_noise") e.shot_noise = get_num<double>(ev, src, f, 0, 100);
+        else if (ek == "speckle") e.speckle = get_num<double>(ev, src, f, 0, 10);
         else bad(src, f, "unknown key");
       }
     } else if (k == "sim_camera") {

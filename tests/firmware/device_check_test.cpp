@@ -131,6 +131,13 @@ TEST(DeviceCheck, LaserConfigKeyAndCanTimeoutKeys) {
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("board.json: laser: expected a string"), std::string::npos) << e.what();
   }
+  // The gauss-ml noise model is configurable (a different camera / laser).
+  fw::apply_config_json(c, R"({"extract": {"method": "gauss-ml", "read_noise": 3, "shot_noise": 0.5, "speckle": 0.2}})",
+                        "board.json");
+  EXPECT_EQ(c.loop.extract.read_noise, 3.0);
+  EXPECT_EQ(c.loop.extract.shot_noise, 0.5);
+  EXPECT_EQ(c.loop.extract.speckle, 0.2);
+  EXPECT_THROW(fw::apply_config_json(c, R"({"extract": {"speckle": -1}})", "board.json"), Error);
   const fw::CanSpec s = fw::parse_can_spec("can:vcan0:node=2,sdo_ms=200,state_ms=5000");
   EXPECT_EQ(s.sdo_timeout_ms, 200u);
   EXPECT_EQ(s.state_timeout_ms, 5000u);
