@@ -6,7 +6,8 @@
 //    of x, y, z = no data; VIEWPOINT tx ty tz qw qx qy qz -> viewpoint / viewpoint_orientation.
 //  * PLY 1.0: ascii | binary_little_endian | binary_big_endian; vertex x y z (+ optional label); organized
 //    when the header gives the grid ("obj_info num_cols/num_rows", "obj_info width/height" or a PCL-style
-//    "range_grid" element), else organized = false (height 1).
+//    "range_grid" element), else organized = false (height 1). Viewpoint from "comment facetscan_viewpoint
+//    tx ty tz qw qx qy qz" (written by encode_ply) or a PCL "camera" element (view_px/py/pz); else 0.
 // Malformed input throws fs::Error "<name>: at byte <offset>: <what>".
 #include <cstddef>
 #include <cstdint>

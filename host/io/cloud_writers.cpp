@@ -111,6 +111,11 @@ std::string encode_ply(const OrganizedCloud& cloud, const CloudWriteOptions& opt
   std::string s = "ply\n";
   s += ascii ? "format ascii 1.0\n" : "format binary_little_endian 1.0\n";
   s += "comment written by facetscan, millimetres\n";
+  // The sensor pose (PCD's VIEWPOINT): segmentation orients normals and scales its noise model by the range
+  // from it, so a cloud read back without it would segment differently.
+  const auto& q = cloud.viewpoint_orientation;
+  s += fmt::format("comment facetscan_viewpoint {} {} {} {} {} {} {}\n", cloud.viewpoint.x(), cloud.viewpoint.y(),
+                   cloud.viewpoint.z(), q.w(), q.x(), q.y(), q.z());
   if (grid) s += fmt::format("obj_info num_cols {}\nobj_info num_rows {}\n", cloud.width, cloud.height);
   s += fmt::format("element vertex {}\nproperty float x\nproperty float y\nproperty float z\n", nv);
   if (rgb) s += "property uchar red\nproperty uchar green\nproperty uchar blue\n";

@@ -4,7 +4,8 @@
 //    binary_compressed (LZF).
 //  * PLY 1.0 (binary little endian or ascii): the valid points as vertices (x y z float [red green blue uchar]
 //    [label int]); organized clouds also get "obj_info num_cols/num_rows" and a PCL-style range_grid element
-//    (one list of 0 or 1 vertex index per grid cell, row-major), which read_ply() turns back into the grid.
+//    (one list of 0 or 1 vertex index per grid cell, row-major), which read_ply() turns back into the grid;
+//    the viewpoint as "comment facetscan_viewpoint tx ty tz qw qx qy qz" (PCD's VIEWPOINT), read back too.
 // Colours: labels <= 0 grey, others a fixed palette colour per label.
 #include <cstdint>
 #include <string>

@@ -21,6 +21,10 @@ double choose_scale(const OrganizedCloud& cloud, const LoadOptions& options) {
   return max_abs < LoadOptions::kAutoMetresBelow ? 1000.0 : 1.0;
 }
 
+const char* segment_profile_for(const LoadInfo& info) {
+  return info.format != "fscan" && info.scale >= 999.0 ? "kinect" : "laser";
+}
+
 void scale_cloud(OrganizedCloud& cloud, double scale) {
   if (scale == 1.0) return;
   const float s = static_cast<float>(scale);

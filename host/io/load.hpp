@@ -38,6 +38,12 @@ struct LoadInfo {
 // Throws fs::Error naming the file (and byte offset) for unreadable or malformed input.
 LoadInfo load_cloud(const std::string& path, OrganizedCloud& out, const LoadOptions& options = {});
 
+// The segmentation profile (seg::SegmentParams::by_name) that suits a loaded input: "laser" for scans and for
+// clouds in millimetres (e.g. a scan exported to PLY/PCD by `facetscan export`), "kinect" for clouds in metres
+// (Kinect / PCL files such as the mOSD scans). `facetscan graph --preset auto` applies this rule; a PLY export
+// of a laser scan segmented with the kinect profile loses recognition confidence.
+const char* segment_profile_for(const LoadInfo& info);
+
 // The scale load_cloud would apply to an already-read cloud (exposed for tests and the CLI).
 double choose_scale(const OrganizedCloud& cloud, const LoadOptions& options);
 // Multiplies points and viewpoint by scale.

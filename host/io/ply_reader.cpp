@@ -1,5 +1,8 @@
 // PLY reader for point clouds: ascii and binary (little/big endian), vertex x y z (+ label), the grid from
-// "obj_info num_cols/num_rows" (PCL), "obj_info width/height" or a PCL-style range_grid element.
+// "obj_info num_cols/num_rows" (PCL), "obj_info width/height" or a PCL-style range_grid element; the sensor
+// position from "comment facetscan_viewpoint tx ty tz qw qx qy qz" (our writer) or a PCL "camera" element
+// (view_px view_py view_pz).
+#include <algorithm>
 #include <bit>
 #include <cmath>
 #include <limits>
@@ -120,11 +123,23 @@ void read_ply(std::span<const std::byte> data, const std::string& name, Organize
   bool have_format = false, have_end = false;
   std::vector<PlyElement> elements;
   std::uint64_t grid_w = 0, grid_h = 0;
+  double viewpoint[7] = {0, 0, 0, 1, 0, 0, 0};
+  bool have_viewpoint = false;
   while (in.next()) {
     const auto& t = in.tokens();
     if (t.empty()) continue;
     const std::string_view key = t[0];
     if (key == "comment") {
+      // Other comments are free text; ours carries the sensor pose as PCD's VIEWPOINT does.
+      if (t.size() >= 2 && t[1] == "facetscan_viewpoint") {
+        if (t.size() != 9) in.fail("facetscan_viewpoint needs 7 values (tx ty tz qw qx qy qz)");
+        for (int i = 0; i < 7; ++i) {
+          const std::string_view tok = t[static_cast<std::size_t>(i) + 2];
+          if (!io_detail::parse_double(tok, viewpoint[i]) || !std::isfinite(viewpoint[i]))
+            in.fail("facetscan_viewpoint: '" + std::string(tok.substr(0, 40)) + "' is not a finite number");
+        }
+        have_viewpoint = true;
+      }
       continue;
     } else if (key == "obj_info") {
       // PCL writes "obj_info num_cols 640" / "obj_info num_rows 480"; also accept width/height.
@@ -193,6 +208,24 @@ void read_ply(std::span<const std::byte> data, const std::string& name, Organize
     throw error_at_offset(name, in.offset(), std::to_string(vertex->count) + " vertices exceed the limit of " +
                                                  std::to_string(options.max_points));
   const bool want_labels = options.load_labels && ilabel >= 0;
+  // A PCL "camera" element (pcl::PLYWriter): its view_px/py/pz give the sensor origin.
+  const PlyElement* camera = nullptr;
+  int view_prop[3] = {-1, -1, -1};
+  for (const auto& e : elements) {
+    if (e.name != "camera" || e.count == 0 || camera) continue;
+    int found[3] = {-1, -1, -1};
+    for (std::size_t i = 0; i < e.props.size(); ++i) {
+      if (e.props[i].is_list) continue;
+      for (int a = 0; a < 3; ++a)
+        if (e.props[i].name == std::string("view_p") + "xyz"[a]) found[a] = static_cast<int>(i);
+    }
+    if (found[0] >= 0 && found[1] >= 0 && found[2] >= 0) {
+      camera = &e;
+      std::copy(found, found + 3, view_prop);
+    }
+  }
+  double camera_view[3] = {0, 0, 0};
+  std::size_t camera_offset = 0;
 
   std::vector<Eigen::Vector3f> pts;
   std::vector<std::int32_t> labs;
@@ -204,6 +237,8 @@ void read_ply(std::span<const std::byte> data, const std::string& name, Organize
   for (const auto& e : elements) {
     const bool is_vertex = &e == vertex;
     const bool is_grid = e.name == "range_grid" && e.props.size() == 1 && e.props[0].is_list;
+    const bool is_camera = &e == camera;
+    if (is_camera) camera_offset = body.pos();
     body.set_where("'" + e.name + "'");
     if (is_vertex) {
       pts.reserve(e.count);
@@ -248,7 +283,10 @@ void read_ply(std::span<const std::byte> data, const std::string& name, Organize
             vals[k] = body.scalar(p.type);
           }
         } else {
-          body.scalar(p.type);
+          const double v = body.scalar(p.type);
+          if (is_camera && n == 0)
+            for (int a = 0; a < 3; ++a)
+              if (view_prop[a] == static_cast<int>(k)) camera_view[a] = v;
         }
       }
       if (is_vertex) {
@@ -287,8 +325,16 @@ void read_ply(std::span<const std::byte> data, const std::string& name, Organize
     if (want_labels) std::copy(labs.begin(), labs.end(), out.labels.begin());
     out.organized = false;
   }
-  out.viewpoint.setZero();
-  out.viewpoint_orientation.setIdentity();
+  if (camera && !have_viewpoint) {
+    for (double v : camera_view)
+      if (!std::isfinite(v)) throw error_at_offset(name, camera_offset, "camera element: view point is not finite");
+    viewpoint[0] = camera_view[0];
+    viewpoint[1] = camera_view[1];
+    viewpoint[2] = camera_view[2];
+  }
+  out.viewpoint = Eigen::Vector3d(viewpoint[0], viewpoint[1], viewpoint[2]);
+  const Eigen::Quaterniond q(viewpoint[3], viewpoint[4], viewpoint[5], viewpoint[6]);
+  out.viewpoint_orientation = q.norm() > 1e-12 ? q.normalized() : Eigen::Quaterniond::Identity();
 }
 
 }  // namespace fs::host

@@ -197,3 +197,37 @@ TEST(Triangulate, NoAllocationPerScanAfterWarmUp) {
 
 }  // namespace
 }  // namespace fs::host
+
+// The full bench scan: 500 galvo steps x 1024 image rows (the benchmark's size), triangulated again and
+// again into the same grid, and the scan itself refilled within its reserved storage: no allocation at all.
+namespace fs::host {
+namespace {
+
+TEST(Triangulate, FullScan500x1024ReusesTheGridWithoutAllocating) {
+  const auto calib = ScannerCalibration::bench_default(500);
+  const auto synth = fs::test::synth_flat_scan(calib, calib, 20.0, 0.05, 4);
+  std::size_t stripe_points = 0;
+  for (const auto& st : synth.stripes) stripe_points += st.points.size();
+  ASSERT_GT(stripe_points, 500u * 1000) << "nearly every row of every step has a stripe point";
+  Scan scan;
+  scan.reserve(500, stripe_points);
+  Triangulator tri(calib);
+  OrganizedCloud cloud;
+  cloud.reserve(std::size_t(500) * 1024);
+  fs::test::fill_scan(synth, scan);
+  const auto warm = tri.triangulate(scan, cloud);   // warm-up (the smoothing scratch buffer)
+  ASSERT_EQ(cloud.width, 500u);
+  ASSERT_EQ(cloud.height, 1024u);
+  fs::AllocCounter counter;
+  for (int i = 0; i < 2; ++i) {
+    fs::test::fill_scan(synth, scan);
+    const auto st = tri.triangulate(scan, cloud);
+    EXPECT_EQ(st.points, warm.points);
+  }
+  EXPECT_EQ(counter.allocations(), 0u);
+  EXPECT_EQ(cloud.valid_count(), warm.points);
+  EXPECT_GT(warm.points, 500u * 1000);
+}
+
+}  // namespace
+}  // namespace fs::host
