@@ -138,6 +138,7 @@ struct InexactMatcher::Impl {
   // Pair tables (index r * kMaxNodes + s), filled per match for the graphs' sizes.
   std::vector<double> pair_gamma, pair_darea;
   std::vector<std::uint8_t> pair_degree_fail;
+  std::vector<std::uint8_t> pair_area_fail;   // one-sided area condition (th_area_ratio)
   bool unit_normals = false;         // every real normal of both graphs has length 1 within 1e-12
   MatchResult result;
   const MatchParams* P = nullptr;
@@ -165,6 +166,7 @@ struct InexactMatcher::Impl {
     pair_gamma.resize(static_cast<std::size_t>(kMaxNodes) * kMaxNodes);
     pair_darea.resize(static_cast<std::size_t>(kMaxNodes) * kMaxNodes);
     pair_degree_fail.resize(static_cast<std::size_t>(kMaxNodes) * kMaxNodes);
+    pair_area_fail.resize(static_cast<std::size_t>(kMaxNodes) * kMaxNodes);
     r2s.fill(-1);
     s2r.fill(-1);
     mark.fill(-1);
@@ -322,6 +324,8 @@ struct InexactMatcher::Impl {
         const int dr = gr.degree[ur], ds = gs.degree[us];
         const bool open = (gs.adj[us] & gs_super).any();
         pair_degree_fail[k] = open ? (ds - 1 - dr > p.th_nodedegree) : (std::abs(dr - ds) > p.th_nodedegree);
+        pair_area_fail[k] = !gs.supernode[us] && !gr.supernode[ur] &&
+                            gs.area[us] > p.th_area_ratio * gr.area[ur] + p.th_area_slack_mm2;
       }
     }
   }
@@ -504,6 +508,8 @@ struct InexactMatcher::Impl {
             return removed(Condition::kNewMatch);
           // 6 node degree
           if (p.on(Condition::kNodeDegree) && pair_degree_fail[pk]) return removed(Condition::kNodeDegree);
+          // 9.1 node similarity, one-sided area part (cheap, decided per pair)
+          if (p.on(Condition::kNodeSimilarity) && pair_area_fail[pk]) return removed(Condition::kNodeSimilarity);
           // arcs to the core: matched / inserted (reference only) / deleted (scene only)
           int dam = 0, dai = 0;
           double dborder = 0;

@@ -108,6 +108,8 @@ MatchParams params_from_json(const nlohmann::json& j, const std::string& source)
     else if (k == "th_nodedegree") p.th_nodedegree = static_cast<int>(integer(v, k, 0, std::numeric_limits<int>::max()));
     else if (k == "th_cost") p.th_cost = num(v, k);
     else if (k == "th_node") p.th_node = num(v, k);
+    else if (k == "th_area_ratio") p.th_area_ratio = num(v, k);
+    else if (k == "th_area_slack_mm2") p.th_area_slack_mm2 = num(v, k);
     else if (k == "th_arcatt") p.th_arcatt = num(v, k);
     else if (k == "th_rotfit") p.th_rotfit = num(v, k);
     else if (k == "degenerate_deg") p.degenerate_deg = nonneg(v, k);
@@ -160,6 +162,7 @@ nlohmann::json to_json(const MatchParams& p) {
                       {"th_omega_deg", p.th_omega_deg}, {"th_visibility_deg", p.th_visibility_deg},
                       {"th_minlevel", p.th_minlevel},   {"th_nodedegree", p.th_nodedegree},
                       {"th_cost", num(p.th_cost)},      {"th_node", num(p.th_node)},
+                      {"th_area_ratio", num(p.th_area_ratio)}, {"th_area_slack_mm2", num(p.th_area_slack_mm2)},
                       {"th_arcatt", num(p.th_arcatt)},  {"th_rotfit", num(p.th_rotfit)},
                       {"degenerate_deg", p.degenerate_deg}, {"max_states", p.max_states},
                       {"max_time_ms", num(p.max_time_ms)},  {"keep_partial", p.keep_partial}};

@@ -50,6 +50,11 @@ struct MatchParams {
   int th_nodedegree = 2;
   double th_cost = 1.0;              // max cost increase per added match
   double th_node = 1.0;
+  // One-sided node condition (beyond the thesis, part of condition 9.1): a scene face cannot be seen larger than
+  // its reference face, so a pair with area_s > th_area_ratio * area_r + th_area_slack_mm2 is removed
+  // (occlusion only makes scene faces smaller). Off (infinity) in the thesis presets; the recognizer sets it.
+  double th_area_ratio = kInf;
+  double th_area_slack_mm2 = 0.0;
   double th_arcatt = 1.0;
   double th_rotfit = kInf;
   double degenerate_deg = 1.0;       // matched reference normals all within this of one axis = degenerate

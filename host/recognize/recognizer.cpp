@@ -310,6 +310,10 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
   im.mparams = params_.match;
   im.mparams.max_states = std::min<std::int64_t>(params_.match.max_states, params_.max_states);
   im.mparams.th_minlevel = params_.min_level;
+  if (params_.match_area_ratio > 0) {
+    im.mparams.th_area_ratio = params_.match_area_ratio;
+    im.mparams.th_area_slack_mm2 = params_.match_area_slack_mm2;
+  }
   im.split_components(scene_, params_.min_level);
   out.stats.components = static_cast<int>(im.nparts);
   im.pool.run(im.nparts == 0 ? 0 : library_.models.size(),

@@ -61,6 +61,10 @@ struct RecognizeParams {
   int max_refined = 24;               // of those, the most plausible refined by ICP and verified finely
   int verify_per_face = 8;            // a scene face stops drawing hypotheses into verification after this many
   int refine_per_face = 3;            // ... and into refinement
+  // Matching prunes a pair whose scene face is larger than area_ratio x its model face + slack (a face cannot be
+  // seen bigger than it is; segmentation may add a rim): match::MatchParams::th_area_ratio. <= 0 = off.
+  double match_area_ratio = 1.3;
+  double match_area_slack_mm2 = 30.0;
   int min_level = 3;                  // faces a search solution must match (TH_minlevel, as in the thesis)
   int threads = 0;                    // matching threads (0 = all cores)
 };

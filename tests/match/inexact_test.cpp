@@ -434,3 +434,40 @@ TEST(Params, PresetsAndJson) {
 }
 
 }  // namespace
+
+namespace {
+
+// The one-sided area condition (th_area_ratio, beyond the thesis): a view whose faces are all twice the
+// reference's can only come from a larger object: with the condition every pair is removed (counted under node
+// similarity) and nothing matches; the reference's own view (scene areas <= reference areas) still matches
+// exactly as without it.
+TEST(Inexact, AreaRatioConditionRemovesScenesLargerThanTheReference) {
+  const Pfrg model = fs::test::mesh_pfrg(fs::test::truncated_pyramid());
+  const Mat3 R = Mat3::Identity();
+  const Pfrg own = fs::test::rigid_view(model, R, kViewDir);
+  Pfrg larger = own;
+  for (auto& n : larger.nodes)
+    if (!n.supernode) n.area *= 2.0;
+  InexactMatcher m;
+  MatchParams p = preset("t9.3");
+  const auto base = m.match(own, model, p).solutions.size();
+  ASSERT_GE(base, 1u);
+  ASSERT_GE(m.match(larger, model, p).solutions.size(), 1u);   // without the condition areas do not matter
+
+  p.th_area_ratio = 1.3;
+  p.th_area_slack_mm2 = 30.0;
+  const MatchResult& r_own = m.match(own, model, p);
+  EXPECT_EQ(r_own.solutions.size(), base);
+  EXPECT_EQ(r_own.stats.removed[static_cast<std::size_t>(Condition::kNodeSimilarity)], 0);
+  const MatchResult& r_big = m.match(larger, model, p);
+  EXPECT_EQ(r_big.solutions.size(), 0u);
+  EXPECT_GT(r_big.stats.removed[static_cast<std::size_t>(Condition::kNodeSimilarity)], 0);
+  // Switching node similarity off switches the area part off too.
+  p.enabled[static_cast<std::size_t>(Condition::kNodeSimilarity)] = false;
+  EXPECT_GE(m.match(larger, model, p).solutions.size(), 1u);
+  // It round-trips through the parameter JSON.
+  const MatchParams q = params_from_json(nlohmann::json{{"preset", "t9.3"}, {"th_area_ratio", 1.25}}, "test");
+  EXPECT_DOUBLE_EQ(q.th_area_ratio, 1.25);
+}
+
+}  // namespace
