@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -42,8 +43,12 @@ class ScanHandler {
   ScanHandler(const Library& library, rec::RecognizeParams params, std::string out_dir, bool quiet)
       : library_(library), params_(std::move(params)), out_dir_(std::move(out_dir)), quiet_(quiet) {}
 
+  // Called before a scan's result is printed (the demo ends its progress bar there).
+  void set_before_result(std::function<void(const Scan&)> f) { before_result_ = std::move(f); }
+
   void operator()(const Scan& scan) {
     ++scans_;
+    if (before_result_) before_result_(scan);
     const bool partial = !scan.complete();
     triangulator_.triangulate(scan, cloud_);
     if (!recognizer_ || recognizer_cells_ < cloud_.points.size()) {
@@ -71,6 +76,7 @@ class ScanHandler {
       last_dir_ = dir;
       if (!quiet_) fmt::print("report: {}\n", (dir / "report" / "index.html").string());
     }
+    std::fflush(stdout);   // a log file or pipe sees each scan's result as it is recognized
   }
   int scans() const { return scans_; }
   int last_objects() const { return last_objects_; }
@@ -85,6 +91,7 @@ class ScanHandler {
   OrganizedCloud cloud_;
   std::unique_ptr<rec::Recognizer> recognizer_;
   std::size_t recognizer_cells_ = 0;
+  std::function<void(const Scan&)> before_result_;
   int scans_ = 0;
   int last_objects_ = -1;
   stdfs::path last_dir_;
@@ -101,6 +108,7 @@ struct ServeOptions {
   std::string out_dir;
   std::string params = "t9.3";
   int max_scans = 0;
+  std::int64_t reconnect_grace_ms = StreamServerOptions{}.reconnect_grace_ms;
   bool quiet = false;
 };
 
@@ -111,6 +119,7 @@ void run_serve(const ServeOptions& o) {
   ScanHandler handler(library, params, o.out_dir, o.quiet);
   StreamServerOptions so;
   so.listen = o.listen;
+  so.reconnect_grace_ms = o.reconnect_grace_ms;
   StreamServer server(so, [&](const Scan& s) { handler(s); });
   server.start();
   g_server = &server;
@@ -141,9 +150,27 @@ stdfs::path self_dir() {
   return ec ? stdfs::current_path() : exe.parent_path();
 }
 
+// The galvo twin of the demo, as facetscan-fw's --galvo value:
+//   gpio (or sim): the firmware's step/dir StepperGalvo driving the simulated GPIO lines (hw-sim SimStepperLines);
+//   can (or sim-can[:node=N,...]): the firmware's CiA 402 master driving the simulated drive (hw-sim Cia402Twin)
+//   with CAN frames over a socketpair.
+// Real devices (gpio:CHIP:..., can:IFACE) are not a demo: facetscan-fw runs them on the board.
+struct GalvoTwin {
+  std::string fw_spec;
+  const char* description;
+};
+GalvoTwin galvo_twin(const std::string& name) {
+  if (name == "gpio" || name == "sim") return {"sim", "step/dir GPIO twin"};
+  if (name == "can" || name == "sim-can") return {"sim-can", "CiA 402 drive twin on simulated CAN"};
+  if (name.rfind("sim-can:", 0) == 0) return {name, "CiA 402 drive twin on simulated CAN"};
+  throw Error("--galvo '" + name +
+              "': the demo runs on a twin: gpio (step/dir on simulated GPIO lines) or can (CiA 402 drive on "
+              "simulated CAN; sim-can:node=N,... passes drive settings); real devices are for facetscan-fw");
+}
+
 struct DemoOptions {
   std::string scene = "default";
-  std::string galvo = "sim";
+  std::string galvo = "gpio";
   std::vector<std::string> faults;
   std::string out_dir = "demo-out";
   std::vector<std::string> library;
@@ -156,6 +183,11 @@ int run_demo(const DemoOptions& o) {
   stdfs::path scene = o.scene;
   if (!stdfs::exists(scene)) scene = scenes_dir() / (o.scene + ".json");
   if (!stdfs::exists(scene)) throw Error("--scene: no scene file or shipped scene named '" + o.scene + "'");
+  const GalvoTwin twin = galvo_twin(o.galvo);
+  for (const auto& f : o.faults)
+    if (twin.fw_spec != "sim" && f.rfind("galvo.", 0) == 0)
+      throw Error("--fault '" + f + "': galvo faults act on the step/dir GPIO twin (--galvo gpio); the CAN twin "
+                  "takes camera.* and laser.* faults");
   std::vector<std::string> lib_inputs = o.library;
   if (lib_inputs.empty()) lib_inputs.push_back((scene.parent_path() / "meshes").string());
   const Library library = load_or_build_library(lib_inputs);
@@ -171,7 +203,7 @@ int run_demo(const DemoOptions& o) {
 
   const stdfs::path fw = self_dir() / "facetscan-fw";
   if (!stdfs::exists(fw)) throw Error(fw.string() + ": facetscan-fw not found next to facetscan");
-  std::vector<std::string> args = {fw.string(), "--galvo", o.galvo, "--camera", "sim", "--scene", scene.string(),
+  std::vector<std::string> args = {fw.string(), "--galvo", twin.fw_spec, "--camera", "sim", "--scene", scene.string(),
                                    "--stream", fmt::format("127.0.0.1:{}", server.port()), "--record", recording};
   if (o.steps > 0) args.insert(args.end(), {"--steps", std::to_string(o.steps)});
   for (const auto& f : o.faults) args.insert(args.end(), {"--fault", f});
@@ -179,8 +211,10 @@ int run_demo(const DemoOptions& o) {
   for (auto& a : args) argv.push_back(a.data());
   argv.push_back(nullptr);
   if (!o.quiet) {
-    fmt::print("facetscan demo: scene {} ({} models in the library), firmware: {}\n", scene.filename().string(),
-               library.models.size(), fmt::join(args, " "));
+    fmt::print("facetscan demo: scene {} ({} models in the library), galvo: {}{}\nfirmware: {}\n",
+               scene.filename().string(), library.models.size(), twin.description,
+               o.faults.empty() ? "" : fmt::format(", injected fault(s): {}", fmt::join(o.faults, " ")),
+               fmt::join(args, " "));
     std::fflush(stdout);
   }
   pid_t pid = -1;
@@ -198,6 +232,10 @@ int run_demo(const DemoOptions& o) {
     }
   }
   Progress progress(steps, o.quiet, 0.0);
+  handler.set_before_result([&progress](const Scan& scan) {
+    progress.update(scan.stripes_received(), "stripes received");   // the bar ends at what the scan holds
+    progress.finish();
+  });
   std::uint64_t shown = 0;
   const auto start = std::chrono::steady_clock::now();
   int status = 0;
@@ -245,6 +283,11 @@ void add_live_commands(CLI::App& app) {
   serve->add_option("-o,--out", so->out_dir, "Write result.json and an HTML report per scan into DIR/scan-<n>-id<scan id>/");
   serve->add_option("--params", so->params, "Match parameters: a preset or a JSON file");
   serve->add_option("--max-scans", so->max_scans, "Stop after N scans (0 = run until interrupted)");
+  serve->add_option("--reconnect-grace", so->reconnect_grace_ms,
+                    "Milliseconds a scanner that disconnected mid-scan has to reconnect and resume it; after that "
+                    "the scan is recognized as PARTIAL")
+      ->capture_default_str()
+      ->check(CLI::Range(std::int64_t{0}, std::int64_t{3'600'000}));
   serve->add_flag("-q,--quiet", so->quiet, "Print nothing per scan");
   serve->callback([so] { run_serve(*so); });
 
@@ -254,8 +297,13 @@ void add_live_commands(CLI::App& app) {
                                   "streams it over TCP loopback; this process recognizes the objects");
   demo->add_option("--scene", o->scene, "Shipped scene name (default, cube, pyramid, cube-pyramid-separate, "
                                         "cube-occludes-pyramid, corner) or a scene JSON file");
-  demo->add_option("--galvo", o->galvo, "Galvo twin: sim (step/dir GPIO twin) or sim-can (CiA 402 drive twin)");
-  demo->add_option("--fault", o->faults, "Inject a fault into the twins (repeatable), e.g. galvo.stall@step=120");
+  demo->add_option("--galvo", o->galvo,
+                   "Galvo twin: gpio (the firmware's step/dir galvo on simulated GPIO lines; alias sim) or can "
+                   "(its CiA 402 master and a simulated drive on CAN; alias sim-can[:node=N,...])")
+      ->capture_default_str();
+  demo->add_option("--fault", o->faults,
+                   "Inject a fault into the twins (repeatable): DEVICE.KIND[@TRIGGER][,count=N][,for=S], e.g. "
+                   "galvo.stall@step=120, camera.drop@frame=40,count=2, camera.timeout@t=1, laser.stuck@on=0");
   demo->add_option("-o,--out", o->out_dir, "Output directory (recording, result.json, HTML report)");
   demo->add_option("-l,--library", o->library, "Library (default: the scene's mesh folder)")->expected(1, -1);
   demo->add_option("--steps", o->steps, "Galvo steps of the scan (default: the scene's)");

@@ -1,25 +1,21 @@
 #!/usr/bin/env bash
-# ctest `cross_aarch64_deb` (label cross): `cpack -G DEB` in the aarch64 cross build dir, then checks the package
-# with dpkg-deb -I / -c / -x: name, version, arm64 architecture, dependencies, postinst, the binary (an aarch64
-# ELF that runs `--version` under qemu), the systemd unit (restart on failure, RT scheduling, memlock, dedicated
-# user; `systemd-analyze verify` when available), the example board config and the scenes.
-#   deb_check.sh SOURCE_DIR CROSS_BUILD_DIR WORK_DIR
+# ctest `cross_<arch>_deb` (label cross): `cpack -G DEB` in the board's cross build dir (aarch64 or armhf), then
+# checks the package with dpkg-deb -I / -c / -x: name, version, Debian architecture (arm64 / armhf), dependencies,
+# postinst, the binary (an ELF of the board's architecture that runs `--version` under qemu), the systemd unit
+# (restart on failure, RT scheduling, memlock, dedicated user; `systemd-analyze verify` when available), the
+# example board config and the scenes.
+#   deb_check.sh ARCH SOURCE_DIR CROSS_BUILD_DIR WORK_DIR      (ARCH: aarch64 | armhf)
 set -uo pipefail
-src="$1"; cross="$2"; work="$3"
+arch="$1"; src="$2"; cross="$3"; work="$4"
+source "$(dirname "$0")/cross_common.sh"
+cross_arch "$arch"
 fail() { echo "FAIL: $*" >&2; exit 1; }
-FS_CROSS_JOBS="${FS_CROSS_JOBS:-2}" "$src/toolchain/cross-build" aarch64 "$cross" >/dev/null 2>"$work.cross-build.err"
-rc=$?
-if [ $rc -eq 3 ]; then
-  cat "$work.cross-build.err" >&2
-  echo "SKIPPED: the aarch64 cross packages are not installable here; the .deb was NOT tested." >&2
-  exit 77
-fi
-[ $rc -eq 0 ] || { tail -n 40 "$work.cross-build.err" >&2; fail "cross build failed (exit $rc)"; }
+cross_build_or_skip "$arch" "$src" "$cross" "$work.cross-build" "the $arch .deb"
 
 rm -rf "$work"; mkdir -p "$work"
 (cd "$cross" && cpack -G DEB -B "$work" >"$work/cpack.log" 2>&1) || { cat "$work/cpack.log" >&2; fail "cpack -G DEB"; }
 version="$(sed -n 's/^CMAKE_PROJECT_VERSION:STATIC=//p' "$cross/CMakeCache.txt")"
-deb="$work/facetscan-fw_${version}_arm64.deb"
+deb="$work/facetscan-fw_${version}_${deb_arch}.deb"
 [ -f "$deb" ] || { ls -l "$work" >&2; fail "expected $deb"; }
 echo "package: $deb ($(stat -c %s "$deb") bytes)"
 
@@ -27,7 +23,7 @@ info="$(dpkg-deb -I "$deb")" || fail "dpkg-deb -I"
 echo "$info"
 field() { dpkg-deb -f "$deb" "$1"; }
 [ "$(field Package)" = facetscan-fw ] || fail "Package: $(field Package)"
-[ "$(field Architecture)" = arm64 ] || fail "Architecture: $(field Architecture)"
+[ "$(field Architecture)" = "$deb_arch" ] || fail "Architecture: $(field Architecture)"
 [ "$(field Version)" = "$version" ] || fail "Version: $(field Version) (expected $version)"
 for d in libgpiod2 libpng16-16 adduser; do field Depends | grep -q "$d" || fail "Depends lacks $d: $(field Depends)"; done
 echo "$info" | grep -q ' postinst' || fail "no postinst in the control archive"
@@ -44,9 +40,9 @@ echo "$contents" | grep -q ' \./usr/bin/facetscan$' && fail "the host program mu
 dpkg-deb -x "$deb" "$work/root" || fail "dpkg-deb -x"
 dpkg-deb -e "$deb" "$work/control" || fail "dpkg-deb -e"
 bin="$work/root/usr/bin/facetscan-fw"
-file -b "$bin" | grep -q 'ARM aarch64' || fail "packaged binary is not aarch64: $(file -b "$bin")"
+file -b "$bin" | grep -q "$elf" || fail "packaged binary is not $arch: $(file -b "$bin")"
 [ -x "$bin" ] || fail "packaged binary is not executable"
-qemu-aarch64 -L /usr/aarch64-linux-gnu -E LD_LIBRARY_PATH=/usr/aarch64-linux-gnu/lib "$bin" --version | grep -q "^facetscan-fw $version" || fail "packaged --version"
+"$cross/qemu-run" "$bin" --version | grep -q "^facetscan-fw $version" || fail "packaged --version"
 cmp -s "$work/root/usr/share/facetscan/board.example.json" "$src/toolchain/deploy/board.example.json" \
   || fail "packaged board.example.json differs from the source"
 sh -n "$work/control/postinst" || fail "postinst: shell syntax"
@@ -60,7 +56,7 @@ for kv in 'Restart=on-failure' 'User=facetscan' 'SupplementaryGroups=.*gpio' 'Su
   grep -q "^$kv" "$unit" || fail "unit lacks $kv"
 done
 if command -v systemd-analyze >/dev/null; then
-  # Verify a copy whose ExecStart points at an existing binary (the aarch64 one is not runnable here).
+  # Verify a copy whose ExecStart points at an existing binary (the ARM one is not runnable here).
   mkdir -p "$work/verify"
   sed "s#^ExecStart=/usr/bin/facetscan-fw#ExecStart=$bin#" "$unit" >"$work/verify/facetscan-fw.service"
   out="$(SYSTEMD_LOG_LEVEL=warning systemd-analyze verify --man=no "$work/verify/facetscan-fw.service" 2>&1)"

@@ -1,15 +1,5 @@
 # Cross build for 64-bit ARM scanner boards (Debian crossbuild-essential-arm64 + multiarch :arm64 libraries).
-set(CMAKE_SYSTEM_NAME Linux)
-set(CMAKE_SYSTEM_PROCESSOR aarch64)
 set(FS_TRIPLET aarch64-linux-gnu)
-set(CMAKE_C_COMPILER ${FS_TRIPLET}-gcc)
-set(CMAKE_CXX_COMPILER ${FS_TRIPLET}-g++)
-set(CMAKE_FIND_ROOT_PATH /usr/${FS_TRIPLET} /usr/lib/${FS_TRIPLET})
-set(CMAKE_FIND_ROOT_PATH_MODE_PROGRAM NEVER)
-set(CMAKE_FIND_ROOT_PATH_MODE_LIBRARY ONLY)
-set(CMAKE_FIND_ROOT_PATH_MODE_INCLUDE BOTH)
-set(CMAKE_FIND_ROOT_PATH_MODE_PACKAGE BOTH)
-set(CMAKE_LIBRARY_ARCHITECTURE ${FS_TRIPLET})
-# No aarch64-linux-gnu-pkg-config in Debian: point pkg-config at the multiarch .pc files.
-set(ENV{PKG_CONFIG_LIBDIR} /usr/lib/${FS_TRIPLET}/pkgconfig:/usr/share/pkgconfig)
-set(CMAKE_CROSSCOMPILING_EMULATOR qemu-aarch64;-L;/usr/${FS_TRIPLET})
+set(FS_PROCESSOR aarch64)
+set(FS_QEMU qemu-aarch64)
+include(${CMAKE_CURRENT_LIST_DIR}/cross-common.cmake)

@@ -1,15 +1,6 @@
-# Cross build for 32-bit ARM (armhf) scanner boards (Debian crossbuild-essential-armhf + multiarch :armhf libraries).
-set(CMAKE_SYSTEM_NAME Linux)
-set(CMAKE_SYSTEM_PROCESSOR armv7l)
+# Cross build for 32-bit ARM (armhf: ARMv7, hard-float) scanner boards (Debian crossbuild-essential-armhf +
+# multiarch :armhf libraries).
 set(FS_TRIPLET arm-linux-gnueabihf)
-set(CMAKE_C_COMPILER ${FS_TRIPLET}-gcc)
-set(CMAKE_CXX_COMPILER ${FS_TRIPLET}-g++)
-set(CMAKE_FIND_ROOT_PATH /usr/${FS_TRIPLET} /usr/lib/${FS_TRIPLET})
-set(CMAKE_FIND_ROOT_PATH_MODE_PROGRAM NEVER)
-set(CMAKE_FIND_ROOT_PATH_MODE_LIBRARY ONLY)
-set(CMAKE_FIND_ROOT_PATH_MODE_INCLUDE BOTH)
-set(CMAKE_FIND_ROOT_PATH_MODE_PACKAGE BOTH)
-set(CMAKE_LIBRARY_ARCHITECTURE ${FS_TRIPLET})
-# No arm-linux-gnueabihf-pkg-config in Debian: point pkg-config at the multiarch .pc files.
-set(ENV{PKG_CONFIG_LIBDIR} /usr/lib/${FS_TRIPLET}/pkgconfig:/usr/share/pkgconfig)
-set(CMAKE_CROSSCOMPILING_EMULATOR qemu-arm;-L;/usr/${FS_TRIPLET})
+set(FS_PROCESSOR armv7l)
+set(FS_QEMU qemu-arm)
+include(${CMAKE_CURRENT_LIST_DIR}/cross-common.cmake)
