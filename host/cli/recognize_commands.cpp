@@ -102,7 +102,7 @@ void run_recognize(const RecognizeOptions& o) {
     try {
       const LoadInfo info = load_cloud(path, cloud, lo);
       std::string profile = o.segment;
-      if (profile == "auto") profile = info.format == "fscan" ? "laser" : "kinect";
+      if (profile == "auto") profile = segment_profile_for(info);   // laser for scans and mm clouds, kinect for metres
       if (!recognizer || profile != recognizer_profile) {
         if (!seg::SegmentParams::by_name(profile, params.segment))
           throw Error("--segment: unknown profile '" + profile + "' (laser, kinect, auto)");
@@ -188,7 +188,8 @@ void add_recognize_commands(CLI::App& app) {
   rc->add_option("--json", o->json_out, "Write the recognition JSON to FILE ('-' = stdout)");
   rc->add_option("--report", o->report_dir, "Write an HTML report into DIR (a sub-directory per input in a batch)");
   rc->add_option("--params", o->params, "Match parameters: a preset (t9.3, t7.34, ...) or a JSON file");
-  rc->add_option("--segment", o->segment, "Segmentation profile: auto, laser, kinect");
+  rc->add_option("--segment", o->segment,
+                 "Segmentation profile: auto (laser for .fscan and clouds in mm, kinect for clouds in metres), laser, kinect");
   rc->add_option("--min-confidence", o->min_confidence, "Verification confidence an object needs (0..1)")
       ->check(CLI::Range(0.0, 1.0));
   rc->add_option("--scale", o->scale, "PCD/PLY: millimetres per file unit (default: auto)");

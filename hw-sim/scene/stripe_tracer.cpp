@@ -139,7 +139,7 @@ void StripeTracer::solve_segment(const Segment& s, std::span<StripeSample> rows)
   // Pieces short enough for the row to be monotonic along each (distortion bends the projected line).
   int pieces = 64;
   if (oka && okb) pieces = std::clamp(static_cast<int>((pb - pa).norm() / 16.0) + 1, 1, 4096);
-  Vec2 prev_px;
+  Vec2 prev_px = Vec2::Zero();
   bool prev_ok = false;
   double prev_t = 0.0;
   for (int i = 0; i <= pieces; ++i) {
