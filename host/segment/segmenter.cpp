@@ -37,6 +37,17 @@ std::size_t next_pow2(std::size_t v) {
   return p;
 }
 
+// The 4-neighbours of cell i in a w x h grid and their continuity bits (kContL/R/U/D); returns how many.
+inline int grid_neighbours(std::size_t i, std::size_t w, std::size_t h, std::size_t nb[4], std::uint8_t bit[4]) {
+  const std::size_t row = i / w, col = i - row * w;
+  int k = 0;
+  if (col > 0) { nb[k] = i - 1; bit[k++] = kContL; }
+  if (col + 1 < w) { nb[k] = i + 1; bit[k++] = kContR; }
+  if (row > 0) { nb[k] = i - w; bit[k++] = kContU; }
+  if (row + 1 < h) { nb[k] = i + w; bit[k++] = kContD; }
+  return k;
+}
+
 }  // namespace
 
 void Segmenter::Acc::add(const Eigen::Vector3d& p, double a, double col, double row) {
@@ -450,14 +461,9 @@ void Segmenter::refine_edges(const OrganizedCloud& cloud) {
     std::size_t np = 0;
     for (std::size_t i = 0; i < n; ++i) {
       if (lab_[i] != kUnassigned) continue;
-      const std::size_t row = i / w, col = i - row * w;
       std::size_t nb[4];
       std::uint8_t bit[4];
-      int k = 0;
-      if (col > 0) { nb[k] = i - 1; bit[k++] = kContL; }
-      if (col + 1 < w) { nb[k] = i + 1; bit[k++] = kContR; }
-      if (row > 0) { nb[k] = i - w; bit[k++] = kContU; }
-      if (row + 1 < h) { nb[k] = i + w; bit[k++] = kContD; }
+      const int k = grid_neighbours(i, w, h, nb, bit);
       float best = std::numeric_limits<float>::max();
       std::int32_t bl = -1;
       for (int t = 0; t < k; ++t) {
@@ -583,14 +589,9 @@ void Segmenter::relabel_borders(const OrganizedCloud& cloud) {
   // the cell's best other region (closer plane, within tolerance, depth-continuous), or -1
   auto better = [&](std::size_t i) -> std::int32_t {
     const std::int32_t l = lab_[i];
-    const std::size_t row = i / w, col = i - row * w;
     std::size_t nb[4];
     std::uint8_t bit[4];
-    int k = 0;
-    if (col > 0) { nb[k] = i - 1; bit[k++] = kContL; }
-    if (col + 1 < w) { nb[k] = i + 1; bit[k++] = kContR; }
-    if (row > 0) { nb[k] = i - w; bit[k++] = kContU; }
-    if (row + 1 < h) { nb[k] = i + w; bit[k++] = kContD; }
+    const int k = grid_neighbours(i, w, h, nb, bit);
     const PlaneF& own = plane_[std::size_t(l)];
     float best = -1.f;
     std::int32_t bl = -1;
@@ -682,14 +683,9 @@ void Segmenter::group_leftovers(const OrganizedCloud& /*cloud*/, Segmentation& o
     lab_[seed] = r;
     while (head < tail) {
       const std::size_t i = queue_[head++];
-      const std::size_t row = i / w, col = i - row * w;
       std::size_t nb[4];
       std::uint8_t bit[4];
-      int k = 0;
-      if (col > 0) { nb[k] = i - 1; bit[k++] = kContL; }
-      if (col + 1 < w) { nb[k] = i + 1; bit[k++] = kContR; }
-      if (row > 0) { nb[k] = i - w; bit[k++] = kContU; }
-      if (row + 1 < h) { nb[k] = i + w; bit[k++] = kContD; }
+      const int k = grid_neighbours(i, w, h, nb, bit);
       for (int t = 0; t < k; ++t) {
         const std::size_t j = nb[t];
         if (lab_[j] != kUnassigned || !(cont_[i] & bit[t])) continue;

@@ -9,6 +9,7 @@
 #include "common/scan_file.hpp"
 #include "host/io/calibration_json.hpp"
 #include "host/io/io_tools.hpp"
+#include "fscan_file.hpp"
 #include "synth_scan.hpp"
 
 namespace fs::host {
@@ -22,17 +23,7 @@ struct Dir {
 };
 
 void write_fscan(const std::string& path, const fs::test::SynthScan& s) {
-  ScanFileWriter file{std::filesystem::path(path)};
-  wire::FrameWriter w(file);
-  w.send(s.begin);
-  for (const auto& st : s.stripes) {
-    msg::Stripe m;
-    m.header = st.header;
-    m.points = std::span<msg::StripePoint>(const_cast<msg::StripePoint*>(st.points.data()), st.points.size());
-    w.send(m);
-  }
-  w.send(s.end);
-  file.close();
+  fs::test::write_fscan(std::filesystem::path(path), s);
 }
 
 TEST(IoTools, CalibrateFromFscanTargetsWritesCalibrationFile) {
