@@ -120,6 +120,14 @@ void run_recognize(const RecognizeOptions& o) {
                        h->verify.inliers, h->verify.violations, h->verify.occluded, h->t.x(), h->t.y(), h->t.z(),
                        m.c_str());
         }
+        if (std::string(std::getenv("FACETSCAN_DEBUG")) == "2")
+          for (const rec::Hypothesis* h : recognizer->all_hypotheses()) {
+            std::string m;
+            for (const auto& fm : h->matches) m += fmt::format(" {}:{}{}", fm.scene, fm.ref, fm.expanded ? "e" : "");
+            std::fprintf(stderr, "hypothesis %-20s level %d prescore %.3f cost %.5f conf %.3f support %.1f [%s]\n",
+                         library.models[static_cast<std::size_t>(h->model)].name.c_str(), h->level, h->prescore,
+                         h->cost, h->verify.confidence, h->verify.support, m.c_str());
+          }
       }
       nlohmann::json j = rec::to_json(r, library);
       j["input"] = {{"file", path}, {"format", info.format}, {"width", cloud.width}, {"height", cloud.height},

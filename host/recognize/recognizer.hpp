@@ -56,10 +56,10 @@ struct RecognizeParams {
   double confidence_weight = 0.2;     // ordering key = cost + weight * (1 - confidence)
   double max_shared_inliers = 0.3;    // two objects may not explain more than this share of the same points
   int max_objects = 16;
-  int max_verified = 64;              // hypotheses checked against the cloud (highest prescore first)
+  int max_verified = 96;              // hypotheses checked against the cloud (highest prescore first)
   double prescore_area_slack = 1.1;   // a scene face may be this much larger than its model face (segmentation)
   int max_refined = 24;               // of those, the most plausible refined by ICP and verified finely
-  int verify_per_face = 8;            // a scene face stops drawing hypotheses into verification after this many
+  int verify_per_face = 16;           // a scene face stops drawing hypotheses into verification after this many
   int refine_per_face = 3;            // ... and into refinement
   // Matching prunes a pair whose scene face is larger than area_ratio x its model face + slack (a face cannot be
   // seen bigger than it is; segmentation may add a rim): match::MatchParams::th_area_ratio. <= 0 = off.
