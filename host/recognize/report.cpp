@@ -19,7 +19,8 @@ namespace fs::host::rec {
 std::string axis_angle_text(const Mat3& R) {
   const Eigen::AngleAxisd aa(R);
   const double deg = aa.angle() * 180.0 / M_PI;
-  const Vec3 ax = deg < 1e-9 ? Vec3::UnitZ() : aa.axis();
+  // Below display precision (0.05°) the axis is noise: show the identity as 0.0° about z.
+  const Vec3 ax = deg < 0.05 ? Vec3::UnitZ() : aa.axis();
   return fmt::format("{:6.1f}° about ({:5.2f}, {:5.2f}, {:5.2f})", deg, ax.x(), ax.y(), ax.z());
 }
 

@@ -9,6 +9,7 @@
 #include "host/library/library.hpp"
 #include "host/library/model.hpp"
 #include "host/recognize/hypotheses.hpp"
+#include "host/recognize/report.hpp"
 #include "support/test_paths.hpp"
 
 namespace {
@@ -128,6 +129,21 @@ TEST(Support, StackedOnMeasuredSurfaceIsSupported) {
         if (v.z() + 20 < best) best = v.z() + 20, v_low = v + Vec3(0, 0, 20);
   std::vector<Eigen::Vector3f> pts{(v_low - Vec3(0, 0, 2)).cast<float>()};
   EXPECT_EQ(fs::host::rec::support_factor(m, Mat3::Identity(), Vec3(0, 0, 20), table, pts, {}), 1.0);
+}
+
+}  // namespace
+
+namespace {
+
+TEST(Report, AxisAngleTextHidesTheAxisOfRotationsBelowDisplayPrecision) {
+  using fs::host::rec::axis_angle_text;
+  const std::string zero = axis_angle_text(Mat3::Identity());
+  EXPECT_NE(zero.find("0.0° about ( 0.00,  0.00,  1.00)"), std::string::npos) << zero;
+  const Mat3 tiny(Eigen::AngleAxisd(0.01 * M_PI / 180.0, Vec3(0.36, 0.76, -0.54).normalized()));
+  EXPECT_EQ(axis_angle_text(tiny), zero);
+  const Mat3 quarter(Eigen::AngleAxisd(M_PI / 2, Vec3::UnitX()));
+  EXPECT_NE(axis_angle_text(quarter).find("90.0° about ( 1.00,  0.00,  0.00)"), std::string::npos)
+      << axis_angle_text(quarter);
 }
 
 }  // namespace
