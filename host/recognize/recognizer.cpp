@@ -316,6 +316,7 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
   }
   im.split_components(scene_, params_.min_level);
   out.stats.components = static_cast<int>(im.nparts);
+  for (ModelSlots& ms : im.per_model) ms.count = 0, ms.states = 0;   // no part: no solution (not last scan's)
   im.pool.run(im.nparts == 0 ? 0 : library_.models.size(),
               [](void* ctx, std::size_t task, int worker) {
                 auto& m = *static_cast<Impl*>(ctx);

@@ -135,6 +135,33 @@ TEST(RecognizeScenes, WarmRecognizeAllocatesNothing) {
   EXPECT_EQ(counter.process_allocations(), 0u);
 }
 
+// A scene whose graph has faces but no part with TH_minlevel faces (a thin plate: its top and edge-on rims)
+// after a scene with objects: the result must be empty, not the previous scan's objects.
+TEST(RecognizeScenes, SceneWithoutAMatchablePartReportsNothingAfterAFullScene) {
+  SceneRun s = scan("cube-pyramid-separate");
+  fs::host::rec::RecognizeParams params;
+  params.threads = 2;
+  Recognizer rec(library(), params, s.cloud.points.size());
+  const fs::Plane table = s.scene.calibration.table;
+  ASSERT_EQ(rec.recognize(s.cloud, &table).objects.size(), 2u);
+
+  fs::sim::Scene plate_scene = s.scene;
+  plate_scene.objects.clear();
+  fs::Mesh plate;
+  plate.name = "plate";
+  const double a = 30, b = 20, h = 1.5;
+  plate.vertices = {{-a, -b, 0}, {a, -b, 0}, {a, b, 0}, {-a, b, 0}, {-a, -b, h}, {a, -b, h}, {a, b, h}, {-a, b, h}};
+  plate.faces = {{0, 3, 2, 1}, {4, 5, 6, 7}, {0, 1, 5, 4}, {1, 2, 6, 5}, {2, 3, 7, 6}, {3, 0, 4, 7}};
+  fs::sim::add_object(plate_scene, plate, fs::Mat3::Identity(), fs::Vec3(-60, 0, 0));
+  fs::host::OrganizedCloud cloud;
+  fs::sim::make_ground_truth_grid(plate_scene, {.depth_noise_mm = 0.05, .seed = 5}).export_to(cloud);
+  const auto& r = rec.recognize(cloud, &table);
+  EXPECT_GT(r.stats.scene_nodes, 0);
+  EXPECT_EQ(r.stats.components, 0);
+  EXPECT_TRUE(r.objects.empty()) << fs::host::rec::to_json(r, library()).dump();
+  EXPECT_EQ(r.stats.hypotheses, 0);
+}
+
 TEST(RecognizeScenes, EmptyTableGivesNoObjectAndSaysWhy) {
   fs::sim::Scene scene = fs::sim::load_scene(fs::test::source_dir() / "hw-sim/scenes/cube.json");
   scene.objects.clear();
