@@ -12,11 +12,11 @@
 
 #include <algorithm>
 #include <cerrno>
-#include <charconv>
 #include <chrono>
 #include <cstring>
 
 #include "common/error.hpp"
+#include "common/host_port.hpp"
 
 namespace fs::fw {
 
@@ -29,18 +29,7 @@ Nanos mono_now() {
 }  // namespace
 
 void parse_host_port(const std::string& spec, std::string& host, std::uint16_t& port) {
-  const std::size_t colon = spec.rfind(':');
-  if (colon == std::string::npos || colon == 0 || colon + 1 == spec.size())
-    throw Error("stream address '" + spec + "': expected HOST:PORT");
-  host = spec.substr(0, colon);
-  if (host.size() > 2 && host.front() == '[' && host.back() == ']') host = host.substr(1, host.size() - 2);
-  unsigned v = 0;
-  const char* b = spec.data() + colon + 1;
-  const char* e = spec.data() + spec.size();
-  const auto [p, ec] = std::from_chars(b, e, v);
-  if (ec != std::errc() || p != e || v == 0 || v > 65535)
-    throw Error("stream address '" + spec + "': port must be 1..65535");
-  port = static_cast<std::uint16_t>(v);
+  split_host_port(spec, "stream address", "HOST:PORT", 1, host, port);
 }
 
 TcpSink::TcpSink(const std::string& host_port, TcpSinkConfig cfg) : cfg_(cfg) {

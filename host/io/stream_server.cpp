@@ -10,25 +10,15 @@
 #include <unistd.h>
 
 #include <cerrno>
-#include <charconv>
 #include <cstring>
 
 #include "common/error.hpp"
+#include "common/host_port.hpp"
 
 namespace fs::host {
 
 void parse_listen_address(const std::string& spec, std::string& host, std::uint16_t& port) {
-  const std::size_t colon = spec.rfind(':');
-  if (colon == std::string::npos || colon == 0 || colon + 1 == spec.size())
-    throw Error("listen address '" + spec + "': expected ADDR:PORT (e.g. 127.0.0.1:5555)");
-  host = spec.substr(0, colon);
-  if (host.size() > 2 && host.front() == '[' && host.back() == ']') host = host.substr(1, host.size() - 2);
-  unsigned v = 0;
-  const char* b = spec.data() + colon + 1;
-  const char* e = spec.data() + spec.size();
-  const auto [p, ec] = std::from_chars(b, e, v);
-  if (ec != std::errc() || p != e || v > 65535) throw Error("listen address '" + spec + "': port must be 0..65535");
-  port = static_cast<std::uint16_t>(v);
+  split_host_port(spec, "listen address", "ADDR:PORT (e.g. 127.0.0.1:5555)", 0, host, port);
 }
 
 StreamServer::StreamServer(StreamServerOptions options, ScanAssembler::Callback on_scan)
