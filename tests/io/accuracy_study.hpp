@@ -16,6 +16,7 @@
 #include "hw-sim/scene/ground_truth_grid.hpp"
 #include "hw-sim/scene/scene.hpp"
 #include "hw-sim/scene/stripe_renderer.hpp"
+#include "render_extract.hpp"
 
 namespace fs::test {
 
@@ -55,18 +56,7 @@ inline AccuracyResult end_to_end_accuracy(const sim::Scene& scene, double noise_
                                           std::uint64_t seed, const host::TriangulationOptions& topt = {},
                                           double gross_mm = 2.0) {
   const auto& cal = scene.calibration;
-  sim::RenderOptions ro;
-  ro.noise_scale = noise_scale;
-  sim::StripeRenderer renderer(scene, ro);
-  std::vector<std::uint8_t> image(std::size_t(cal.camera.width) * cal.camera.height);
-  const sim::FrameBuffer fb{image.data(), cal.camera.width, cal.camera.height, cal.camera.width, sim::FrameFormat::Mono8};
-  fw::FrameView fv;
-  fv.data = image.data();
-  fv.width = cal.camera.width;
-  fv.height = cal.camera.height;
-  fv.stride = cal.camera.width;
-  fv.format = fw::PixelFormat::Mono8;
-  std::vector<msg::StripePoint> pts(cal.camera.height);
+  RenderExtract rx(scene, noise_scale);
   host::Triangulator tri(cal, topt);
   host::OrganizedCloud cloud;
   tri.begin(cloud);
@@ -74,14 +64,14 @@ inline AccuracyResult end_to_end_accuracy(const sim::Scene& scene, double noise_
   std::vector<double> err;
   for (std::uint32_t k = 0; k < cal.step_count; k += step_stride) {
     const std::uint32_t step = static_cast<std::uint32_t>(cal.first_step) + k;
-    renderer.render_step(step, seed + k, fb);
-    const auto counts = fw::extract_frame(fv, fw::ExtractParams{}, pts);
+    const auto counts = rx.step(step, seed + k);
+    const auto pts = rx.points(counts);
     msg::StripeHeader h;
     h.step_index = step;
-    tri.add_stripe(h, std::span(pts.data(), counts.points), cloud, st);
-    const auto truth = renderer.truth();
-    for (std::uint32_t i = 0; i < counts.points; ++i) {
-      const auto row = pts[i].row;
+    tri.add_stripe(h, pts, cloud, st);
+    const auto truth = rx.renderer().truth();
+    for (const msg::StripePoint& pt : pts) {
+      const auto row = pt.row;
       const auto& p = cloud.at(row, k);
       if (!host::OrganizedCloud::valid(p) || !truth[row].valid()) continue;
       err.push_back((p.cast<double>() - truth[row].point).norm());

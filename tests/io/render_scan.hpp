@@ -18,6 +18,7 @@
 #include "hw-sim/scene/scene.hpp"
 #include "hw-sim/scene/stripe_renderer.hpp"
 #include "fscan_file.hpp"
+#include "render_extract.hpp"
 #include "synth_scan.hpp"
 
 namespace fs::test {
@@ -47,20 +48,7 @@ inline sim::Scene flat_target_scene(const ScannerCalibration& truth, double heig
 inline SynthScan render_scan(const sim::Scene& scene, const ScannerCalibration& header_calibration,
                              double noise_scale, std::uint64_t seed, std::uint64_t scan_id = 1) {
   const auto& cal = scene.calibration;
-  sim::RenderOptions ro;
-  ro.noise_scale = noise_scale;
-  sim::StripeRenderer renderer(scene, ro);
-  std::vector<std::uint8_t> image(std::size_t(cal.camera.width) * cal.camera.height);
-  const sim::FrameBuffer fb{image.data(), cal.camera.width, cal.camera.height, cal.camera.width,
-                            sim::FrameFormat::Mono8};
-  fw::FrameView fv;
-  fv.data = image.data();
-  fv.width = cal.camera.width;
-  fv.height = cal.camera.height;
-  fv.stride = cal.camera.width;
-  fv.format = fw::PixelFormat::Mono8;
-  std::vector<msg::StripePoint> pts(cal.camera.height);
-
+  RenderExtract rx(scene, noise_scale);
   SynthScan s;
   s.begin.scan_id = scan_id;
   s.begin.scanner_model = "hw-sim render";
@@ -69,8 +57,7 @@ inline SynthScan render_scan(const sim::Scene& scene, const ScannerCalibration& 
   s.truth.viewpoint = cal.camera.center();
   for (std::uint32_t k = 0; k < cal.step_count; ++k) {
     const std::uint32_t step = static_cast<std::uint32_t>(cal.first_step + static_cast<std::int32_t>(k));
-    renderer.render_step(step, seed * 1000003u + k, fb);
-    const auto counts = fw::extract_frame(fv, fw::ExtractParams{}, pts);
+    const auto counts = rx.step(step, seed * 1000003u + k);
     SynthStripe st;
     st.header.scan_id = scan_id;
     st.header.step_index = step;
@@ -78,8 +65,9 @@ inline SynthScan render_scan(const sim::Scene& scene, const ScannerCalibration& 
     st.header.measured_position = step;
     st.header.frame_sequence = k;
     st.header.flags = counts.header_flags();
-    st.points.assign(pts.begin(), pts.begin() + counts.points);
-    const auto truth = renderer.truth();
+    const auto pts = rx.points(counts);
+    st.points.assign(pts.begin(), pts.end());
+    const auto truth = rx.renderer().truth();
     for (std::uint32_t r = 0; r < cal.camera.height; ++r)
       if (truth[r].valid()) s.truth.at(r, k) = truth[r].point.cast<float>();
     s.stripes.push_back(std::move(st));
