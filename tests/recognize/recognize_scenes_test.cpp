@@ -31,12 +31,18 @@ struct SceneRun {
   fs::host::OrganizedCloud cloud;
 };
 
+// The ideal scan grid of a scene with depth noise.
+fs::host::OrganizedCloud grid_of(const fs::sim::Scene& scene, std::uint64_t seed, double noise_mm = 0.05) {
+  fs::host::OrganizedCloud cloud;
+  fs::sim::make_ground_truth_grid(scene, {.depth_noise_mm = noise_mm, .seed = seed}).export_to(cloud);
+  return cloud;
+}
+
 SceneRun scan(const std::string& name, std::uint32_t steps = 300, double noise_mm = 0.05) {
   SceneRun s;
   s.scene = fs::sim::load_scene(fs::test::source_dir() / "hw-sim/scenes" / (name + ".json"));
   fs::sim::resample_sweep(s.scene.calibration, steps);
-  const auto gt = fs::sim::make_ground_truth_grid(s.scene, {.depth_noise_mm = noise_mm, .seed = 7});
-  gt.export_to(s.cloud);
+  s.cloud = grid_of(s.scene, 7, noise_mm);
   return s;
 }
 
@@ -124,11 +130,9 @@ TEST(RecognizeScenes, WarmRecognizeAllocatesNothing) {
   EXPECT_EQ(allocations, 0u);
   EXPECT_EQ(r.objects.size(), first);
   // The empty-result path (its note) does not allocate either once warm.
-  SceneRun e = scan("cube-pyramid-separate");
-  fs::sim::Scene empty = e.scene;
+  fs::sim::Scene empty = s.scene;
   empty.objects.clear();
-  fs::host::OrganizedCloud cloud;
-  fs::sim::make_ground_truth_grid(empty, {.depth_noise_mm = 0.05, .seed = 7}).export_to(cloud);
+  const fs::host::OrganizedCloud cloud = grid_of(empty, 7);
   rec.recognize(cloud, &table);
   counter.restart();
   EXPECT_TRUE(rec.recognize(cloud, &table).objects.empty());
@@ -153,8 +157,7 @@ TEST(RecognizeScenes, SceneWithoutAMatchablePartReportsNothingAfterAFullScene) {
   plate.vertices = {{-a, -b, 0}, {a, -b, 0}, {a, b, 0}, {-a, b, 0}, {-a, -b, h}, {a, -b, h}, {a, b, h}, {-a, b, h}};
   plate.faces = {{0, 3, 2, 1}, {4, 5, 6, 7}, {0, 1, 5, 4}, {1, 2, 6, 5}, {2, 3, 7, 6}, {3, 0, 4, 7}};
   fs::sim::add_object(plate_scene, plate, fs::Mat3::Identity(), fs::Vec3(-60, 0, 0));
-  fs::host::OrganizedCloud cloud;
-  fs::sim::make_ground_truth_grid(plate_scene, {.depth_noise_mm = 0.05, .seed = 5}).export_to(cloud);
+  const fs::host::OrganizedCloud cloud = grid_of(plate_scene, 5);
   const auto& r = rec.recognize(cloud, &table);
   EXPECT_GT(r.stats.scene_nodes, 0);
   EXPECT_EQ(r.stats.components, 0);
@@ -166,8 +169,7 @@ TEST(RecognizeScenes, EmptyTableGivesNoObjectAndSaysWhy) {
   fs::sim::Scene scene = fs::sim::load_scene(fs::test::source_dir() / "hw-sim/scenes/cube.json");
   scene.objects.clear();
   fs::sim::resample_sweep(scene.calibration, 200);
-  fs::host::OrganizedCloud cloud;
-  fs::sim::make_ground_truth_grid(scene, {.depth_noise_mm = 0.05, .seed = 3}).export_to(cloud);
+  const fs::host::OrganizedCloud cloud = grid_of(scene, 3);
   Recognizer rec(library(), {}, cloud.points.size());
   const auto& r = rec.recognize(cloud, &scene.calibration.table);
   EXPECT_TRUE(r.objects.empty());
