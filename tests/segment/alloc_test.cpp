@@ -14,6 +14,23 @@ namespace {
 using namespace fs::host;
 using namespace fs::host::seg;
 
+// Segmenter + scene PFRG builder with their outputs prepared once, held the way the recognizer holds them.
+struct SegmentPipeline {
+  explicit SegmentPipeline(const SegmentLimits& lim)
+      : segmenter(SegmentParams::laser(), lim), builder(lim.max_regions, lim.max_borders) {
+    segmenter.prepare(s);
+    builder.prepare(g);
+  }
+  void run(const OrganizedCloud& cloud) {
+    segmenter.segment(cloud, s);
+    builder.build(s, g);
+  }
+  Segmenter segmenter;
+  Segmentation s;
+  ScenePfrgBuilder builder;
+  Pfrg g;
+};
+
 TEST(SegmentAlloc, NoAllocationPerScanAfterWarmUp) {
   fs::test::SyntheticScene sc;
   sc.objects.push_back(fs::test::make_pyramid({-30, 10, 0}, 35, 40, 25));
@@ -27,22 +44,14 @@ TEST(SegmentAlloc, NoAllocationPerScanAfterWarmUp) {
   lim.max_cells = a.cloud.points.size();
   lim.max_regions = 2048;
   lim.max_borders = 8192;
-  Segmenter segmenter(SegmentParams::laser(), lim);
-  Segmentation s;
-  segmenter.prepare(s);
-  ScenePfrgBuilder builder(lim.max_regions, lim.max_borders);
-  Pfrg g;
-  builder.prepare(g);
-  segmenter.segment(a.cloud, s);   // warm-up
-  builder.build(s, g);
+  SegmentPipeline p(lim);
+  p.run(a.cloud);   // warm-up
 
   fs::AllocCounter counter;
-  segmenter.segment(b.cloud, s);
-  builder.build(s, g);
-  segmenter.segment(a.cloud, s);
-  builder.build(s, g);
+  p.run(b.cloud);
+  p.run(a.cloud);
   EXPECT_EQ(counter.allocations(), 0u);
-  EXPECT_GE(g.nodes.size(), 7u);   // the work was done: SN + table + >= 5 faces
+  EXPECT_GE(p.g.nodes.size(), 7u);   // the work was done: SN + table + >= 5 faces
 }
 
 // The realistic case: full-size bench-scanner scans (500 galvo steps x 1024 rows) of the hw-sim scenes, with the
@@ -63,32 +72,23 @@ TEST(SegmentAlloc, NoAllocationPerHwsimScanAfterWarmUp) {
 
   SegmentLimits lim;
   lim.max_cells = warm.points.size();
-  Segmenter segmenter(SegmentParams::laser(), lim);
-  Segmentation s;
-  segmenter.prepare(s);
-  ScenePfrgBuilder builder(lim.max_regions, lim.max_borders);
-  Pfrg g;
-  builder.prepare(g);
-  segmenter.segment(warm, s);
-  builder.build(s, g);
-  const std::size_t warm_nodes = g.nodes.size();
+  SegmentPipeline p(lim);
+  p.run(warm);
+  const std::size_t warm_nodes = p.g.nodes.size();
 
   fs::AllocCounter counter;
-  segmenter.segment(demo, s);
-  builder.build(s, g);
-  const std::size_t demo_nodes = g.nodes.size(), demo_arcs = g.arcs.size();
-  segmenter.segment(warm, s);
-  builder.build(s, g);
-  segmenter.segment(demo, s);
-  builder.build(s, g);
+  p.run(demo);
+  const std::size_t demo_nodes = p.g.nodes.size(), demo_arcs = p.g.arcs.size();
+  p.run(warm);
+  p.run(demo);
   EXPECT_EQ(counter.allocations(), 0u);
-  EXPECT_FALSE(s.truncated);
+  EXPECT_FALSE(p.s.truncated);
   // the work was done: table + 13 object faces + supernode in the demo scene, more than in the warm-up scene
   EXPECT_EQ(demo_nodes, 15u);
   EXPECT_GE(demo_arcs, 29u);
   EXPECT_GT(demo_nodes, warm_nodes);
-  EXPECT_EQ(g.nodes.size(), demo_nodes);
-  EXPECT_EQ(g.arcs.size(), demo_arcs);
+  EXPECT_EQ(p.g.nodes.size(), demo_nodes);
+  EXPECT_EQ(p.g.arcs.size(), demo_arcs);
 }
 
 TEST(SegmentLimits, RegionBudgetExhaustionIsFlaggedNotFatal) {
