@@ -1,18 +1,8 @@
 #include "hw-sim/sim_clock.hpp"
 
-#include <time.h>
-
-#include <cerrno>
+#include "common/monotonic_time.hpp"
 
 namespace fs::sim {
-
-namespace {
-fw::Nanos monotonic_ns() {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<fw::Nanos>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
-}  // namespace
 
 SimClock::SimClock(fw::Nanos start, bool realtime) : now_(start), realtime_(realtime) {
   if (realtime_) offset_ = start - monotonic_ns();
@@ -28,10 +18,7 @@ void SimClock::sleep_until(fw::Nanos t) {
     }
     return;
   }
-  const fw::Nanos target = t - offset_;
-  timespec ts{static_cast<time_t>(target / 1'000'000'000), static_cast<long>(target % 1'000'000'000)};
-  while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
-  }
+  sleep_until_monotonic_ns(t - offset_);
 }
 
 void SimClock::advance(fw::Nanos dt) {

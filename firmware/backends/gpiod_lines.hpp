@@ -11,6 +11,7 @@
 #include <memory>
 #include <string>
 
+#include "common/monotonic_time.hpp"
 #include "firmware/backends/factory.hpp"
 #include "firmware/device/gpio_lines.hpp"
 #include "firmware/device/laser.hpp"
@@ -57,6 +58,6 @@ class GpiodLaser final : public Laser {
 std::unique_ptr<Laser> open_gpiod_laser(const GpioLaserSpec& spec);
 
 // CLOCK_MONOTONIC now, in ns.
-Nanos monotonic_now();
+inline Nanos monotonic_now() { return fs::monotonic_ns(); }
 
 }  // namespace fs::fw

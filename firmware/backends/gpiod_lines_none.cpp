@@ -14,10 +14,4 @@ std::unique_ptr<Laser> open_gpiod_laser(const GpioLaserSpec& spec) {
   throw Error("GPIO chip '" + spec.chip + "': facetscan-fw was built without libgpiod (install libgpiod-dev)");
 }
 
-Nanos monotonic_now() {
-  timespec ts{};
-  ::clock_gettime(CLOCK_MONOTONIC, &ts);
-  return Nanos(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
-
 }  // namespace fs::fw

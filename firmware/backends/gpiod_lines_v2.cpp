@@ -295,10 +295,4 @@ std::unique_ptr<Laser> open_gpiod_laser(const GpioLaserSpec& spec) { return std:
 std::shared_ptr<GpiodLines> GpiodLines::open(const GpioSpec& spec) { return std::make_shared<GpiodLinesV2>(spec); }
 int GpiodLines::api_version() { return 2; }
 
-Nanos monotonic_now() {
-  timespec ts{};
-  ::clock_gettime(CLOCK_MONOTONIC, &ts);
-  return Nanos(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
-
 }  // namespace fs::fw

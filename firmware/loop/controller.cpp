@@ -1,10 +1,10 @@
 #include "firmware/loop/controller.hpp"
 
-#include <time.h>
-
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+
+#include "common/monotonic_time.hpp"
 
 namespace fs::fw {
 
@@ -21,11 +21,7 @@ const char* to_string(State s) {
 }
 
 namespace {
-Nanos cpu_now() {  // wall-clock stopwatch for extraction time (independent of a virtual loop clock)
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<Nanos>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
+Nanos cpu_now() { return monotonic_ns(); }  // wall-clock stopwatch for extraction time (not the loop clock)
 }  // namespace
 
 msg::LoopStats LoopReport::stats() const {

@@ -7,7 +7,6 @@
 #include <netinet/tcp.h>
 #include <poll.h>
 #include <sys/socket.h>
-#include <time.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -15,17 +14,14 @@
 #include <chrono>
 #include <cstring>
 
+#include "common/monotonic_time.hpp"
 #include "common/error.hpp"
 #include "common/host_port.hpp"
 
 namespace fs::fw {
 
 namespace {
-Nanos mono_now() {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<Nanos>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
+Nanos mono_now() { return monotonic_ns(); }
 }  // namespace
 
 void parse_host_port(const std::string& spec, std::string& host, std::uint16_t& port) {

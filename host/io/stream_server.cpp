@@ -6,12 +6,12 @@
 #include <netinet/tcp.h>
 #include <poll.h>
 #include <sys/socket.h>
-#include <time.h>
 #include <unistd.h>
 
 #include <cerrno>
 #include <cstring>
 
+#include "common/monotonic_time.hpp"
 #include "common/error.hpp"
 #include "common/host_port.hpp"
 
@@ -39,9 +39,7 @@ StreamServer::~StreamServer() {
 
 std::int64_t StreamServer::now() const {
   if (opt_.now_ns) return opt_.now_ns();
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return std::int64_t(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+  return monotonic_ns();
 }
 
 void StreamServer::start() {

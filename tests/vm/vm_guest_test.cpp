@@ -18,6 +18,7 @@
 
 #include "common/error.hpp"
 #include "common/messages.hpp"
+#include "firmware/loop/monotonic_clock.hpp"
 #include "firmware/backends/can_galvo.hpp"
 #include "firmware/backends/factory.hpp"
 #include "firmware/backends/gpiod_lines.hpp"
@@ -37,15 +38,7 @@ bool in_vm() { return std::getenv("FACETSCAN_VM") != nullptr; }
 #define REQUIRE_VM() \
   if (!in_vm()) GTEST_SKIP() << "runs only inside the test VM (tests/vm/run_vm.sh)"
 
-class MonotonicClock final : public fw::Clock {
- public:
-  Nanos now() override { return fw::monotonic_now(); }
-  void sleep_until(Nanos t) override {
-    timespec ts{static_cast<time_t>(t / 1'000'000'000), static_cast<long>(t % 1'000'000'000)};
-    while (::clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
-    }
-  }
-};
+using fw::MonotonicClock;
 
 std::string slurp(const stdfs::path& p) {
   std::ifstream in(p);

@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "common/messages.hpp"
+#include "firmware/loop/monotonic_clock.hpp"
 #include "firmware/backends/can_galvo.hpp"
 #include "firmware/backends/gpiod_lines.hpp"
 #include "firmware/backends/v4l2_camera.hpp"
@@ -34,15 +35,7 @@ namespace {
 using fw::Nanos;
 constexpr Nanos kMs = 1'000'000;
 
-class MonoClock final : public fw::Clock {
- public:
-  Nanos now() override { return fw::monotonic_now(); }
-  void sleep_until(Nanos t) override {
-    timespec ts{static_cast<time_t>(t / 1'000'000'000), static_cast<long>(t % 1'000'000'000)};
-    while (::clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
-    }
-  }
-};
+using fw::MonotonicClock;
 
 TEST(VmScan, DemoSceneThroughCanGalvoAndV4l2Loopback) {
   if (!std::getenv("FACETSCAN_VM")) GTEST_SKIP() << "runs only inside the test VM (tests/vm/run_vm.sh)";
@@ -52,7 +45,7 @@ TEST(VmScan, DemoSceneThroughCanGalvoAndV4l2Loopback) {
   ro.noise_scale = 0.0;
 
   // --- the scanner hardware ---
-  MonoClock clock;
+  MonotonicClock clock;
   constexpr canid_t m = CAN_SFF_MASK | CAN_EFF_FLAG | CAN_RTR_FLAG;
   const can_filter tf[] = {{0x000, m}, {0x601, m}, {0x201, m}};
   fw::CanPort twin_port = fw::CanPort::open_raw("vcan0", tf);
