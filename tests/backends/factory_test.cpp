@@ -7,18 +7,12 @@
 #include "firmware/backends/gpiod_lines.hpp"
 #include "hw-sim/can/cia402_twin.hpp"
 #include "test_clock.hpp"
+#include "support/error_of.hpp"
 
 namespace fs::test {
 namespace {
 
-std::string error_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const fs::Error& e) {
-    return e.what();
-  }
-  return "";
-}
+using fs::test::error_of;
 
 TEST(BackendSpecs, GpioByOffsetsAndNames) {
   auto g = fw::parse_gpio_spec("gpio:gpiochip1:step=0,dir=1,en=2,home=3,laser=4,home_active_low=1");

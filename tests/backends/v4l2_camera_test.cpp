@@ -4,6 +4,7 @@
 #include "common/error.hpp"
 #include "fake_v4l2.hpp"
 #include "firmware/backends/v4l2_camera.hpp"
+#include "support/error_of.hpp"
 
 namespace fs::test {
 namespace {
@@ -17,14 +18,7 @@ fw::V4l2Spec spec(fw::V4l2Fourcc f = fw::V4l2Fourcc::Grey, std::uint32_t w = 64,
   return s;
 }
 
-std::string error_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const fs::Error& e) {
-    return e.what();
-  }
-  return "";
-}
+using fs::test::error_of;
 
 void stripe(std::uint8_t* d, std::uint32_t stride, std::uint32_t h, std::uint32_t col) {
   for (std::uint32_t y = 0; y < h; ++y) {

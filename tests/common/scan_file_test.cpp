@@ -9,6 +9,7 @@
 #include "common/byte_io.hpp"
 #include "tmp_dir.hpp"
 #include "wire_samples.hpp"
+#include "support/error_of.hpp"
 
 namespace {
 
@@ -59,14 +60,7 @@ Counts read_scan(ScanFileReader& r) {
   return c;
 }
 
-std::string error_of(const std::function<void()>& fn) {
-  try {
-    fn();
-  } catch (const fs::Error& e) {
-    return e.what();
-  }
-  return "<no error>";
-}
+using fs::test::error_of;
 
 std::string read_error(const std::vector<std::uint8_t>& image) {
   return error_of([&] {

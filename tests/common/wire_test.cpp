@@ -10,6 +10,7 @@
 #include "common/byte_io.hpp"
 #include "common/crc32c.hpp"
 #include "wire_samples.hpp"
+#include "support/error_of.hpp"
 
 namespace {
 
@@ -46,14 +47,7 @@ wire::FrameView decode_one(wire::FrameDecoder& dec, std::span<const std::uint8_t
   return f;
 }
 
-std::string error_of(const std::function<void()>& fn) {
-  try {
-    fn();
-  } catch (const fs::Error& e) {
-    return e.what();
-  }
-  return "<no error>";
-}
+using fs::test::error_of;
 
 std::string decode_error(std::span<const std::uint8_t> bytes, bool finish = false) {
   return error_of([&] {
