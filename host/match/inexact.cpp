@@ -129,6 +129,22 @@ struct InexactMatcher::Impl {
   std::uint32_t gen = 0;
   std::vector<int> leaves;           // solution candidates
   std::vector<int> sorted;           // counting sort buffer of the leaves
+  // Kept complete solutions of the subset condition, contiguous (core sets and level copied out of the pool).
+  struct KeptCore {
+    NodeSet cr, cs;
+    int level, id;
+  };
+  std::vector<KeptCore> kept_cores;
+  // Inverted index of kept_cores by match pair (r * kMaxNodes + s): each list holds, in insertion (= level-
+  // descending) order, the kept complete solutions that contain the pair. A leaf can only be a subset of a
+  // solution in the list of each of its pairs, so it scans the shortest one. Entries live in a fixed array; when
+  // it is full the scan falls back to all of kept_cores (same answers).
+  struct PairEntry {
+    int next, kept;
+  };
+  std::vector<PairEntry> pair_entries;
+  std::vector<int> pair_head, pair_tail, pair_count;
+  std::vector<int> pair_touched;
   std::vector<HeapItem> topk;        // lazy top-k selection of the reported solutions
   std::vector<int> ranked;           // the reported solutions' states, best first
   std::vector<Solution> solutions;
@@ -158,6 +174,12 @@ struct InexactMatcher::Impl {
     mask = t - 1;
     leaves.reserve(cap);
     sorted.reserve(cap);
+    kept_cores.reserve(cap);
+    pair_entries.reserve(8 * cap);
+    pair_head.assign(static_cast<std::size_t>(kMaxNodes) * kMaxNodes, -1);
+    pair_tail.assign(static_cast<std::size_t>(kMaxNodes) * kMaxNodes, -1);
+    pair_count.assign(static_cast<std::size_t>(kMaxNodes) * kMaxNodes, 0);
+    pair_touched.reserve(static_cast<std::size_t>(kMaxNodes) * kMaxNodes);
     topk.reserve(cap);
     ranked.resize(static_cast<std::size_t>(limits.max_reported));
     solutions.resize(static_cast<std::size_t>(limits.max_reported));
@@ -682,26 +704,80 @@ struct InexactMatcher::Impl {
     }
     std::size_t n_complete = 0;
     while (n_complete < leaves.size() && pool[static_cast<std::size_t>(leaves[n_complete])].expanded) ++n_complete;
-    std::size_t kept = 0, kept_complete = 0;
+    // Each leaf is compared with the complete solutions kept so far that have a higher level (a subset has a
+    // lower level). Those are kept in level-descending order; the leaf scans the shortest pair list of the
+    // inverted index (or, when the index is full, all of kept_cores), filters by the core sets, and only the
+    // survivors walk the search tree. The answers are those of comparing it with every kept solution.
+    kept_cores.clear();
+    pair_entries.clear();
+    bool index_full = false;
+    auto pair_key = [](const State& y) {
+      return static_cast<std::size_t>(y.r) * kMaxNodes + static_cast<std::size_t>(y.s);
+    };
+    auto covered = [&](const State& a, const KeptCore& b) {
+      return a.cr.subset_of(b.cr) && a.cs.subset_of(b.cs) && subset(a, pool[static_cast<std::size_t>(b.id)]);
+    };
+    std::size_t kept = 0;
     for (std::size_t i = 0; i < leaves.size(); ++i) {
-      const State& a = pool[static_cast<std::size_t>(leaves[i])];
+      const int id = leaves[i];
+      const State& a = pool[static_cast<std::size_t>(id)];
       bool sub = false;
-      // Compare with the complete solutions kept so far (all of higher or equal level for complete a).
-      for (std::size_t k = 0; k < kept_complete && !sub; ++k) {
-        const State& b = pool[static_cast<std::size_t>(leaves[k])];
-        if (b.level <= a.level) {
-          if (i < n_complete) break;   // sorted: no larger complete solutions follow
-          continue;
+      if (index_full) {
+        for (const KeptCore& b : kept_cores) {
+          if (b.level <= a.level) break;
+          if (covered(a, b)) {
+            sub = true;
+            break;
+          }
         }
-        sub = subset(a, b);
+      } else {
+        int best = -1, best_count = std::numeric_limits<int>::max();
+        for (int q = id; q > 0 && best_count > 0; q = pool[static_cast<std::size_t>(q)].parent) {
+          const int k = static_cast<int>(pair_key(pool[static_cast<std::size_t>(q)]));
+          if (pair_count[static_cast<std::size_t>(k)] < best_count) best = k, best_count = pair_count[static_cast<std::size_t>(k)];
+        }
+        for (int e = best_count > 0 ? pair_head[static_cast<std::size_t>(best)] : -1; e >= 0;
+             e = pair_entries[static_cast<std::size_t>(e)].next) {
+          const KeptCore& b = kept_cores[static_cast<std::size_t>(pair_entries[static_cast<std::size_t>(e)].kept)];
+          if (b.level <= a.level) break;
+          if (covered(a, b)) {
+            sub = true;
+            break;
+          }
+        }
       }
       if (sub) {
         ++st.subset_removed;
         continue;
       }
-      leaves[kept++] = leaves[i];
-      if (i < n_complete) kept_complete = kept;
+      leaves[kept++] = id;
+      if (i >= n_complete) continue;
+      kept_cores.push_back(KeptCore{a.cr, a.cs, a.level, id});
+      if (index_full) continue;
+      if (pair_entries.size() + static_cast<std::size_t>(a.level) > pair_entries.capacity()) {
+        index_full = true;
+        continue;
+      }
+      const int kept_index = static_cast<int>(kept_cores.size()) - 1;
+      for (int q = id; q > 0; q = pool[static_cast<std::size_t>(q)].parent) {
+        const std::size_t k = pair_key(pool[static_cast<std::size_t>(q)]);
+        const int e = static_cast<int>(pair_entries.size());
+        pair_entries.push_back(PairEntry{-1, kept_index});
+        if (pair_head[k] < 0) {
+          pair_head[k] = e;
+          pair_touched.push_back(static_cast<int>(k));
+        } else {
+          pair_entries[static_cast<std::size_t>(pair_tail[k])].next = e;
+        }
+        pair_tail[k] = e;
+        ++pair_count[k];
+      }
     }
+    for (int k : pair_touched) {
+      pair_head[static_cast<std::size_t>(k)] = pair_tail[static_cast<std::size_t>(k)] = -1;
+      pair_count[static_cast<std::size_t>(k)] = 0;
+    }
+    pair_touched.clear();
     leaves.resize(kept);   // shrinking: no allocation
     st.solutions = static_cast<std::int64_t>(kept);
     // The best n by (cost, state number), as a full sort would give them: a min-heap over the keys, where a

@@ -3,7 +3,7 @@
 // positives, CPU time and the allocations of a warm recognize(), per scene category.
 //
 //   bench_recognition [--scenes N] [--seed S] [--categories single,separated,occluded,empty] [--steps 500]
-//                     [--noise 0.05] [--threads 1] [--alloc-every 1] [--verbose] [--candidates] [--only I] [--preset NAME] [--min-level N] [--solutions N] [--max-states N] [--area-ratio R]
+//                     [--noise 0.05] [--threads 1] [--alloc-every 1] [--verbose] [--candidates] [--only I] [--preset NAME] [--min-level N] [--solutions N] [--max-states N] [--area-ratio R] [--omega DEG]
 //
 // --alloc-every K: the allocation count is taken in every K-th round of the categories (all categories).
 //
@@ -68,7 +68,8 @@ struct Args {
   int min_level = 0;         // 0 = the recognizer's default
   int solutions = 0;         // solutions kept per model (0 = default)
   long max_states = 0;       // state budget of one match (0 = default)
-  double area_ratio = -1;    // match_area_ratio (< 0 = default, 0 = off)             // run just this scene index (same catalog and seed as in the full run)   // print every verified hypothesis of every scene (diagnostics)
+  double area_ratio = -1;    // match_area_ratio (< 0 = default, 0 = off)
+  double omega = -1;         // rigidity cone TH_omega in degrees (< 0 = the preset's)
 };
 
 Args parse_args(int argc, char** argv) {
@@ -93,6 +94,7 @@ Args parse_args(int argc, char** argv) {
     else if (k == "--solutions") a.solutions = std::stoi(value());
     else if (k == "--max-states") a.max_states = std::stol(value());
     else if (k == "--area-ratio") a.area_ratio = std::stod(value());
+    else if (k == "--omega") a.omega = std::stod(value());
     else if (k == "--categories") {
       a.categories.clear();
       std::string list = value();
@@ -128,6 +130,7 @@ int run(const Args& args) {
   if (args.solutions > 0) params.solutions_per_model = args.solutions;
   if (args.max_states > 0) params.max_states = args.max_states;
   if (args.area_ratio >= 0) params.match_area_ratio = args.area_ratio;
+  if (args.omega >= 0) params.match.th_omega_deg = args.omega;
   const std::size_t cells =
       static_cast<std::size_t>(args.steps) * fs::ScannerCalibration::bench_default().camera.height;
   fs::host::rec::Recognizer recognizer(library, params, cells);
