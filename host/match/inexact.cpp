@@ -674,6 +674,19 @@ struct InexactMatcher::Impl {
     return ok;
   }
 
+  // Area share of the real scene faces adjacent to x's matched scene faces that x leaves unmatched (zeta).
+  double unexplained(const State& x) const {
+    NodeSet around;
+    double matched = 0.0;
+    x.cs.for_each([&](int i) {
+      around = around | S->adj[static_cast<std::size_t>(i)];
+      matched += S->area[static_cast<std::size_t>(i)];
+    });
+    double open = 0.0;
+    (around & S->real).minus(x.cs).for_each([&](int i) { open += S->area[static_cast<std::size_t>(i)]; });
+    return open + matched > 0.0 ? open / (open + matched) : 0.0;
+  }
+
   void collect(MatchStats& st) {
     const MatchParams& p = *P;
     leaves.clear();
@@ -784,8 +797,11 @@ struct InexactMatcher::Impl {
     // lazily created state's key is its cost lower bound until it reaches the top and is fitted.
     const std::size_t n = std::min(kept, solutions.size());
     auto later = [](const HeapItem& a, const HeapItem& b) { return a.cost > b.cost || (a.cost == b.cost && a.id > b.id); };
+    // Ranking key: cost (+ zeta * unexplained neighbour area, which does not depend on the fit, so a lower bound
+    // of the cost plus it is a lower bound of the key).
+    auto key = [&](const State& x) { return p.zeta > 0 ? x.cost + p.zeta * unexplained(x) : x.cost; };
     topk.clear();
-    for (int id : leaves) topk.push_back(HeapItem{pool[static_cast<std::size_t>(id)].cost, 0, id});
+    for (int id : leaves) topk.push_back(HeapItem{key(pool[static_cast<std::size_t>(id)]), 0, id});
     std::make_heap(topk.begin(), topk.end(), later);
     std::size_t got = 0;
     while (got < n) {
@@ -795,7 +811,7 @@ struct InexactMatcher::Impl {
       State& x = pool[static_cast<std::size_t>(id)];
       if (!x.fitted) {
         finish(id);
-        topk.push_back(HeapItem{x.cost, 0, id});
+        topk.push_back(HeapItem{key(x), 0, id});
         std::push_heap(topk.begin(), topk.end(), later);
         continue;
       }
@@ -827,6 +843,7 @@ struct InexactMatcher::Impl {
       sol.rotfit_error = x.rotfit;
       sol.rotation = fitdata[static_cast<std::size_t>(ranked[k])].R;
       sol.cost = x.cost;
+      sol.unexplained = unexplained(x);
       sol.complete = x.expanded;
       sol.partial = x.level < p.th_minlevel;
       sol.degenerate = x.degenerate;
@@ -877,6 +894,7 @@ OwnedSolution to_owned(const Solution& s) {
   o.rotfit_error = s.rotfit_error;
   o.rotation = s.rotation;
   o.cost = s.cost;
+  o.unexplained = s.unexplained;
   o.complete = s.complete;
   o.partial = s.partial;
   o.degenerate = s.degenerate;

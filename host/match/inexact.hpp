@@ -46,6 +46,7 @@ struct Solution {
   double rotfit_error = 0.0;           // e_rotfit = sum gamma |R r - s|^2 / (2 sum gamma)
   Mat3 rotation = Mat3::Identity();    // x_scene = rotation * x_ref (directions)
   double cost = 0.0;
+  double unexplained = 0.0;            // U: unmatched neighbour area share (params.hpp: zeta); ranked by cost + zeta U
   bool complete = true;                // false: unexpanded state collected after a global stop (7.7.3)
   bool partial = false;                // level < TH_minlevel (reported only with keep_partial)
   bool degenerate = false;             // matched reference normals all parallel: rotation free about that axis
@@ -113,7 +114,7 @@ struct OwnedSolution {
   int level = 0, arcs_matched = 0, arcs_inserted = 0, arcs_deleted = 0;
   double node_diss = 0, arc_attr_diss = 0, arc_struct_diss = 0, rotfit_error = 0;
   Mat3 rotation = Mat3::Identity();
-  double cost = 0;
+  double cost = 0, unexplained = 0;
   bool complete = true, partial = false, degenerate = false;
 };
 OwnedSolution to_owned(const Solution& s);

@@ -37,7 +37,9 @@ MatchParams base(const char* name, double alpha, double beta, double gamma, doub
 
 std::string_view condition_name(Condition c) { return kNames[static_cast<std::size_t>(c)]; }
 
-std::vector<std::string> preset_names() { return {"t7.19", "t7.28", "t7.30", "t7.32", "t7.34", "t7.41", "t9.3", "fast"}; }
+std::vector<std::string> preset_names() {
+  return {"t7.19", "t7.28", "t7.30", "t7.32", "t7.34", "t7.41", "t9.3", "fast", "scan"};
+}
 
 MatchParams preset(std::string_view name) {
   if (name == "t7.19" || name == "corner") return base("t7.19", 5e-2, 4e-2, 1e-2, 1e-2, 0.9, 20, 2, 1, kInf);
@@ -59,9 +61,17 @@ MatchParams preset(std::string_view name) {
     p.max_states = 5000;
     return p;
   }
+  if (name == "scan") {
+    // t7.34 (all attributes) with solutions ranked by cost + zeta * unexplained neighbour area (params.hpp), and
+    // a rotation-fit threshold for scanned normals (a few degrees of error): e_rotfit <= 0.01, i.e. matched
+    // normals off by ~8 deg on average at most (t7.34: 1, no limit).
+    MatchParams p = base("scan", 5e-2, 4e-2, 1e-2, 1e-2, 0.9, 20, 2, 1, 0.005);
+    p.zeta = 0.1;
+    return p;
+  }
   if (name == "t9.3") return base("t9.3", 0.0, 0.0, 1e-2, 1e-2, 0.8, 20, 6, 0.1, 1);
   throw Error("unknown match parameter preset '" + std::string(name) + "' (known: t7.19 t7.28 t7.30 t7.32 t7.34 "
-              "t7.41 t9.3 fast default)");
+              "t7.41 t9.3 fast scan default)");
 }
 
 MatchParams params_from_json(const nlohmann::json& j, const std::string& source) {
@@ -113,6 +123,7 @@ MatchParams params_from_json(const nlohmann::json& j, const std::string& source)
     else if (k == "th_arcatt") p.th_arcatt = num(v, k);
     else if (k == "th_rotfit") p.th_rotfit = num(v, k);
     else if (k == "degenerate_deg") p.degenerate_deg = nonneg(v, k);
+    else if (k == "zeta") p.zeta = nonneg(v, k);
     else if (k == "max_solutions") p.max_solutions = integer(v, k, 1, std::numeric_limits<std::int64_t>::max());
     else if (k == "max_states") p.max_states = integer(v, k, 1, std::numeric_limits<std::int64_t>::max());
     else if (k == "max_time_ms") p.max_time_ms = nonneg(v, k);

@@ -35,6 +35,7 @@ std::string format_result(const MatchResult& r, std::string_view prefix, std::si
       out += fmt::format("  {:7.3f} {:7.3f} {:7.3f}{}\n", s.rotation(i, 0), s.rotation(i, 1), s.rotation(i, 2),
                          i == 0 ? " ; R matrix" : "");
     out += fmt::format("  {:>12.5E} ; cost\n", s.cost);
+    out += fmt::format("  {:>12.5E} ; unexplained neighbour area share\n", s.unexplained);
     bool first = true;
     for (const NodeMatch& m : s.matches) {
       out += fmt::format("  {:>5} {:>5} sce / ref{}\n", m.scene, m.ref, first ? " ; matches" : "");
@@ -83,6 +84,7 @@ nlohmann::json result_json(const MatchResult& r, std::string_view prefix, std::s
                     {"rotfit_error", s.rotfit_error},
                     {"rotation", rot},
                     {"cost", s.cost},
+                    {"unexplained", s.unexplained},
                     {"matches", m},
                     {"complete", s.complete},
                     {"partial", s.partial},

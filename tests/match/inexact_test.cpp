@@ -121,16 +121,16 @@ TEST(Inexact, RigidViewsCorrectFirst) {
 }
 
 // Scan-like perturbations (normals +-3 deg, areas +-15 %, a split face, a spurious face, a missing arc).
-// The cube and the truncated pyramid must always come out right. Johnson solids with congruent face
-// configurations (cupolas: squares and triangles meeting at equal angles) are genuinely ambiguous in a small
-// perturbed view: the thesis cost (normalized per level) does not prefer the larger correct match over a
-// wrong 3-face match once the split face raises its cost; those cases are counted and must stay a minority.
-TEST(Inexact, PerturbedViewsCorrectFirst) {
-  std::mt19937 rng(23);
-  InexactMatcher m;
-  const MatchParams p = preset(std::getenv("FS_PRESET") ? std::getenv("FS_PRESET") : "t7.34");
+// Runs the same perturbed views under a preset and returns how many have solution 1 correct (up to symmetry,
+// rotation error < 5 deg); the names of the wrong ones and the cost ratios are appended to the strings.
+struct PerturbedRun {
   int checked = 0, correct = 0;
-  std::string ratios, wrong;
+  std::string wrong, ratios;
+};
+PerturbedRun run_perturbed(const MatchParams& p, unsigned seed) {
+  std::mt19937 rng(seed);
+  InexactMatcher m;
+  PerturbedRun out;
   for (const auto& c : test_objects()) {
     const bool must = c.name == "cube" || c.name == "pyram2";
     for (const Mat3& R : views_of(c.model, 3, rng)) {
@@ -139,24 +139,48 @@ TEST(Inexact, PerturbedViewsCorrectFirst) {
       const int split = fs::test::perturb(scene, fs::test::Perturbation{}, rng);
       std::map<int, int> orig{{2000, split}, {2001, split}, {3000, -1}};
       const MatchResult& r = m.match(scene, c.model, p);
-      ++checked;
-      ASSERT_FALSE(r.solutions.empty()) << c.name;
-      const auto v = fs::test::judge(c.model, R, r.solutions[0], orig);
-      const bool ok = v.equivalent && v.rotation_error_deg < 5.0;
-      if (ok) {
-        ++correct;
-      } else {
-        wrong += c.name + " ";
-        EXPECT_FALSE(must) << c.name << ": solution 1 not correct\n" << format_result(r, c.name, 2);
+      ++out.checked;
+      if (r.solutions.empty()) {
+        out.wrong += c.name + "(none) ";
+        continue;
       }
-      ratios += c.name + "=" + std::to_string(r.stats.cost_ratio) + " ";
+      const auto v = fs::test::judge(c.model, R, r.solutions[0], orig);
+      if (v.equivalent && v.rotation_error_deg < 5.0) {
+        ++out.correct;
+      } else {
+        out.wrong += c.name + " ";
+        EXPECT_FALSE(must) << p.name << " " << c.name << ": solution 1 not correct\n" << format_result(r, c.name, 2);
+      }
+      out.ratios += c.name + "=" + std::to_string(r.stats.cost_ratio) + " ";
     }
   }
-  std::printf("perturbed views: %d of %d correct first; wrong: %s\ncost ratio solution 2 / solution 1: %s\n",
-              correct, checked, wrong.c_str(), ratios.c_str());
-  RecordProperty("cost_ratios", ratios);
-  EXPECT_GE(correct * 4, checked * 3);   // at least 75 %
-  EXPECT_GE(checked, 20);
+  return out;
+}
+
+// With the thesis ranking (t7.34: by cost, which is normalized per level), Johnson solids with congruent face
+// configurations (cupolas: squares and triangles meeting at equal angles) often put a small wrong 3-face match
+// of an ambiguous part of the view first once the split face raises the correct match's cost, or a wrong large
+// match whose rotation fit is poor. The `scan` preset (params.cpp: solutions ranked by cost + zeta * unexplained
+// neighbour area, rotation-fit increments <= 0.005) fixes most of them. Nine seeds of views: the cube and the
+// truncated pyramid must always come out right; the share of correct first solutions is reported and bounded.
+TEST(Inexact, PerturbedViewsCorrectFirst) {
+  PerturbedRun thesis, scan;
+  for (unsigned seed : {23u, 1u, 2u, 3u, 4u, 5u, 6u, 7u, 8u}) {
+    const PerturbedRun t = run_perturbed(preset("t7.34"), seed);
+    const PerturbedRun s = run_perturbed(preset("scan"), seed);
+    EXPECT_EQ(s.checked, t.checked);
+    thesis.checked += t.checked, thesis.correct += t.correct, thesis.wrong += t.wrong;
+    scan.checked += s.checked, scan.correct += s.correct, scan.wrong += s.wrong;
+    if (seed == 23u) thesis.ratios = t.ratios;
+  }
+  std::printf("perturbed views, t7.34: %d of %d correct first; wrong: %s\ncost ratio solution 2 / solution 1 "
+              "(seed 23): %s\n", thesis.correct, thesis.checked, thesis.wrong.c_str(), thesis.ratios.c_str());
+  std::printf("perturbed views, scan: %d of %d correct first; wrong: %s\n", scan.correct, scan.checked,
+              scan.wrong.c_str());
+  RecordProperty("cost_ratios", thesis.ratios);
+  EXPECT_GE(thesis.checked, 200);
+  EXPECT_GE(scan.correct * 100, scan.checked * 95) << "wrong first under scan: " << scan.wrong;   // >= 95 %
+  EXPECT_GE(scan.correct - thesis.correct, thesis.checked / 5);   // the ranking fixes >= 20 % of the views
 }
 
 Pfrg pyram2_scene(std::mt19937& rng, Mat3& R) {
@@ -468,6 +492,53 @@ TEST(Inexact, AreaRatioConditionRemovesScenesLargerThanTheReference) {
   // It round-trips through the parameter JSON.
   const MatchParams q = params_from_json(nlohmann::json{{"preset", "t9.3"}, {"th_area_ratio", 1.25}}, "test");
   EXPECT_DOUBLE_EQ(q.th_area_ratio, 1.25);
+}
+
+}  // namespace
+
+namespace {
+
+// Solution ranking by cost + zeta * U (beyond the thesis). U of a solution = area of the unmatched real scene
+// faces adjacent to its matched faces / (that + matched area). The cube's corner view with one extra face
+// attached to the top (an occluder's face): the complete corner solution leaves that face unexplained, so U is
+// its share of the area; the search, the state count and the costs do not depend on zeta, only the order does.
+TEST(Inexact, UnexplainedNeighbourAreaRanksSolutions) {
+  const Pfrg cube = fs::test::mesh_pfrg(fs::test::box(100, 100, 100));
+  Pfrg scene;
+  scene.name = "corner+1";
+  for (int id : {1, 3, 4}) scene.nodes.push_back(*cube.find(id));   // top, +x, +y: areas 10000
+  fs::host::PfrgNode extra;
+  extra.id = 7;
+  extra.area = 2500.0;
+  extra.normal = Vec3(0, 0, 1);   // parallel to the top: no cube face can take it next to the corner
+  scene.nodes.push_back(extra);
+  fs::host::PfrgNode sn;
+  sn.id = 99;
+  sn.supernode = true;
+  scene.nodes.push_back(sn);
+  scene.arcs = {{1, 3, 100}, {1, 4, 100}, {3, 4, 100}, {1, 7, 50}, {1, 99, 200}, {3, 99, 200}, {4, 99, 200}, {7, 99, 100}};
+  InexactMatcher m;
+  MatchParams p = preset("t7.34");
+  const MatchResult& r0 = m.match(scene, cube, p);
+  ASSERT_FALSE(r0.solutions.empty());
+  const std::int64_t states = r0.stats.states_created;
+  const Solution s0 = r0.solutions[0];
+  EXPECT_EQ(s0.level, 3);
+  EXPECT_NEAR(s0.unexplained, 2500.0 / (2500.0 + 30000.0), 1e-12);
+  const double cost0 = s0.cost;
+  p.zeta = 0.5;
+  const MatchResult& r1 = m.match(scene, cube, p);
+  EXPECT_EQ(r1.stats.states_created, states);
+  ASSERT_FALSE(r1.solutions.empty());
+  EXPECT_DOUBLE_EQ(r1.solutions[0].cost, cost0);
+  // Ranked by the key: non-decreasing cost + zeta U.
+  for (std::size_t k = 1; k < r1.solutions.size(); ++k)
+    EXPECT_LE(r1.solutions[k - 1].cost + p.zeta * r1.solutions[k - 1].unexplained,
+              r1.solutions[k].cost + p.zeta * r1.solutions[k].unexplained + 1e-15);
+  const MatchParams q = params_from_json(nlohmann::json{{"preset", "t7.34"}, {"zeta", 0.25}}, "test");
+  EXPECT_DOUBLE_EQ(q.zeta, 0.25);
+  EXPECT_DOUBLE_EQ(preset("scan").zeta, 0.1);
+  EXPECT_THROW(params_from_json(nlohmann::json{{"zeta", -1}}, "test"), fs::Error);
 }
 
 }  // namespace
