@@ -38,6 +38,7 @@ struct RecognizeOptions {
   std::string summary_csv;
   std::string summary_json;
   double min_confidence = -1.0;
+  long long max_solutions = -1;
   double scale = 0.0;
   int threads = 0;
   bool quiet = false;
@@ -83,6 +84,7 @@ void run_recognize(const RecognizeOptions& o) {
   params.match = match::read_params(o.params);
   params.threads = o.threads;
   if (o.min_confidence >= 0) params.min_confidence = o.min_confidence;
+  if (o.max_solutions >= 0) params.max_solutions = o.max_solutions;
 
   // One recognizer per segmentation profile, sized by the largest input (warm for every further scan).
   std::unique_ptr<rec::Recognizer> recognizer;
@@ -202,6 +204,9 @@ void add_recognize_commands(CLI::App& app) {
       ->check(CLI::Range(0.0, 1.0));
   rc->add_option("--scale", o->scale, "PCD/PLY: millimetres per file unit (default: auto)");
   rc->add_option("--threads", o->threads, "Matching threads (0 = all cores)");
+  rc->add_option("--max-solutions", o->max_solutions,
+                 "Stop each search after N solutions (TH_solutions; default 1, 0 = the match parameters' own)")
+      ->check(CLI::NonNegativeNumber);
   rc->add_option("--summary-csv", o->summary_csv, "Batch: summary table as CSV");
   rc->add_option("--summary-json", o->summary_json, "Batch: summary as JSON");
   rc->add_flag("-q,--quiet", o->quiet, "No table, no progress bar");

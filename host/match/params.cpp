@@ -127,7 +127,10 @@ MatchParams params_from_json(const nlohmann::json& j, const std::string& source)
     else if (k == "max_solutions") p.max_solutions = integer(v, k, 1, std::numeric_limits<std::int64_t>::max());
     else if (k == "max_states") p.max_states = integer(v, k, 1, std::numeric_limits<std::int64_t>::max());
     else if (k == "max_time_ms") p.max_time_ms = nonneg(v, k);
-    else if (k == "keep_partial") {
+    else if (k == "rigidity_pairs") {
+      if (!v.is_boolean()) throw Error(source + ": rigidity_pairs: expected true or false");
+      p.rigidity_pairs = v.get<bool>();
+    } else if (k == "keep_partial") {
       if (!v.is_boolean()) throw Error(source + ": keep_partial: expected true or false");
       p.keep_partial = v.get<bool>();
     } else if (k == "conditions") {

@@ -44,6 +44,11 @@ struct MatchParams {
   double epsilon = 0.9;    // rotation fitting error
   // Thresholds (7.3).
   double th_omega_deg = 20.0;        // rigidity cone opening
+  // Rigidity from level-1 parents too (beyond the thesis, which predicts normals from level >= 2 parents): a
+  // rotation taking the parent's reference normal r0 onto its scene normal s0 can bring a candidate's r within
+  // TH_omega of its s only when |angle(r0, r) - angle(s0, s)| <= TH_omega, so other level-2 candidates are
+  // removed (counted under rigidity). Off in the thesis presets.
+  bool rigidity_pairs = false;
   double th_visibility_deg = 100.0;  // max angle between a rotated reference normal and the observer (90 + eps)
   int th_maxlevel = std::numeric_limits<int>::max();
   int th_minlevel = 3;

@@ -123,6 +123,68 @@ int merge_compatible(const HypothesisContext& c, std::span<Hypothesis> hyps, std
   return merges;
 }
 
+int single_face_hypotheses(const Library& library, const PfrgNode& face, const Plane& table,
+                           const SingleFaceParams& p, std::span<Hypothesis> out) {
+  if (face.supernode || !face.has_plane) return 0;
+  const Vec3 ns = face.normal;
+  const Vec3 down = -table.n;
+  const Vec3 axis = ns.cross(table.n);
+  if (axis.norm() < std::sin(p.min_tilt_deg * M_PI / 180.0)) return 0;
+  const Vec3 u = axis.normalized();
+  const double scene_angle = std::acos(std::clamp(ns.dot(down), -1.0, 1.0));
+  const double tol = p.angle_tol_deg * M_PI / 180.0;
+  // Target frame of the triad: scene normal, then the common direction of the scene face and the table.
+  const Vec3 b2 = ns.cross(down).normalized();
+  Mat3 B;
+  B << ns, b2, ns.cross(b2);
+  Mat3 M;
+  M.row(0) = ns.transpose();
+  M.row(1) = table.n.transpose();
+  M.row(2) = u.transpose();
+  const Mat3 Minv = M.inverse();
+  int written = 0;
+  for (std::size_t mi = 0; mi < library.models.size(); ++mi) {
+    const Model& model = library.models[mi];
+    for (std::size_t fi = 0; fi < model.faces.size(); ++fi) {
+      const ModelFace& f = model.faces[fi];
+      if (face.area < p.min_area_ratio * f.area || face.area > p.area_ratio * f.area + p.area_slack_mm2) continue;
+      for (std::size_t gi = 0; gi < model.faces.size(); ++gi) {
+        if (gi == fi) continue;
+        const ModelFace& g = model.faces[gi];
+        const double angle = std::acos(std::clamp(f.normal.dot(g.normal), -1.0, 1.0));
+        if (std::abs(angle - scene_angle) > tol) continue;
+        if (written >= static_cast<int>(out.size())) return written;
+        const Vec3 a2 = f.normal.cross(g.normal).normalized();
+        Mat3 A;
+        A << f.normal, a2, f.normal.cross(a2);
+        const Mat3 R = B * A.transpose();
+        // n_s . t = d_s - off_f (matched plane), n_table . t = d_table + off_g (g on the table),
+        // u . t = u . (c_s - R c_f) (the face's centroid along the common line).
+        const Vec3 rhs(face.offset - f.offset, table.d + g.offset, u.dot(face.centroid - R * f.centroid));
+        Hypothesis& h = out[static_cast<std::size_t>(written++)];
+        h.model = static_cast<int>(mi);
+        h.rank = 0;
+        h.path.clear();
+        h.matches.clear();
+        h.matches.push_back(FaceMatch{face.id, static_cast<int>(fi), false});
+        h.level = 1;
+        h.R = R;
+        h.t = Minv * rhs;
+        h.free_dims = 0;
+        h.free_dir = Vec3::Zero();
+        h.cost = 0.0;
+        h.rotfit_error = 0.0;
+        h.degenerate = false;
+        h.merged = false;
+        h.instance = 0;
+        h.verify = VerifyResult{};
+        h.inlier_cells.clear();
+      }
+    }
+  }
+  return written;
+}
+
 double prescore(const HypothesisContext& c, const Hypothesis& h) {
   const Model& model = c.library.models[static_cast<std::size_t>(h.model)];
   double predicted = 0.0, explained = 0.0, penalty = 1.0;

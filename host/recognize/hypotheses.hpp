@@ -31,6 +31,24 @@ int expand(const HypothesisContext& c, Hypothesis& h, std::vector<PlanePair>& sc
 int merge_compatible(const HypothesisContext& c, std::span<Hypothesis> hyps, std::vector<char>& alive,
                      std::vector<PlanePair>& scratch);
 
+// Beyond the thesis: pose hypotheses for a scene face that borders no other scene face (an object that shows a
+// single face, e.g. a pyramid lying on a side with only its base turned up). Such an object rests on the table
+// on one of its faces g: matching a model face f to the scene face and g to the table gives two normal pairs,
+// hence the rotation (when the angle between f and g equals the angle between the scene face and the table's
+// downward normal, within angle_tol_deg); the two planes and the scene face's centroid along their common line
+// give the translation. Faces within min_tilt_deg of the table's orientation (the pose about the vertical is
+// then open) and model faces with area_s < min_area_ratio * area_f or area_s > area_ratio * area_f + slack are
+// skipped. Writes at most out.size() hypotheses (model, one match, R, t) and returns how many.
+struct SingleFaceParams {
+  double angle_tol_deg = 2.0;
+  double min_tilt_deg = 10.0;
+  double min_area_ratio = 0.7;
+  double area_ratio = 1.3;
+  double area_slack_mm2 = 30.0;
+};
+int single_face_hypotheses(const Library& library, const PfrgNode& face, const Plane& table,
+                           const SingleFaceParams& p, std::span<Hypothesis> out);
+
 // Geometric plausibility of a hypothesis before the (costly) low-level verification, in [0, 1]: the share of
 // the model's predicted visible area (front faces, weighted down toward grazing view) that matched scene faces
 // explain, times a penalty for every matched scene face larger than its model face (a face cannot be seen

@@ -102,6 +102,7 @@ struct Recognizer::Impl {
   const Pfrg* scene = nullptr;
   const Library* library = nullptr;
   match::MatchParams mparams;
+  match::MatchParams mparams_small;   // parts with fewer faces than mparams.th_minlevel (TH_minlevel lowered)
   // Verification context.
   SampleSet coarse, fine;
   bool refine_phase = false;
@@ -113,6 +114,8 @@ struct Recognizer::Impl {
   // Connected parts of the scene graph (supernode arcs do not connect), each with >= min_level faces; the
   // matcher searches each on its own. parts[k] holds the supernode(s) and the part's faces and arcs.
   std::vector<Pfrg> parts;
+  std::vector<int> part_faces;  // real faces of parts[k]
+  std::vector<int> lone_faces;  // indices into the scene's nodes of faces that border no other face
   std::size_t nparts = 0;
   std::vector<int> uf;          // union-find parent by node id
   std::vector<int> part_of;     // node id -> part index (-1)
@@ -152,6 +155,10 @@ struct Recognizer::Impl {
       observer = sum.norm() > 1e-12 ? Vec3(sum.normalized()) : Vec3(Vec3::UnitZ());
     }
     nparts = 0;
+    lone_faces.clear();
+    for (std::size_t i = 0; i < g.nodes.size(); ++i)
+      if (!g.nodes[i].supernode && comp_size[static_cast<std::size_t>(find(g.nodes[i].id))] == 1)
+        lone_faces.push_back(static_cast<int>(i));
     for (const auto& n : g.nodes) {
       if (n.supernode) continue;
       const int root = find(n.id);
@@ -160,6 +167,7 @@ struct Recognizer::Impl {
       if (p < 0) {
         if (nparts < kMaxParts) {
           p = static_cast<int>(nparts++);
+          part_faces[static_cast<std::size_t>(p)] = 0;
           Pfrg& part = parts[static_cast<std::size_t>(p)];
           part.nodes.clear();
           part.arcs.clear();
@@ -174,6 +182,7 @@ struct Recognizer::Impl {
       }
       part_of[static_cast<std::size_t>(n.id)] = p;
       parts[static_cast<std::size_t>(p)].nodes.push_back(n);
+      ++part_faces[static_cast<std::size_t>(p)];
     }
     for (const auto& a : g.arcs) {
       const bool sa = is_super(a.a), sb = is_super(a.b);
@@ -237,12 +246,14 @@ Recognizer::Recognizer(const Library& library, const RecognizeParams& params, st
   impl_->coarse.reserve(max_cells);
   impl_->fine.reserve(max_cells);
   impl_->parts.resize(Impl::kMaxParts);
+  impl_->part_faces.resize(Impl::kMaxParts);
   for (Pfrg& part : impl_->parts) {
     part.nodes.reserve(256);
     part.arcs.reserve(2048);
     part.name.reserve(64);
   }
   impl_->uf.reserve(8192);
+  impl_->lone_faces.reserve(8192);
   impl_->part_of.reserve(8192);
   impl_->comp_size.reserve(8192);
   // Fine samples of a grid of max_cells cells: at most ceil(h/s) * ceil(w/s) <= cells/s^2 + cells/s + 1.
@@ -310,11 +321,20 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
   im.mparams = params_.match;
   im.mparams.max_states = std::min<std::int64_t>(params_.match.max_states, params_.max_states);
   im.mparams.th_minlevel = params_.min_level;
+  if (params_.max_solutions > 0) im.mparams.max_solutions = params_.max_solutions;
+  if (params_.rigidity_pairs) im.mparams.rigidity_pairs = true;
+  if (params_.rigidity_deg > 0) im.mparams.th_omega_deg = params_.rigidity_deg;
   if (params_.match_area_ratio > 0) {
     im.mparams.th_area_ratio = params_.match_area_ratio;
     im.mparams.th_area_slack_mm2 = params_.match_area_slack_mm2;
   }
-  im.split_components(scene_, params_.min_level);
+  im.mparams_small = im.mparams;
+  int min_part = params_.min_level;
+  if (params_.small_part_min_level > 0 && params_.small_part_min_level < params_.min_level) {
+    min_part = params_.small_part_min_level;
+    im.mparams_small.th_minlevel = params_.small_part_min_level;
+  }
+  im.split_components(scene_, min_part);
   out.stats.components = static_cast<int>(im.nparts);
   for (ModelSlots& ms : im.per_model) ms.count = 0, ms.states = 0;   // no part: no solution (not last scan's)
   im.pool.run(im.nparts == 0 ? 0 : library_.models.size(),
@@ -328,8 +348,9 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
                 // it lies in one part); the model's solution slots are shared out evenly among the parts.
                 const int per_part = static_cast<int>((ms.slots.size() + m.nparts - 1) / m.nparts);
                 for (std::size_t part = 0; part < m.nparts; ++part) {
+                const bool small = m.part_faces[part] < m.mparams.th_minlevel;
                 const match::MatchResult& r = m.matchers[static_cast<std::size_t>(worker)]->match(
-                    m.parts[part], model.graph, m.mparams);
+                    m.parts[part], model.graph, small ? m.mparams_small : m.mparams);
                 ms.states += r.stats.states_created;
                 int taken = 0;
                 for (const match::Solution& s : r.solutions) {
@@ -389,6 +410,25 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
   }
   im.alive.assign(im.nhyp, 1);
   out.stats.merged = merge_compatible(hc, std::span<Hypothesis>(im.hyps.data(), im.nhyp), im.alive, im.pairs);
+  // Faces that border no other face: single-face hypotheses (model face on it, another model face on the table).
+  if (params_.single_face_min_area_mm2 > 0 && im.have_table) {
+    SingleFaceParams sp;
+    if (params_.match_area_ratio > 0) {
+      sp.area_ratio = params_.match_area_ratio;
+      sp.area_slack_mm2 = params_.match_area_slack_mm2;
+    }
+    for (int idx : im.lone_faces) {
+      const PfrgNode& face = scene_.nodes[static_cast<std::size_t>(idx)];
+      if (face.area < params_.single_face_min_area_mm2) continue;
+      const std::size_t room = std::min(im.hyps.size() - im.nhyp, static_cast<std::size_t>(std::max(params_.single_face_max, 0)));
+      const int n = single_face_hypotheses(library_, face, im.table, sp,
+                                           std::span<Hypothesis>(im.hyps.data() + im.nhyp, room));
+      im.nhyp += static_cast<std::size_t>(n);
+      out.stats.single_face += n;
+    }
+    im.alive.resize(im.nhyp, 1);
+    out.stats.hypotheses = static_cast<int>(im.nhyp);
+  }
 
   // 4. Low-level verification of the most plausible hypotheses (prescore, then matching cost), in parallel.
   im.order.clear();

@@ -33,6 +33,21 @@ struct RecognizeParams {
   VerifyParams verify;
   int solutions_per_model = 32;       // best solutions of each reference kept as hypotheses (ranked by prescore)
   std::int64_t max_states = 20000;    // state budget of one match
+  // TH_solutions of one match (ch. 7.4's "solutions found" stop; the thesis runs t9.3 to exhaustion). A search
+  // of a symmetric model otherwise spends its budget on symmetry-equivalent solutions and their sub-matches,
+  // and the solutions kept are then picked from thousands of incomplete states. Stopping at the first solution
+  // (which keeps the open states of level >= TH_minlevel as incomplete solutions, ch. 7.7.3) was measured the
+  // most accurate and 3-5x faster on the 200-scene benchmark (README, "Recognition benchmark"). Overrides the
+  // match parameters' TH_solutions; 0 = keep theirs.
+  std::int64_t max_solutions = 1;
+  // Rigidity from level-1 parents (match::MatchParams::rigidity_pairs): the angle between two matched normals is
+  // the same in the scene and the reference. Overrides the match parameters' switch when set.
+  bool rigidity_pairs = true;
+  // TH_omega of the rigidity condition for a laser scan's normals (segmentation normals err by < 1 deg at the bench
+  // scanner's noise; t9.3's 20 deg dates from 1990s range data). Measured on the 200-scene benchmark: same recall at
+  // 4x the depth noise, 2-3x less matching time than 20 deg. Overrides the match parameters' th_omega_deg; <= 0 =
+  // keep theirs.
+  double rigidity_deg = 5.0;
   // The table (support plane) is absorbed into the supernode before matching.
   bool remove_table = true;
   double table_angle_deg = 8.0;
@@ -66,6 +81,16 @@ struct RecognizeParams {
   double match_area_ratio = 1.3;
   double match_area_slack_mm2 = 30.0;
   int min_level = 3;                  // faces a search solution must match (TH_minlevel, as in the thesis)
+  // Beyond the thesis: a connected part of the scene graph with fewer faces than min_level but at least this
+  // many (a tetrahedron or pyramid showing two faces) is searched with TH_minlevel = its face count; its
+  // solutions then carry the rotation of two non-parallel planes and go through the same verification.
+  // 0 = such parts are not searched (the thesis).
+  int small_part_min_level = 2;
+  // Beyond the thesis: a scene face that borders no other scene face (an object showing one face) gets
+  // single-face hypotheses (hypotheses.hpp: single_face_hypotheses; needs the table). Lone faces smaller than
+  // single_face_min_area_mm2 are ignored; <= 0 = off. At most single_face_max hypotheses per face.
+  double single_face_min_area_mm2 = 300.0;
+  int single_face_max = 384;
   int threads = 0;                    // matching threads (0 = all cores)
 };
 
@@ -105,6 +130,7 @@ struct RecognizeStats {
   int references = 0;
   std::int64_t states = 0;            // search states over all references
   int hypotheses = 0, merged = 0, expanded_faces = 0, rejected = 0, incompatible_pairs = 0;
+  int single_face = 0;                // hypotheses of faces that border no other face (in hypotheses)
 };
 
 struct Recognition {

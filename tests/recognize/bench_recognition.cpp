@@ -3,7 +3,7 @@
 // positives, CPU time and the allocations of a warm recognize(), per scene category.
 //
 //   bench_recognition [--scenes N] [--seed S] [--categories single,separated,occluded,empty] [--steps 500]
-//                     [--noise 0.05] [--threads 1] [--alloc-every 1] [--verbose] [--candidates] [--only I] [--preset NAME] [--min-level N] [--solutions N] [--max-states N] [--area-ratio R] [--omega DEG]
+//                     [--noise 0.05] [--threads 1] [--alloc-every 1] [--verbose] [--candidates] [--only I] [--preset NAME] [--min-level N] [--solutions N] [--max-states N] [--area-ratio R] [--omega DEG] [--max-solutions N] [--no-rigidity-pairs] [--scene-stats]
 //
 // --alloc-every K: the allocation count is taken in every K-th round of the categories (all categories).
 //
@@ -69,7 +69,10 @@ struct Args {
   int solutions = 0;         // solutions kept per model (0 = default)
   long max_states = 0;       // state budget of one match (0 = default)
   double area_ratio = -1;    // match_area_ratio (< 0 = default, 0 = off)
-  double omega = -1;         // rigidity cone TH_omega in degrees (< 0 = the preset's)
+  double omega = -1;         // rigidity cone TH_omega in degrees (< 0 = the recognizer's default, 0 = the preset's)
+  long max_solutions = 0;    // TH_solutions of one match (0 = the recognizer's default)
+  bool no_rigidity_pairs = false;   // switch the level-1 rigidity off (the thesis)
+  bool scene_stats = false;  // one line per scene: graph parts, faces, search states, matching time
 };
 
 Args parse_args(int argc, char** argv) {
@@ -95,6 +98,9 @@ Args parse_args(int argc, char** argv) {
     else if (k == "--max-states") a.max_states = std::stol(value());
     else if (k == "--area-ratio") a.area_ratio = std::stod(value());
     else if (k == "--omega") a.omega = std::stod(value());
+    else if (k == "--max-solutions") a.max_solutions = std::stol(value());
+    else if (k == "--no-rigidity-pairs") a.no_rigidity_pairs = true;
+    else if (k == "--scene-stats") a.scene_stats = true;
     else if (k == "--categories") {
       a.categories.clear();
       std::string list = value();
@@ -130,7 +136,9 @@ int run(const Args& args) {
   if (args.solutions > 0) params.solutions_per_model = args.solutions;
   if (args.max_states > 0) params.max_states = args.max_states;
   if (args.area_ratio >= 0) params.match_area_ratio = args.area_ratio;
-  if (args.omega >= 0) params.match.th_omega_deg = args.omega;
+  if (args.omega >= 0) params.rigidity_deg = args.omega;
+  if (args.max_solutions > 0) params.max_solutions = args.max_solutions;
+  if (args.no_rigidity_pairs) params.rigidity_pairs = false;
   const std::size_t cells =
       static_cast<std::size_t>(args.steps) * fs::ScannerCalibration::bench_default().camera.height;
   fs::host::rec::Recognizer recognizer(library, params, cells);
@@ -154,6 +162,12 @@ int run(const Args& args) {
     // Copy what we evaluate: the second recognize() overwrites the result.
     std::vector<fs::host::rec::Hypothesis> found_objects = r.objects;
     const std::string note = r.note;
+    if (args.scene_stats)
+      std::printf("scene seed %llu %s: %d graph parts, %d faces, %lld search states, matching %.1f ms, %d hypotheses "
+                  "(%d single-face)\n",
+                  static_cast<unsigned long long>(seed), fs::sim::to_string(cat), r.stats.components,
+                  r.stats.scene_nodes, static_cast<long long>(r.stats.states), r.stats.match_ms, r.stats.hypotheses,
+                  r.stats.single_face);
     if (args.candidates) {
       std::printf("scene seed %llu: %d scene nodes, %d hypotheses\n", static_cast<unsigned long long>(seed),
                   r.stats.scene_nodes, r.stats.hypotheses);
