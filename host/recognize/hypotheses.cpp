@@ -48,7 +48,8 @@ void update_translation(const HypothesisContext& c, Hypothesis& h, std::vector<P
   h.free_dir = fit.free_dir;
 }
 
-int expand(const HypothesisContext& c, Hypothesis& h, std::vector<PlanePair>& scratch) {
+int expand(const HypothesisContext& c, Hypothesis& h, std::vector<PlanePair>& scratch,
+           const std::vector<char>* taken) {
   const Model& model = c.library.models[static_cast<std::size_t>(h.model)];
   const double cos_max = std::cos(c.params.expand_angle_deg * M_PI / 180.0);
   int added = 0;
@@ -64,6 +65,8 @@ int expand(const HypothesisContext& c, Hypothesis& h, std::vector<PlanePair>& sc
     double best_cos = cos_max;
     for (const PfrgNode& s : c.scene.nodes) {
       if (s.supernode || !s.has_plane || uses_scene(h, s.id)) continue;
+      if (taken && s.id >= 0 && static_cast<std::size_t>(s.id) < taken->size() && (*taken)[static_cast<std::size_t>(s.id)])
+        continue;
       const double cs = s.normal.dot(n);
       if (cs < best_cos) continue;
       if (std::abs(s.normal.dot(centre) - s.offset) > c.params.expand_dist_mm) continue;

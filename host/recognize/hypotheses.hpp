@@ -22,8 +22,10 @@ struct HypothesisContext {
 void update_translation(const HypothesisContext& c, Hypothesis& h, std::vector<PlanePair>& scratch);
 
 // Adds unmatched scene faces that coincide with predicted, visible, unmatched model faces (marked expanded),
-// then refits the translation. Returns the number of faces added.
-int expand(const HypothesisContext& c, Hypothesis& h, std::vector<PlanePair>& scratch);
+// then refits the translation. Faces whose id is marked in *taken (by scene node id) are not added. Returns the
+// number of faces added.
+int expand(const HypothesisContext& c, Hypothesis& h, std::vector<PlanePair>& scratch,
+           const std::vector<char>* taken = nullptr);
 
 // Within each model's list: merges compatible solutions (no shared scene or reference node, similar rotation
 // and translation) and drops duplicates (the same object under a symmetry-equivalent pose, overlapping scene

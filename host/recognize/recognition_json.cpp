@@ -50,7 +50,7 @@ nlohmann::json to_json(const Recognition& r, const Library& library) {
                           {"components", s.components},
                           {"references", s.references},   {"states", s.states},
                           {"hypotheses", s.hypotheses},   {"merged", s.merged},
-                          {"expanded_faces", s.expanded_faces}, {"single_face", s.single_face}, {"rejected", s.rejected},
+                          {"expanded_faces", s.expanded_faces}, {"single_face", s.single_face}, {"rounds", s.rounds}, {"rejected", s.rejected},
                           {"incompatible_pairs", s.incompatible_pairs}};
   nlohmann::json j = {{"objects", objects}, {"stats", stats}};
   if (!r.note.empty()) j["note"] = r.note;

@@ -115,7 +115,29 @@ struct Recognizer::Impl {
   // matcher searches each on its own. parts[k] holds the supernode(s) and the part's faces and arcs.
   std::vector<Pfrg> parts;
   std::vector<int> part_faces;  // real faces of parts[k]
-  std::vector<int> lone_faces;  // indices into the scene's nodes of faces that border no other face
+  std::vector<int> lone_faces;  // indices into the split graph's nodes of faces that border no other face
+  std::vector<char> lone_tried; // by scene node id: single-face hypotheses made already
+  Pfrg rest;                    // the scene graph without the faces of accepted objects (rounds after the first)
+  bool round_small = false;     // this round searches every part with mparams_small
+
+  // rest = scene without the faces accepted objects hold (and their arcs). False when no face is left.
+  bool build_rest(const Pfrg& g) {
+    rest.nodes.clear();
+    rest.arcs.clear();
+    rest.name = g.name;
+    rest.observer = g.observer;
+    rest.has_observer = g.has_observer;
+    int faces = 0;
+    auto kept = [&](int id) { return id >= 0 && static_cast<std::size_t>(id) < node_used.size() && !node_used[static_cast<std::size_t>(id)]; };
+    for (const auto& n : g.nodes)
+      if (n.supernode || kept(n.id)) {
+        rest.nodes.push_back(n);
+        faces += n.supernode ? 0 : 1;
+      }
+    for (const auto& a : g.arcs)
+      if (kept(a.a) && kept(a.b)) rest.arcs.push_back(a);
+    return faces > 0;
+  }
   std::size_t nparts = 0;
   std::vector<int> uf;          // union-find parent by node id
   std::vector<int> part_of;     // node id -> part index (-1)
@@ -254,6 +276,10 @@ Recognizer::Recognizer(const Library& library, const RecognizeParams& params, st
   }
   impl_->uf.reserve(8192);
   impl_->lone_faces.reserve(8192);
+  impl_->lone_tried.reserve(8192);
+  impl_->rest.nodes.reserve(8192);
+  impl_->rest.arcs.reserve(32768);
+  impl_->rest.name.reserve(64);
   impl_->part_of.reserve(8192);
   impl_->comp_size.reserve(8192);
   // Fine samples of a grid of max_cells cells: at most ceil(h/s) * ceil(w/s) <= cells/s^2 + cells/s + 1.
@@ -314,8 +340,7 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
     return out;
   }
 
-  // 2. Match the scene against every reference (in parallel, one matcher per worker).
-  t0 = Clock::now();
+  // Matching parameters: the preset with the recognizer's overrides.
   im.scene = &scene_;
   im.library = &library_;
   im.mparams = params_.match;
@@ -330,123 +355,21 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
   }
   im.mparams_small = im.mparams;
   int min_part = params_.min_level;
-  if (params_.small_part_min_level > 0 && params_.small_part_min_level < params_.min_level) {
+  const bool small_parts = params_.small_part_min_level > 0 && params_.small_part_min_level < params_.min_level;
+  if (small_parts) {
     min_part = params_.small_part_min_level;
     im.mparams_small.th_minlevel = params_.small_part_min_level;
   }
-  im.split_components(scene_, min_part);
-  out.stats.components = static_cast<int>(im.nparts);
-  for (ModelSlots& ms : im.per_model) ms.count = 0, ms.states = 0;   // no part: no solution (not last scan's)
-  im.pool.run(im.nparts == 0 ? 0 : library_.models.size(),
-              [](void* ctx, std::size_t task, int worker) {
-                auto& m = *static_cast<Impl*>(ctx);
-                const Model& model = m.library->models[task];
-                ModelSlots& ms = m.per_model[task];
-                ms.states = 0;
-                ms.count = 0;
-                // Each connected part of the scene graph is searched on its own (a solution is connected, so
-                // it lies in one part); the model's solution slots are shared out evenly among the parts.
-                const int per_part = static_cast<int>((ms.slots.size() + m.nparts - 1) / m.nparts);
-                for (std::size_t part = 0; part < m.nparts; ++part) {
-                const bool small = m.part_faces[part] < m.mparams.th_minlevel;
-                const match::MatchResult& r = m.matchers[static_cast<std::size_t>(worker)]->match(
-                    m.parts[part], model.graph, small ? m.mparams_small : m.mparams);
-                ms.states += r.stats.states_created;
-                int taken = 0;
-                for (const match::Solution& s : r.solutions) {
-                  if (ms.count >= static_cast<int>(ms.slots.size()) || taken >= per_part) break;
-                  if (s.partial) continue;
-                  ++taken;
-                  SolutionSlot& slot = ms.slots[static_cast<std::size_t>(ms.count++)];
-                  slot.path.assign(s.path.begin(), s.path.end());
-                  slot.matches.assign(s.matches.begin(), s.matches.end());
-                  slot.rotation = s.rotation;
-                  slot.cost = s.cost;
-                  slot.rotfit = s.rotfit_error;
-                  slot.level = s.level;
-                  slot.rank = s.rank;
-                  slot.degenerate = s.degenerate;
-                }
-                }
-              },
-              &im);
-  out.stats.match_ms = ms_since(t0);
-
-  // 3. Hypotheses: pose, expansion, compatible merge.
-  t0 = Clock::now();
   int max_id = 0;
   for (const auto& n : scene_.nodes) max_id = std::max(max_id, n.id);
   im.scene_index.assign(static_cast<std::size_t>(max_id) + 1, -1);
   for (std::size_t i = 0; i < scene_.nodes.size(); ++i) im.scene_index[static_cast<std::size_t>(scene_.nodes[i].id)] = static_cast<int>(i);
-  im.nhyp = 0;
-  for (std::size_t mi = 0; mi < library_.models.size(); ++mi) {
-    const ModelSlots& ms = im.per_model[mi];
-    out.stats.states += ms.states;
-    for (int k = 0; k < ms.count; ++k) {
-      const SolutionSlot& s = ms.slots[static_cast<std::size_t>(k)];
-      Hypothesis& h = im.hyps[im.nhyp++];
-      h.model = static_cast<int>(mi);
-      h.rank = s.rank;
-      h.path.assign(s.path.begin(), s.path.end());
-      h.matches.clear();
-      for (const auto& m : s.matches) h.matches.push_back(FaceMatch{m.scene, m.ref, false});
-      h.level = s.level;
-      h.R = s.rotation;
-      h.cost = s.cost;
-      h.rotfit_error = s.rotfit;
-      h.degenerate = s.degenerate;
-      h.merged = false;
-      h.instance = 0;
-      h.verify = VerifyResult{};
-      h.inlier_cells.clear();
-    }
-  }
-  out.stats.hypotheses = static_cast<int>(im.nhyp);
+  im.node_used.assign(static_cast<std::size_t>(max_id) + 1, 0);
+  im.lone_tried.assign(static_cast<std::size_t>(max_id) + 1, 0);
+  if (im.cell_owner.size() < cloud.points.size()) im.cell_owner.resize(cloud.points.size(), -1);
   HypothesisContext hc{library_, scene_, im.scene_index, cloud.viewpoint, params_};
-  for (std::size_t i = 0; i < im.nhyp; ++i) {
-    Hypothesis& h = im.hyps[i];
-    update_translation(hc, h, im.pairs);
-    out.stats.expanded_faces += expand(hc, h, im.pairs);
-  }
-  im.alive.assign(im.nhyp, 1);
-  out.stats.merged = merge_compatible(hc, std::span<Hypothesis>(im.hyps.data(), im.nhyp), im.alive, im.pairs);
-  // Faces that border no other face: single-face hypotheses (model face on it, another model face on the table).
-  if (params_.single_face_min_area_mm2 > 0 && im.have_table) {
-    SingleFaceParams sp;
-    if (params_.match_area_ratio > 0) {
-      sp.area_ratio = params_.match_area_ratio;
-      sp.area_slack_mm2 = params_.match_area_slack_mm2;
-    }
-    for (int idx : im.lone_faces) {
-      const PfrgNode& face = scene_.nodes[static_cast<std::size_t>(idx)];
-      if (face.area < params_.single_face_min_area_mm2) continue;
-      const std::size_t room = std::min(im.hyps.size() - im.nhyp, static_cast<std::size_t>(std::max(params_.single_face_max, 0)));
-      const int n = single_face_hypotheses(library_, face, im.table, sp,
-                                           std::span<Hypothesis>(im.hyps.data() + im.nhyp, room));
-      im.nhyp += static_cast<std::size_t>(n);
-      out.stats.single_face += n;
-    }
-    im.alive.resize(im.nhyp, 1);
-    out.stats.hypotheses = static_cast<int>(im.nhyp);
-  }
-
-  // 4. Low-level verification of the most plausible hypotheses (prescore, then matching cost), in parallel.
-  im.order.clear();
-  for (std::size_t i = 0; i < im.nhyp; ++i)
-    if (im.alive[i]) im.order.push_back(i);
-  for (std::size_t i : im.order) im.hyps[i].prescore = prescore(hc, im.hyps[i]);
-  std::sort(im.order.begin(), im.order.end(), [&](std::size_t a, std::size_t b) {
-    const Hypothesis& x = im.hyps[a];
-    const Hypothesis& y = im.hyps[b];
-    if (x.prescore != y.prescore) return x.prescore > y.prescore;
-    return x.cost != y.cost ? x.cost < y.cost : a < b;
-  });
-  // Keep the order but give every scene face its share: a hypothesis is checked when one of its matched scene
-  // faces has been claimed by fewer than verify_per_face better hypotheses (so the faces of a small object are
-  // not crowded out by the many hypotheses of a large one).
-  select_covering(im, params_.verify_per_face, static_cast<std::size_t>(params_.max_verified),
-                  [](const Hypothesis&) { return true; });
-  // Phase 1: coarse check of every candidate (no refinement).
+  // The measured points verification looks at (built once per scan).
+  auto t_samples = Clock::now();
   im.coarse.build(cloud, 2 * params_.verify.sample_step);
   im.fine.build(cloud, params_.verify.sample_step);
   im.labels = &seg_.labels;
@@ -459,115 +382,255 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
   };
   count_regions(im.coarse, im.region_coarse);
   count_regions(im.fine, im.region_fine);
-  auto verify_task = [](void* ctx, std::size_t task, int worker) {
-    auto& m = *static_cast<Impl*>(ctx);
-    Hypothesis& h = m.hyps[m.order[task]];
-    Verifier& v = m.verifiers[static_cast<std::size_t>(worker)];
-    h.verify = v.verify(m.refine_phase ? m.fine : m.coarse, m.geometry[static_cast<std::size_t>(h.model)], h.R,
-                        h.t, m.refine_phase);
-    const std::vector<std::uint32_t>* cells = &v.inlier_cells();
-    if (m.refine_phase) {
-      m.slot_owner[task] = m.order[task];
-      std::swap(h.inlier_cells, m.slot_cells[task]);
-      h.inlier_cells.assign(v.inlier_cells().begin(), v.inlier_cells().end());
-      cells = &h.inlier_cells;
-    }
-    // How much of the matched scene regions the model explains: a model smaller than the faces it claims
-    // leaves measured points of those faces unexplained.
-    const auto& counts = m.refine_phase ? m.region_fine : m.region_coarse;
-    std::uint64_t total = 0, explained = 0;
-    for (const FaceMatch& fm : h.matches) {
-      const int r = fm.scene - 1;
-      if (r >= 0 && static_cast<std::size_t>(r) < counts.size()) total += counts[static_cast<std::size_t>(r)];
-    }
-    for (std::uint32_t cell : *cells) {
-      const std::int32_t r = (*m.labels)[cell];
-      for (const FaceMatch& fm : h.matches)
-        if (fm.scene - 1 == r) {
-          ++explained;
-          break;
-        }
-    }
-    h.verify.explained = total > 0 ? std::min(1.0, static_cast<double>(explained) / static_cast<double>(total)) : 0.0;
-    h.verify.confidence *= h.verify.explained;
-    if (m.refine_phase) m.support_test(m.library->models[static_cast<std::size_t>(h.model)], h);
-  };
-  im.refine_phase = false;
-  im.pool.run(im.order.size(), verify_task, &im);
-  auto rekey = [&] {
-    for (std::size_t i : im.order) {
-      Hypothesis& h = im.hyps[i];
-      h.key = h.cost + params_.confidence_weight * (1.0 - h.verify.confidence);
-    }
-    // std::sort with the index as tie-break (std::stable_sort would take a temporary buffer from the heap).
-    std::sort(im.order.begin(), im.order.end(), [&](std::size_t a, std::size_t b) {
-      return im.hyps[a].key != im.hyps[b].key ? im.hyps[a].key < im.hyps[b].key : a < b;
-    });
-  };
-  rekey();
-  // Phase 2: the plausible ones are refined by ICP and verified on the fine sample set.
-  const double min_plausible = 0.5 * params_.min_confidence;
-  select_covering(im, params_.refine_per_face, static_cast<std::size_t>(params_.max_refined),
-                  [&](const Hypothesis& h) { return h.verify.confidence >= min_plausible; });
-  std::size_t plausible = im.order.size();
-  im.refine_phase = true;
-  im.slot_owner.resize(std::min(plausible, im.slot_cells.size()));
-  plausible = im.slot_owner.size();
-  im.pool.run(plausible, verify_task, &im);
-  im.order.resize(plausible);
-  rekey();
-  for (std::size_t i : im.order) {
-    Hypothesis& h = im.hyps[i];
-    h.faces_visible = count_visible_faces(library_.models[static_cast<std::size_t>(h.model)], h.R, h.t,
-                                          cloud.viewpoint);
-  }
-  out.stats.verify_ms = ms_since(t0);
-
-  // 5. Recognition (ch. 9.4): greedy extraction of the compatible set that holds the best solution.
-  im.node_used.assign(static_cast<std::size_t>(max_id) + 1, 0);
-  if (im.cell_owner.size() < cloud.points.size()) im.cell_owner.resize(cloud.points.size(), -1);
-  im.accepted.clear();
-  out.stats.incompatible_pairs = count_incompatible_pairs(std::span<const Hypothesis>(im.hyps.data(), im.nhyp), im.order);
+  out.stats.verify_ms += ms_since(t_samples);
   double best_rejected = -1.0;
   int best_rejected_model = -1;
-  for (std::size_t i : im.order) {
-    Hypothesis& h = im.hyps[i];
-    if (h.verify.confidence < params_.min_confidence) {
-      ++out.stats.rejected;
-      if (h.verify.confidence > best_rejected) {
-        best_rejected = h.verify.confidence;
-        best_rejected_model = h.model;
+  int hypotheses_total = 0;
+  for (ModelSlots& ms : im.per_model) ms.count = 0, ms.states = 0;   // no part: no solution (not last scan's)
+
+  // Rounds: the scene graph, then (beyond the thesis) the faces no accepted object explains, searched again with
+  // TH_minlevel lowered to small_part_min_level (an object showing two faces next to another object), with
+  // single-face hypotheses for faces that border no unexplained face; until a round accepts nothing new.
+  const int rounds = std::max(1, params_.rounds);
+  for (int round = 0; round < rounds; ++round) {
+    // 2. Match the scene (or what is left of it) against every reference (in parallel, one matcher per worker).
+    t0 = Clock::now();
+    const Pfrg* graph = &scene_;
+    if (round == 0) {
+      im.split_components(scene_, min_part);
+      out.stats.components = static_cast<int>(im.nparts);
+    } else {
+      if (!small_parts || !im.build_rest(scene_)) break;
+      graph = &im.rest;
+      im.split_components(im.rest, params_.small_part_min_level);
+    }
+    im.round_small = round > 0;
+    im.pool.run(im.nparts == 0 ? 0 : library_.models.size(),
+                [](void* ctx, std::size_t task, int worker) {
+                  auto& m = *static_cast<Impl*>(ctx);
+                  const Model& model = m.library->models[task];
+                  ModelSlots& ms = m.per_model[task];
+                  ms.states = 0;
+                  ms.count = 0;
+                  // Each connected part of the scene graph is searched on its own (a solution is connected, so
+                  // it lies in one part); the model's solution slots are shared out evenly among the parts.
+                  const int per_part = static_cast<int>((ms.slots.size() + m.nparts - 1) / m.nparts);
+                  for (std::size_t part = 0; part < m.nparts; ++part) {
+                    const bool small = m.round_small || m.part_faces[part] < m.mparams.th_minlevel;
+                    const match::MatchResult& r = m.matchers[static_cast<std::size_t>(worker)]->match(
+                        m.parts[part], model.graph, small ? m.mparams_small : m.mparams);
+                    ms.states += r.stats.states_created;
+                    int taken = 0;
+                    for (const match::Solution& s : r.solutions) {
+                      if (ms.count >= static_cast<int>(ms.slots.size()) || taken >= per_part) break;
+                      if (s.partial) continue;
+                      ++taken;
+                      SolutionSlot& slot = ms.slots[static_cast<std::size_t>(ms.count++)];
+                      slot.path.assign(s.path.begin(), s.path.end());
+                      slot.matches.assign(s.matches.begin(), s.matches.end());
+                      slot.rotation = s.rotation;
+                      slot.cost = s.cost;
+                      slot.rotfit = s.rotfit_error;
+                      slot.level = s.level;
+                      slot.rank = s.rank;
+                      slot.degenerate = s.degenerate;
+                    }
+                  }
+                },
+                &im);
+    out.stats.match_ms += ms_since(t0);
+
+    // 3. Hypotheses: pose, expansion, compatible merge.
+    t0 = Clock::now();
+    im.nhyp = 0;
+    for (std::size_t mi = 0; mi < library_.models.size(); ++mi) {
+      ModelSlots& ms = im.per_model[mi];
+      out.stats.states += ms.states;
+      for (int k = 0; k < ms.count; ++k) {
+        const SolutionSlot& s = ms.slots[static_cast<std::size_t>(k)];
+        Hypothesis& h = im.hyps[im.nhyp++];
+        h.model = static_cast<int>(mi);
+        h.rank = s.rank;
+        h.path.assign(s.path.begin(), s.path.end());
+        h.matches.clear();
+        for (const auto& m : s.matches) h.matches.push_back(FaceMatch{m.scene, m.ref, false});
+        h.level = s.level;
+        h.R = s.rotation;
+        h.cost = s.cost;
+        h.rotfit_error = s.rotfit;
+        h.degenerate = s.degenerate;
+        h.merged = false;
+        h.instance = 0;
+        h.verify = VerifyResult{};
+        h.inlier_cells.clear();
       }
+      ms.count = 0;
+      ms.states = 0;
+    }
+    for (std::size_t i = 0; i < im.nhyp; ++i) {
+      Hypothesis& h = im.hyps[i];
+      update_translation(hc, h, im.pairs);
+      // Expansion takes only faces no accepted object holds.
+      out.stats.expanded_faces += expand(hc, h, im.pairs, &im.node_used);
+    }
+    im.alive.assign(im.nhyp, 1);
+    out.stats.merged += merge_compatible(hc, std::span<Hypothesis>(im.hyps.data(), im.nhyp), im.alive, im.pairs);
+    // Faces that border no (unexplained) face: single-face hypotheses (model face on it, another on the table).
+    if (params_.single_face_min_area_mm2 > 0 && im.have_table) {
+      SingleFaceParams sp;
+      if (params_.match_area_ratio > 0) {
+        sp.area_ratio = params_.match_area_ratio;
+        sp.area_slack_mm2 = params_.match_area_slack_mm2;
+      }
+      for (int idx : im.lone_faces) {
+        const PfrgNode& face = graph->nodes[static_cast<std::size_t>(idx)];
+        if (face.area < params_.single_face_min_area_mm2 || im.lone_tried[static_cast<std::size_t>(face.id)]) continue;
+        im.lone_tried[static_cast<std::size_t>(face.id)] = 1;
+        const std::size_t room =
+            std::min(im.hyps.size() - im.nhyp, static_cast<std::size_t>(std::max(params_.single_face_max, 0)));
+        const int n = single_face_hypotheses(library_, face, im.table, sp,
+                                             std::span<Hypothesis>(im.hyps.data() + im.nhyp, room));
+        im.nhyp += static_cast<std::size_t>(n);
+        out.stats.single_face += n;
+      }
+      im.alive.resize(im.nhyp, 1);
+    }
+    hypotheses_total += static_cast<int>(im.nhyp);
+    out.stats.hypotheses = hypotheses_total;
+    if (im.nhyp == 0) {
+      out.stats.verify_ms += ms_since(t0);
+      if (round > 0) break;
       continue;
     }
-    bool clash = false;
-    for (const FaceMatch& m : h.matches)
-      if (im.node_used[static_cast<std::size_t>(m.scene)]) clash = true;
-    if (!clash && !h.inlier_cells.empty()) {
-      std::size_t shared = 0;
-      for (std::uint32_t c : h.inlier_cells) shared += im.cell_owner[c] >= 0 ? 1 : 0;
-      clash = static_cast<double>(shared) > params_.max_shared_inliers * static_cast<double>(h.inlier_cells.size());
+
+    // 4. Low-level verification of the most plausible hypotheses (prescore, then matching cost), in parallel.
+    im.order.clear();
+    for (std::size_t i = 0; i < im.nhyp; ++i)
+      if (im.alive[i]) im.order.push_back(i);
+    for (std::size_t i : im.order) im.hyps[i].prescore = prescore(hc, im.hyps[i]);
+    std::sort(im.order.begin(), im.order.end(), [&](std::size_t a, std::size_t b) {
+      const Hypothesis& x = im.hyps[a];
+      const Hypothesis& y = im.hyps[b];
+      if (x.prescore != y.prescore) return x.prescore > y.prescore;
+      return x.cost != y.cost ? x.cost < y.cost : a < b;
+    });
+    // Keep the order but give every scene face its share: a hypothesis is checked when one of its matched scene
+    // faces has been claimed by fewer than verify_per_face better hypotheses (so the faces of a small object are
+    // not crowded out by the many hypotheses of a large one).
+    select_covering(im, params_.verify_per_face, static_cast<std::size_t>(params_.max_verified),
+                    [](const Hypothesis&) { return true; });
+    // Phase 1: coarse check of every candidate (no refinement).
+    auto verify_task = [](void* ctx, std::size_t task, int worker) {
+      auto& m = *static_cast<Impl*>(ctx);
+      Hypothesis& h = m.hyps[m.order[task]];
+      Verifier& v = m.verifiers[static_cast<std::size_t>(worker)];
+      h.verify = v.verify(m.refine_phase ? m.fine : m.coarse, m.geometry[static_cast<std::size_t>(h.model)], h.R,
+                          h.t, m.refine_phase);
+      const std::vector<std::uint32_t>* cells = &v.inlier_cells();
+      if (m.refine_phase) {
+        m.slot_owner[task] = m.order[task];
+        std::swap(h.inlier_cells, m.slot_cells[task]);
+        h.inlier_cells.assign(v.inlier_cells().begin(), v.inlier_cells().end());
+        cells = &h.inlier_cells;
+      }
+      // How much of the matched scene regions the model explains: a model smaller than the faces it claims
+      // leaves measured points of those faces unexplained.
+      const auto& counts = m.refine_phase ? m.region_fine : m.region_coarse;
+      std::uint64_t total = 0, explained = 0;
+      for (const FaceMatch& fm : h.matches) {
+        const int r = fm.scene - 1;
+        if (r >= 0 && static_cast<std::size_t>(r) < counts.size()) total += counts[static_cast<std::size_t>(r)];
+      }
+      for (std::uint32_t cell : *cells) {
+        const std::int32_t r = (*m.labels)[cell];
+        for (const FaceMatch& fm : h.matches)
+          if (fm.scene - 1 == r) {
+            ++explained;
+            break;
+          }
+      }
+      h.verify.explained = total > 0 ? std::min(1.0, static_cast<double>(explained) / static_cast<double>(total)) : 0.0;
+      h.verify.confidence *= h.verify.explained;
+      if (m.refine_phase) m.support_test(m.library->models[static_cast<std::size_t>(h.model)], h);
+    };
+    im.refine_phase = false;
+    im.pool.run(im.order.size(), verify_task, &im);
+    auto rekey = [&] {
+      for (std::size_t i : im.order) {
+        Hypothesis& h = im.hyps[i];
+        h.key = h.cost + params_.confidence_weight * (1.0 - h.verify.confidence);
+      }
+      // std::sort with the index as tie-break (std::stable_sort would take a temporary buffer from the heap).
+      std::sort(im.order.begin(), im.order.end(), [&](std::size_t a, std::size_t b) {
+        return im.hyps[a].key != im.hyps[b].key ? im.hyps[a].key < im.hyps[b].key : a < b;
+      });
+    };
+    rekey();
+    // Phase 2: the plausible ones are refined by ICP and verified on the fine sample set.
+    const double min_plausible = 0.5 * params_.min_confidence;
+    select_covering(im, params_.refine_per_face, static_cast<std::size_t>(params_.max_refined),
+                    [&](const Hypothesis& h) { return h.verify.confidence >= min_plausible; });
+    std::size_t plausible = im.order.size();
+    im.refine_phase = true;
+    im.slot_owner.resize(std::min(plausible, im.slot_cells.size()));
+    plausible = im.slot_owner.size();
+    im.pool.run(plausible, verify_task, &im);
+    im.order.resize(plausible);
+    rekey();
+    for (std::size_t i : im.order) {
+      Hypothesis& h = im.hyps[i];
+      h.faces_visible = count_visible_faces(library_.models[static_cast<std::size_t>(h.model)], h.R, h.t,
+                                            cloud.viewpoint);
     }
-    if (clash) continue;
+    out.stats.verify_ms += ms_since(t0);
+
+    // 5. Recognition (ch. 9.4): greedy extraction of the compatible set that holds the best solution.
+    out.stats.incompatible_pairs +=
+        count_incompatible_pairs(std::span<const Hypothesis>(im.hyps.data(), im.nhyp), im.order);
+    const std::size_t accepted_before = out.objects.size();
+    for (std::size_t i : im.order) {
+      Hypothesis& h = im.hyps[i];
+      if (h.verify.confidence < params_.min_confidence) {
+        ++out.stats.rejected;
+        if (h.verify.confidence > best_rejected) {
+          best_rejected = h.verify.confidence;
+          best_rejected_model = h.model;
+        }
+        continue;
+      }
+      bool clash = false;
+      for (const FaceMatch& m : h.matches)
+        if (im.node_used[static_cast<std::size_t>(m.scene)]) clash = true;
+      if (!clash && !h.inlier_cells.empty()) {
+        std::size_t shared = 0;
+        for (std::uint32_t c : h.inlier_cells) shared += im.cell_owner[c] >= 0 ? 1 : 0;
+        clash = static_cast<double>(shared) > params_.max_shared_inliers * static_cast<double>(h.inlier_cells.size());
+      }
+      if (clash) continue;
+      if (static_cast<int>(out.objects.size()) >= params_.max_objects) break;
+      for (const FaceMatch& m : h.matches) im.node_used[static_cast<std::size_t>(m.scene)] = 1;
+      const auto obj_index = static_cast<std::int32_t>(out.objects.size());
+      for (std::uint32_t c : h.inlier_cells) im.cell_owner[c] = obj_index;
+      int instance = 0;
+      for (const Hypothesis& o : out.objects) instance += o.model == h.model ? 1 : 0;
+      h.instance = instance;
+      canonical_pose(library_.models[static_cast<std::size_t>(h.model)], h.R, h.t);
+      out.objects.emplace_back();
+      std::swap(out.objects.back(), im.spare_objects[out.objects.size() - 1]);
+      copy_hypothesis(h, out.objects.back());
+    }
+    // Give the inlier buffers back to their slots (the next round reuses the hypotheses).
+    for (std::size_t k = 0; k < im.slot_owner.size(); ++k) std::swap(im.hyps[im.slot_owner[k]].inlier_cells, im.slot_cells[k]);
+    im.slot_owner.clear();
+    out.stats.rounds = round + 1;
+    if (out.objects.size() == accepted_before && round > 0) break;
     if (static_cast<int>(out.objects.size()) >= params_.max_objects) break;
-    for (const FaceMatch& m : h.matches) im.node_used[static_cast<std::size_t>(m.scene)] = 1;
-    const auto obj_index = static_cast<std::int32_t>(out.objects.size());
-    for (std::uint32_t c : h.inlier_cells) im.cell_owner[c] = obj_index;
-    int instance = 0;
-    for (const Hypothesis& o : out.objects) instance += o.model == h.model ? 1 : 0;
-    h.instance = instance;
-    canonical_pose(library_.models[static_cast<std::size_t>(h.model)], h.R, h.t);
-    out.objects.emplace_back();
-    std::swap(out.objects.back(), im.spare_objects[out.objects.size() - 1]);
-    copy_hypothesis(h, out.objects.back());
   }
-  // Reset the cell owners touched; give the inlier buffers back to their slots.
+  // Reset the cell owners touched.
   for (const Hypothesis& o : out.objects)
     for (std::uint32_t c : o.inlier_cells) im.cell_owner[c] = -1;
-  for (std::size_t k = 0; k < im.slot_owner.size(); ++k) std::swap(im.hyps[im.slot_owner[k]].inlier_cells, im.slot_cells[k]);
-  im.slot_owner.clear();
   if (out.objects.empty()) {
-    if (im.nhyp == 0) {
+    if (hypotheses_total == 0) {
       out.note = "no reference matched the scene graph";
     } else if (best_rejected_model >= 0) {
       char buf[320];   // formatted without heap temporaries (out.note keeps its reserved capacity)

@@ -91,6 +91,10 @@ struct RecognizeParams {
   // single_face_min_area_mm2 are ignored; <= 0 = off. At most single_face_max hypotheses per face.
   double single_face_min_area_mm2 = 300.0;
   int single_face_max = 384;
+  // Rounds of matching + verification (beyond the thesis): after the first, the faces that no accepted object
+  // explains are searched again with TH_minlevel = small_part_min_level and single-face hypotheses, until a
+  // round accepts nothing new. 1 = the first round only.
+  int rounds = 3;
   int threads = 0;                    // matching threads (0 = all cores)
 };
 
@@ -131,6 +135,7 @@ struct RecognizeStats {
   std::int64_t states = 0;            // search states over all references
   int hypotheses = 0, merged = 0, expanded_faces = 0, rejected = 0, incompatible_pairs = 0;
   int single_face = 0;                // hypotheses of faces that border no other face (in hypotheses)
+  int rounds = 0;                     // matching + verification rounds run
 };
 
 struct Recognition {

@@ -147,3 +147,70 @@ TEST(Report, AxisAngleTextHidesTheAxisOfRotationsBelowDisplayPrecision) {
 }
 
 }  // namespace
+
+namespace {
+
+// Single-face hypotheses: a pentagonal pyramid lying on one of its triangles shows only its tilted base. The true
+// pose must be among the hypotheses exactly (rotation up to the model's symmetry, model centre within 1e-6 mm),
+// every hypothesis must put some face of its model on the table and its matched face on the scene face's plane,
+// and a horizontal face (pose about the vertical open) or a face larger than every model face gives none.
+TEST(SingleFaceHypotheses, RecoverTheRestingPoseFromOneFaceAndTheTable) {
+  fs::host::Library lib;
+  lib.add(fs::host::build_model(
+      fs::read_mesh(fs::test::shared_data() / "polyhedra/polyhedra-viewer/off/pentagonal-pyramid.off"), {.scale = 40.0}));
+  lib.add(cube_model());
+  const fs::host::Model& m = lib.models[0];
+  // Rest on face g (a triangle): R maps its normal to -z; then yaw 30 deg and place it on the table at (-50, 20).
+  std::size_t g = 0, base = 0;
+  for (std::size_t f = 0; f < m.faces.size(); ++f) {
+    if (m.faces[f].loops[0].size() == 3 && g == 0) g = f;
+    if (m.faces[f].loops[0].size() == 5) base = f;
+  }
+  const Mat3 Rtilt = Eigen::Quaterniond::FromTwoVectors(m.faces[g].normal, Vec3(0, 0, -1)).toRotationMatrix();
+  const Mat3 R = Eigen::AngleAxisd(30.0 * M_PI / 180.0, Vec3::UnitZ()).toRotationMatrix() * Rtilt;
+  fs::Plane table;   // z = 0, normal up
+  Vec3 t(-50, 20, 0);
+  t.z() = -(R * m.faces[g].centroid).z();   // face g on z = 0
+  PfrgNode face;
+  face.id = 5;
+  face.normal = R * m.faces[base].normal;
+  face.offset = face.normal.dot(R * m.faces[base].centroid + t);
+  face.centroid = R * m.faces[base].centroid + t;
+  face.area = m.faces[base].area;
+  face.has_plane = true;
+  ASSERT_GT(face.normal.z(), 0.2);   // tilted toward the sensor, not horizontal
+
+  std::vector<Hypothesis> out(64);
+  for (auto& h : out) h.matches.reserve(4);
+  const int n = fs::host::rec::single_face_hypotheses(lib, face, table, {}, out);
+  ASSERT_GT(n, 0);
+  bool found = false;
+  for (int k = 0; k < n; ++k) {
+    const Hypothesis& h = out[static_cast<std::size_t>(k)];
+    const fs::host::Model& hm = lib.models[static_cast<std::size_t>(h.model)];
+    ASSERT_EQ(h.matches.size(), 1u);
+    EXPECT_EQ(h.matches[0].scene, 5);
+    const auto& mf = hm.faces[static_cast<std::size_t>(h.matches[0].ref)];
+    EXPECT_NEAR((h.R * mf.normal).dot(face.normal), 1.0, 1e-9);
+    EXPECT_NEAR(face.normal.dot(h.R * mf.centroid + h.t), face.offset, 1e-9);
+    double lowest = 1e9;
+    for (const auto& f : hm.faces)
+      for (const Vec3& v : f.loops[0]) lowest = std::min(lowest, (h.R * v + h.t).z());
+    EXPECT_LT(std::abs(lowest), 0.7) << hm.name;   // some face rests on the table (within the angle tolerance)
+    if (h.model == 0 && fs::host::rec::rotation_angle_deg_sym(R, h.R, m) < 1e-6 &&
+        ((R * m.center + t) - (h.R * m.center + h.t)).norm() < 1e-6)
+      found = true;
+  }
+  EXPECT_TRUE(found);
+
+  PfrgNode flat = face;
+  flat.normal = Vec3::UnitZ();
+  EXPECT_EQ(fs::host::rec::single_face_hypotheses(lib, flat, table, {}, out), 0);
+  PfrgNode huge = face;
+  huge.area = 1e7;
+  EXPECT_EQ(fs::host::rec::single_face_hypotheses(lib, huge, table, {}, out), 0);
+  // The output span bounds what is written.
+  EXPECT_EQ(fs::host::rec::single_face_hypotheses(lib, face, table, {}, std::span<Hypothesis>(out.data(), 1)), 1);
+}
+
+}  // namespace
