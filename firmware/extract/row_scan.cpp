@@ -90,6 +90,8 @@ Isa isa() {
 
 }  // namespace
 
+bool cpu_has_avx2() { return isa() == Isa::Avx2; }
+
 const char* scan_row_u8_isa() { return isa() == Isa::Avx2 ? "avx2" : "sse2"; }
 
 void scan_row_u8(const std::uint8_t* row, std::uint32_t n, RowScan<std::uint8_t>& s) {
@@ -101,6 +103,8 @@ void scan_row_u8(const std::uint8_t* row, std::uint32_t n, RowScan<std::uint8_t>
 }
 
 #else
+
+bool cpu_has_avx2() { return false; }
 
 const char* scan_row_u8_isa() { return "portable"; }
 

@@ -88,6 +88,9 @@ void scan_row_portable(const T* row, std::uint32_t n, RowScan<T>& s) {
   s.sum = sum;
 }
 
+// True on x86-64 CPUs with AVX2 (detected once); false on every other target.
+bool cpu_has_avx2();
+
 // Which implementation scan_row uses for 8-bit rows: "avx2", "sse2" or "portable".
 const char* scan_row_u8_isa();
 // The 8-bit pass with the best instruction set of this CPU (row_scan.cpp).

@@ -58,18 +58,41 @@ std::uint32_t first_argmax(const T* row, const detail::RowScan<T>& s, T mx) {
   }
 }
 
+// A row whose GaussMl centre waits for the batched fit (lane `lane` of the block's GaussMlBatch): what
+// finish_row needs besides the batch's result.
+struct Deferred {
+  std::int64_t lo = 0, hi = 0, ic = 0;
+  double bg = 0.0;
+};
+
+// The centre of gravity of the support (GaussMl's fallback when no Gaussian fits, e.g. a clipped narrow top).
 template <typename T, std::uint32_t Step>
-RowPeak extract_row_impl(const T* row, std::uint32_t n, double full_scale, const ExtractParams& p) {
-  RowPeak r;
-  if (n < 5) return r;
-  detail::RowScan<T> scan;
+double support_cog(const T* row, std::int64_t lo, std::int64_t hi, std::int64_t ic, double bg) {
+  double s = 0.0, sw = 0.0;
+  for (std::int64_t i = lo; i <= hi; ++i) {
+    const double v = std::max(0.0, at(row, Step, i) - bg);
+    s += v;
+    sw += v * static_cast<double>(i);
+  }
+  return s > 0.0 ? sw / s : static_cast<double>(ic);
+}
+
+// Everything of one row up to its sub-pixel centre. Returns true when the row waits for the batched GaussMl
+// fit: then its window is in lane `lane` of `batch` and `d` holds the rest (finish_row completes it). Returns
+// false when `r` is final (rejected, or the centre computed here: other methods, and GaussMl windows too wide
+// for the batch, which take the one-row fit).
+template <typename T, std::uint32_t Step>
+bool analyse_row(const T* row, std::uint32_t n, double full_scale, const ExtractParams& p, detail::RowScan<T>& scan,
+                 detail::GaussMlBatch& batch, int lane, RowPeak& r, Deferred& d) {
+  r = RowPeak{};
+  if (n < 5) return false;
   detail::scan_row<T, Step>(row, n, scan);
   n = scan.n;  // clamps absurd widths
   const double scale = full_scale / 255.0;
   double bg = static_cast<double>(scan.sum) / n;
   const T mx = scan.max;
   const double peak = static_cast<double>(mx);
-  if (peak - bg < p.min_contrast * scale) return r;
+  if (peak - bg < p.min_contrast * scale) return false;
   const std::uint32_t imax = first_argmax<T, Step>(row, scan, mx);
   const std::uint64_t sum = scan.sum;
 
@@ -89,7 +112,7 @@ RowPeak extract_row_impl(const T* row, std::uint32_t n, double full_scale, const
   const std::int64_t rest = static_cast<std::int64_t>(n) - (hi - lo + 1);
   if (rest > 0) bg = static_cast<double>(static_cast<std::int64_t>(sum) - support_sum) / static_cast<double>(rest);
   const double contrast = peak - bg;
-  if (contrast < p.min_contrast * scale) return r;
+  if (contrast < p.min_contrast * scale) return false;
   r.peak = peak;
 
   // Saturation plateau.
@@ -98,7 +121,7 @@ RowPeak extract_row_impl(const T* row, std::uint32_t n, double full_scale, const
     for (std::int64_t i = imax; i < n && at(row, Step, i) >= full_scale; ++i) ++run;
     if (run >= p.saturation_run) {
       r.status = RowStatus::Saturated;
-      return r;
+      return false;
     }
   }
 
@@ -107,7 +130,7 @@ RowPeak extract_row_impl(const T* row, std::uint32_t n, double full_scale, const
   const double second = static_cast<double>(detail::max_outside<T, Step>(row, scan, lo - 1, hi + 1));
   if (second > second_limit || (hi - lo) >= 2 * hw) {
     r.status = RowStatus::Ambiguous;
-    return r;
+    return false;
   }
 
   // Full width at half maximum by linear interpolation on both flanks (integer walks: v > half <=> v > floor).
@@ -191,25 +214,31 @@ RowPeak extract_row_impl(const T* row, std::uint32_t n, double full_scale, const
                                                       4, kMaxK);
       const std::int64_t first = std::max<std::int64_t>(0, ic - k);
       const std::int64_t last = std::min<std::int64_t>(static_cast<std::int64_t>(n) - 1, ic + k);
-      std::array<float, 2 * kMaxK + 1 + detail::kChunk> y;
       const double inv = 1.0 / scale;
+      const double clip = (full_scale - bg) * inv;
+      if (k < detail::kBatchHalf) {  // the batched fit (every stripe narrower than ~9 px FWHM)
+        for (std::int64_t i = first; i <= last; ++i)
+          batch.y[detail::kBatchHalf + (i - ic)][lane] = static_cast<float>((at(row, Step, i) - bg) * inv);
+        batch.xa[lane] = static_cast<std::int32_t>(first - ic);
+        batch.xb[lane] = static_cast<std::int32_t>(last - ic);
+        batch.contrast[lane] = contrast * inv;
+        batch.clip[lane] = clip;
+        d = Deferred{lo, hi, ic, bg};
+        r.status = RowStatus::Ok;
+        return true;
+      }
+      std::array<float, 2 * kMaxK + 1 + detail::kChunk> y;
       const std::int64_t count = last - first + 1;
       for (std::int64_t i = 0; i < count; ++i)
         y[static_cast<std::size_t>(i)] = static_cast<float>((at(row, Step, first + i) - bg) * inv);
       std::fill_n(y.begin() + count, detail::kChunk, 0.0f);  // the fit reads (and masks out) up to kChunk more
-      const double clip = (full_scale - bg) * inv;
       const detail::SensorNoise noise{p.read_noise, p.shot_noise, p.speckle};
       double c = 0.0;
       if (detail::gauss_ml_centre(y.data(), static_cast<int>(last - first + 1), static_cast<int>(ic - first),
                                   contrast * inv, clip, noise, c)) {
         col = static_cast<double>(first) + c;
-      } else {  // no Gaussian fits (e.g. a clipped narrow top): centre of gravity of the support
-        double s = 0.0, sw = 0.0;
-        for (std::int64_t i = lo; i <= hi; ++i) {
-          s += v(i);
-          sw += v(i) * static_cast<double>(i);
-        }
-        col = s > 0.0 ? sw / s : static_cast<double>(ic);
+      } else {
+        col = support_cog<T, Step>(row, lo, hi, ic, bg);
       }
       break;
     }
@@ -227,6 +256,29 @@ RowPeak extract_row_impl(const T* row, std::uint32_t n, double full_scale, const
   // A stripe's centre lies within its support (guards every method against edge extrapolation).
   r.col = std::clamp(col, static_cast<double>(lo) - 0.5, static_cast<double>(hi) + 0.5);
   r.status = RowStatus::Ok;
+  return false;
+}
+
+// Completes a row analyse_row deferred, once its batch has been fitted.
+template <typename T, std::uint32_t Step>
+void finish_row(const T* row, const Deferred& d, const detail::GaussMlBatch& batch, int lane, RowPeak& r) {
+  const double col = batch.ok[lane] ? static_cast<double>(d.ic) + batch.centre[lane]
+                                    : support_cog<T, Step>(row, d.lo, d.hi, d.ic, d.bg);
+  // A stripe's centre lies within its support (guards every method against edge extrapolation).
+  r.col = std::clamp(col, static_cast<double>(d.lo) - 0.5, static_cast<double>(d.hi) + 0.5);
+}
+
+// One row alone (extract_row): a batch of one.
+template <typename T, std::uint32_t Step>
+RowPeak extract_row_impl(const T* row, std::uint32_t n, double full_scale, const ExtractParams& p) {
+  detail::RowScan<T> scan;
+  detail::GaussMlBatch batch;
+  RowPeak r;
+  Deferred d;
+  if (analyse_row<T, Step>(row, n, full_scale, p, scan, batch, 0, r, d)) {
+    detail::gauss_ml_centre_batch(batch, detail::SensorNoise{p.read_noise, p.shot_noise, p.speckle});
+    finish_row<T, Step>(row, d, batch, 0, r);
+  }
   return r;
 }
 
@@ -245,33 +297,65 @@ RowPeak extract_row<std::uint16_t>(const std::uint16_t* row, std::uint32_t n, st
   return extract_row_impl<std::uint16_t, 1>(row, n, full_scale, p);
 }
 
+namespace {
+
+// Rows in blocks of kBatch: each row analysed (row pass, peak, support, background, rejections, FWHM) into its
+// lane, then one batched GaussMl fit for the block's deferred rows, then the block's points in row order.
+template <typename T, std::uint32_t Step>
+void extract_rows(const FrameView& f, double full_scale, const ExtractParams& params, std::span<msg::StripePoint> out,
+                  ExtractCounts& c) {
+  detail::RowScan<T> scan;
+  detail::GaussMlBatch batch;
+  const detail::SensorNoise noise{params.read_noise, params.shot_noise, params.speckle};
+  constexpr int L = detail::kBatch;
+  RowPeak res[L];
+  Deferred def[L];
+  bool deferred[L];
+  for (std::uint32_t y0 = 0; y0 < f.height; y0 += L) {
+    const int rows = static_cast<int>(std::min<std::uint32_t>(L, f.height - y0));
+    const auto row_of = [&](int i) {
+      return reinterpret_cast<const T*>(f.data + static_cast<std::size_t>(y0 + static_cast<std::uint32_t>(i)) * f.stride);
+    };
+    bool any = false;
+    for (int i = 0; i < rows; ++i) {
+      deferred[i] = analyse_row<T, Step>(row_of(i), f.width, full_scale, params, scan, batch, i, res[i], def[i]);
+      if (!deferred[i]) batch.xa[i] = batch.xb[i] = 0;  // an unused lane
+      any |= deferred[i];
+    }
+    if (any) {
+      for (int i = rows; i < L; ++i) batch.xa[i] = batch.xb[i] = 0;
+      detail::gauss_ml_centre_batch(batch, noise);
+      for (int i = 0; i < rows; ++i)
+        if (deferred[i]) finish_row<T, Step>(row_of(i), def[i], batch, i, res[i]);
+    }
+    for (int i = 0; i < rows; ++i) {
+      const RowPeak& r = res[i];
+      ++c.rows;
+      switch (r.status) {
+        case RowStatus::NoStripe: ++c.no_stripe; continue;
+        case RowStatus::Ambiguous: ++c.ambiguous; continue;
+        case RowStatus::Saturated: ++c.saturated; continue;
+        case RowStatus::Ok: break;
+      }
+      if (c.points >= out.size()) continue;
+      msg::StripePoint& pt = out[c.points++];
+      pt.row = static_cast<std::uint16_t>(y0 + static_cast<std::uint32_t>(i));
+      pt.col = static_cast<float>(r.col);
+      pt.peak = static_cast<std::uint16_t>(std::min(r.peak, 65535.0));
+      pt.width = static_cast<float>(r.width);
+    }
+  }
+}
+
+}  // namespace
+
 ExtractCounts extract_frame(const FrameView& f, const ExtractParams& params, std::span<msg::StripePoint> out) {
   ExtractCounts c;
   if (!f.data || f.width == 0 || f.height == 0) return c;
-  for (std::uint32_t y = 0; y < f.height; ++y) {
-    const std::uint8_t* base = f.data + static_cast<std::size_t>(y) * f.stride;
-    RowPeak r;
-    switch (f.format) {
-      case PixelFormat::Mono8: r = extract_row<std::uint8_t>(base, f.width, 1, 255.0, params); break;
-      case PixelFormat::Yuyv: r = extract_row<std::uint8_t>(base, f.width, 2, 255.0, params); break;
-      case PixelFormat::Mono16: {
-        r = extract_row<std::uint16_t>(reinterpret_cast<const std::uint16_t*>(base), f.width, 1, 65535.0, params);
-        break;
-      }
-    }
-    ++c.rows;
-    switch (r.status) {
-      case RowStatus::NoStripe: ++c.no_stripe; continue;
-      case RowStatus::Ambiguous: ++c.ambiguous; continue;
-      case RowStatus::Saturated: ++c.saturated; continue;
-      case RowStatus::Ok: break;
-    }
-    if (c.points >= out.size()) continue;
-    msg::StripePoint& pt = out[c.points++];
-    pt.row = static_cast<std::uint16_t>(y);
-    pt.col = static_cast<float>(r.col);
-    pt.peak = static_cast<std::uint16_t>(std::min(r.peak, 65535.0));
-    pt.width = static_cast<float>(r.width);
+  switch (f.format) {
+    case PixelFormat::Mono8: extract_rows<std::uint8_t, 1>(f, 255.0, params, out, c); break;
+    case PixelFormat::Yuyv: extract_rows<std::uint8_t, 2>(f, 255.0, params, out, c); break;
+    case PixelFormat::Mono16: extract_rows<std::uint16_t, 1>(f, 65535.0, params, out, c); break;
   }
   return c;
 }
