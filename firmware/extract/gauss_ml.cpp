@@ -114,13 +114,32 @@ bool gauss_ml_centre(const float* y, int n, int ic, double contrast, double clip
 
 namespace {
 
-// The batched fit (gauss_ml.hpp) on generic vectors of kBatch = 8 lanes: float lanes for the per-sample work,
-// double lanes (f64x8) for the solves. Masks instead of branches; everything outside a lane's samples adds
-// exact zeros. Comparisons give 0 / -1 lanes; `x & kOne` turns such a mask into 0.0f / 1.0f.
-static_assert(kBatch == 8, "one f32x8 per batch");
+// The batched fit (gauss_ml.hpp) on generic vectors of W lanes, native width: W = 8 with AVX2, W = 4 on
+// SSE2 / NEON (run twice per batch; wider generic vectors lower to poor code there). Float lanes for the
+// per-sample work, double lanes for the solves. Masks instead of branches; everything outside a lane's samples
+// adds exact zeros. Comparisons give 0 / -1 lanes; `m & kOne` turns such a mask into 0.0f / 1.0f.
+using f64x4 = double __attribute__((vector_size(32)));
+using i64x4 = std::int64_t __attribute__((vector_size(32)));
 using f64x8 = double __attribute__((vector_size(64)));
 using i64x8 = std::int64_t __attribute__((vector_size(64)));
 constexpr std::int32_t kOne = 0x3f800000;  // the bits of 1.0f
+
+template <int W>
+struct Lanes;
+template <>
+struct Lanes<4> {
+  using F = f32x4;
+  using I = i32x4;
+  using D = f64x4;
+  using DI = i64x4;
+};
+template <>
+struct Lanes<8> {
+  using F = f32x8;
+  using I = i32x8;
+  using D = f64x8;
+  using DI = i64x8;
+};
 
 template <typename V>
 inline V load(const void* p) {
@@ -128,135 +147,149 @@ inline V load(const void* p) {
   __builtin_memcpy(&v, p, sizeof v);
   return v;
 }
-inline f32x8 mask_to_one(i32x8 m) { return std::bit_cast<f32x8>(m & kOne); }
-inline i32x8 narrow(i64x8 m) { return __builtin_convertvector(m, i32x8); }  // a 0 / -1 mask stays one
-inline i64x8 widen(i32x8 m) { return __builtin_convertvector(m, i64x8); }
-inline f64x8 vabs(f64x8 v) { return v < 0.0 ? -v : v; }
-inline f64x8 vmax(f64x8 a, f64x8 b) { return a < b ? b : a; }  // std::max's order
+template <typename D>
+inline D vabs(D v) { return v < 0.0 ? -v : v; }
+template <typename D>
+inline D vmax(D a, D b) { return a < b ? b : a; }  // std::max's order
 
 // Cramer's rule for z1, z2 of the moment system (solve_moments), all lanes; `regular` = not singular.
-inline void solve_lanes(const float (&acc)[8][kBatch], f64x8& z1, f64x8& z2, i64x8& regular) {
-  f64x8 m[8];
-  for (int q = 0; q < 8; ++q) m[q] = __builtin_convertvector(load<f32x8>(acc[q]), f64x8);
-  const f64x8 c00 = m[2] * m[4] - m[3] * m[3], c01 = m[1] * m[4] - m[3] * m[2], c02 = m[1] * m[3] - m[2] * m[2];
-  const f64x8 det = m[0] * c00 - m[1] * c01 + m[2] * c02;
-  regular = vabs(det) > 1e-12 * vmax(f64x8{} + 1.0, m[0] * m[2] * m[4]);
-  const f64x8 dets = regular ? det : 1.0;
+template <int W>
+inline void solve_lanes(const typename Lanes<W>::F (&acc)[8], typename Lanes<W>::D& z1, typename Lanes<W>::D& z2,
+                        typename Lanes<W>::DI& regular) {
+  using D = typename Lanes<W>::D;
+  D m[8];
+  for (int q = 0; q < 8; ++q) m[q] = __builtin_convertvector(acc[q], D);
+  const D c00 = m[2] * m[4] - m[3] * m[3], c01 = m[1] * m[4] - m[3] * m[2], c02 = m[1] * m[3] - m[2] * m[2];
+  const D det = m[0] * c00 - m[1] * c01 + m[2] * c02;
+  regular = vabs(det) > 1e-12 * vmax(D{} + 1.0, m[0] * m[2] * m[4]);
+  const D dets = regular ? det : 1.0;
   z1 = (m[0] * (m[6] * m[4] - m[3] * m[7]) - m[5] * c01 + m[2] * (m[1] * m[7] - m[6] * m[2])) / dets;
   z2 = (m[0] * (m[2] * m[7] - m[6] * m[3]) - m[1] * (m[1] * m[7] - m[6] * m[2]) + m[5] * c02) / dets;
 }
 
-[[gnu::always_inline]] inline void batch_fit(GaussMlBatch& b, const SensorNoise& noise) {
+// Lanes [g, g + W) of the batch.
+template <int W>
+[[gnu::always_inline]] inline void batch_fit_lanes(GaussMlBatch& b, int g, const SensorNoise& noise) {
+  using F = typename Lanes<W>::F;
+  using I = typename Lanes<W>::I;
+  using D = typename Lanes<W>::D;
+  using DI = typename Lanes<W>::DI;
   constexpr int C = kBatchHalf;
-  const f64x8 contrast = load<f64x8>(b.contrast);
-  const f32x8 fl = __builtin_convertvector(vmax(0.1 * contrast, f64x8{} + 1e-3), f32x8);
-  const f32x8 cl = __builtin_convertvector(load<f64x8>(b.clip), f32x8);
-  const i32x8 xa = load<i32x8>(b.xa), xb = load<i32x8>(b.xb);
+  const auto one = [](I m) { return std::bit_cast<F>(m & kOne); };
+  const D contrast = load<D>(b.contrast + g);
+  const F fl = __builtin_convertvector(vmax(0.1 * contrast, D{} + 1e-3), F);
+  const F cl = __builtin_convertvector(load<D>(b.clip + g), F);
+  const I xa = load<I>(b.xa + g), xb = load<I>(b.xb + g);
   // 1. Unweighted log-parabola over the contiguous samples above 10 % of the contrast: the walks out of the
   // peak are lane masks (alive while every sample so far was above the floor and inside the window).
-  alignas(32) float acc[8][kBatch] = {};  // per lane: 1, x, x^2, x^3, x^4, ln y, x ln y, x^2 ln y
-  f32x8 a0 = {}, a1 = {}, a2 = {}, a3 = {}, a4 = {}, a5 = {}, a6 = {}, a7 = {};
+  F a[8] = {};  // per lane: 1, x, x^2, x^3, x^4, ln y, x ln y, x^2 ln y
   {
-    const f32x8 v = load<f32x8>(b.y[C]);  // x = 0, the peak sample
-    const f32x8 w = mask_to_one((v > fl) & (v < cl));
-    a0 += w;
-    a5 += w * fast_lnf(v < fl ? fl : v);
+    const F v = load<F>(&b.y[C][g]);  // x = 0, the peak sample
+    const F w = one((v > fl) & (v < cl));
+    a[0] += w;
+    a[5] += w * fast_lnf(v < fl ? fl : v);
   }
   for (int dir = 1; dir >= -1; dir -= 2) {
-    i32x8 alive = i32x8{} - 1;
+    I alive = I{} - 1;
     for (int d = 1; d < C; ++d) {
       const int x = dir * d;
       const float xf = static_cast<float>(x), x2 = xf * xf;
-      const f32x8 v = load<f32x8>(b.y[C + x]);
-      alive &= (x >= xa) & (x <= xb) & (v > fl);
-      std::uint64_t parts[4];
+      const F v = load<F>(&b.y[C + x][g]);
+      alive &= (I{} + x >= xa) & (I{} + x <= xb) & (v > fl);
+      std::uint64_t parts[W / 2];
       __builtin_memcpy(parts, &alive, sizeof parts);
-      if (!(parts[0] | parts[1] | parts[2] | parts[3])) break;
-      const f32x8 w = mask_to_one(alive & (v < cl));
-      const f32x8 ly = w * fast_lnf(v < fl ? fl : v);
-      a0 += w;
-      a1 += w * xf;
-      a2 += w * x2;
-      a3 += w * x2 * xf;
-      a4 += w * x2 * x2;
-      a5 += ly;
-      a6 += ly * xf;
-      a7 += ly * x2;
+      std::uint64_t any = 0;
+      for (int q = 0; q < W / 2; ++q) any |= parts[q];
+      if (!any) break;
+      const F w = one(alive & (v < cl));
+      const F ly = w * fast_lnf(v < fl ? fl : v);
+      a[0] += w;
+      a[1] += w * xf;
+      a[2] += w * x2;
+      a[3] += w * x2 * xf;
+      a[4] += w * x2 * x2;
+      a[5] += ly;
+      a[6] += ly * xf;
+      a[7] += ly * x2;
     }
   }
-  const f32x8 as[8] = {a0, a1, a2, a3, a4, a5, a6, a7};
-  for (int q = 0; q < 8; ++q) __builtin_memcpy(acc[q], &as[q], sizeof as[q]);
-  f64x8 bb, cc;
-  i64x8 regular;
-  solve_lanes(acc, bb, cc, regular);
-  const f64x8 m0 = __builtin_convertvector(a0, f64x8), m1 = __builtin_convertvector(a1, f64x8),
-              m2 = __builtin_convertvector(a2, f64x8), r0 = __builtin_convertvector(a5, f64x8);
-  i64x8 good = (m0 >= 3.0) & regular & (cc < 0.0);
-  const f64x8 bs = good ? bb : 0.0, cs = good ? cc : -1.0;  // failed lanes: a harmless model, exp(0)
-  const f64x8 u0 = -bs / (2.0 * cs);
+  D bb, cc;
+  DI regular;
+  solve_lanes<W>(a, bb, cc, regular);
+  const D m0 = __builtin_convertvector(a[0], D), m1 = __builtin_convertvector(a[1], D),
+          m2 = __builtin_convertvector(a[2], D), r0 = __builtin_convertvector(a[5], D);
+  DI good = (m0 >= 3.0) & regular & (cc < 0.0);
+  const D bs = good ? bb : 0.0, cs = good ? cc : -1.0;  // failed lanes: a harmless model, exp(0)
+  const D u0 = -bs / (2.0 * cs);
   good &= vabs(u0) <= 2.0;
-  const f64x8 a = (r0 - bs * m1 - cs * m2) / vmax(m0, f64x8{} + 1.0);
-  f64x8 sd = -0.5 / cs;
-  for (int j = 0; j < kBatch; ++j) sd[j] = std::sqrt(sd[j]);
-  const f64x8 ln_peak = a - bs * bs / (4.0 * cs);
+  const D ai = (r0 - bs * m1 - cs * m2) / vmax(m0, D{} + 1.0);
+  D sd = -0.5 / cs;
+  for (int j = 0; j < W; ++j) sd[j] = std::sqrt(sd[j]);
+  const D ln_peak = ai - bs * bs / (4.0 * cs);
   good &= (sd >= 0.25) & (ln_peak <= 30.0) & (ln_peak >= -10.0);
   // Window |x - u| <= 3 sigma inside the lane's samples (clamped first: the int conversions stay defined).
-  f64x8 tlo = u0 - 3.0 * sd, thi = u0 + 3.0 * sd;
+  D tlo = u0 - 3.0 * sd, thi = u0 + 3.0 * sd;
   tlo = tlo < -1.0 * C ? -1.0 * C : tlo > 1.0 * C ? 1.0 * C : tlo;
   thi = thi < -1.0 * C ? -1.0 * C : thi > 1.0 * C ? 1.0 * C : thi;
-  i64x8 flo = __builtin_convertvector(tlo, i64x8), chi = __builtin_convertvector(thi, i64x8);
-  flo += tlo < __builtin_convertvector(flo, f64x8);  // floor: -1 where truncation went up
-  chi -= thi > __builtin_convertvector(chi, f64x8);  // ceil
-  const i32x8 ok = narrow(good);
-  const i32x8 fl32 = __builtin_convertvector(flo, i32x8), ch32 = __builtin_convertvector(chi, i32x8);
-  const i32x8 ka = ok ? (xa < fl32 ? fl32 : xa) : 1;
-  const i32x8 kb = ok ? (xb < ch32 ? xb : ch32) : 0;
-  const f32x8 af = __builtin_convertvector(good ? a : 0.0, f32x8), bf = __builtin_convertvector(bs, f32x8),
-              cf = __builtin_convertvector(good ? cs : 0.0, f32x8);
+  I flo = __builtin_convertvector(tlo, I), chi = __builtin_convertvector(thi, I);
+  flo += __builtin_convertvector(tlo < __builtin_convertvector(flo, D), I);  // floor: -1 where truncation went up
+  chi -= __builtin_convertvector(thi > __builtin_convertvector(chi, D), I);  // ceil
+  const I ok = __builtin_convertvector(good, I);
+  const I ka = ok ? (xa < flo ? flo : xa) : 1;
+  const I kb = ok ? (xb < chi ? xb : chi) : 0;
+  const F af = __builtin_convertvector(good ? ai : 0.0, F), bf = __builtin_convertvector(bs, F),
+          cf = __builtin_convertvector(good ? cs : 0.0, F);
   // 2. One Gauss-Newton step in the intensity domain, weights 1 / var(model) (see gauss_ml_centre), over the
   // union of the lanes' windows; each lane's model is evaluated at x clamped into its window (fast_expf's
   // domain) and masked outside it.
   std::int32_t xmin = C, xmax = -C;
-  for (int j = 0; j < kBatch; ++j) {
+  for (int j = 0; j < W; ++j) {
     xmin = std::min(xmin, ka[j]);
     xmax = std::max(xmax, kb[j]);
   }
   const float rr = static_cast<float>(noise.read * noise.read + 1.0 / 12.0);
   const float q2 = static_cast<float>(noise.shot * noise.shot), p2 = static_cast<float>(noise.speckle * noise.speckle);
-  f32x8 g0 = {}, g1 = {}, g2 = {}, g3 = {}, g4 = {}, g5 = {}, g6 = {}, g7 = {};
+  F gs[8] = {};  // per lane: w, w x, w x^2, w x^3, w x^4, we, we x, we x^2
   for (int x = xmin; x <= xmax; ++x) {
     const float xf = static_cast<float>(x), x2 = xf * xf;
-    const f32x8 v = load<f32x8>(b.y[C + x]);
-    const f32x8 m = mask_to_one((x >= ka) & (x <= kb) & (v < cl));
-    const i32x8 xc = x < ka ? ka : (x > kb ? kb : x);
-    const f32x8 xe = __builtin_convertvector(xc, f32x8);
-    const f32x8 S = fast_expf(af + bf * xe + cf * (xe * xe));
-    const f32x8 sv = m * S / (rr + S * (q2 + p2 * S));
-    const f32x8 w = S * sv, we = (v - S) * sv;
-    g0 += w;
-    g1 += w * xf;
-    g2 += w * x2;
-    g3 += w * x2 * xf;
-    g4 += w * x2 * x2;
-    g5 += we;
-    g6 += we * xf;
-    g7 += we * x2;
+    const I xv = I{} + x;
+    const F v = load<F>(&b.y[C + x][g]);
+    const F m = one((xv >= ka) & (xv <= kb) & (v < cl));
+    const I xc = xv < ka ? ka : (xv > kb ? kb : xv);
+    const F xe = __builtin_convertvector(xc, F);
+    const F S = fast_expf(af + bf * xe + cf * (xe * xe));
+    const F sv = m * S / (rr + S * (q2 + p2 * S));
+    const F w = S * sv, we = (v - S) * sv;
+    gs[0] += w;
+    gs[1] += w * xf;
+    gs[2] += w * x2;
+    gs[3] += w * x2 * xf;
+    gs[4] += w * x2 * x2;
+    gs[5] += we;
+    gs[6] += we * xf;
+    gs[7] += we * x2;
   }
-  const f32x8 gs[8] = {g0, g1, g2, g3, g4, g5, g6, g7};
-  for (int q = 0; q < 8; ++q) __builtin_memcpy(acc[q], &gs[q], sizeof gs[q]);
-  f64x8 db, dc;
-  solve_lanes(acc, db, dc, regular);
-  const f64x8 b1 = bs + db, c1 = cs + dc;
-  const i64x8 curved = c1 < 0.0;
-  const f64x8 u1 = -b1 / (2.0 * (curved ? c1 : -1.0));
-  const f64x8 centre = (regular & curved & (vabs(u1 - u0) <= 1.0)) ? u1 : u0;
-  __builtin_memcpy(b.centre, &centre, sizeof centre);
-  const i32x8 ok01 = ok & 1;
-  __builtin_memcpy(b.ok, &ok01, sizeof ok01);
+  D db, dc;
+  solve_lanes<W>(gs, db, dc, regular);
+  const D b1 = bs + db, c1 = cs + dc;
+  const DI curved = c1 < 0.0;
+  const D u1 = -b1 / (2.0 * (curved ? c1 : -1.0));
+  const D centre = (regular & curved & (vabs(u1 - u0) <= 1.0)) ? u1 : u0;
+  __builtin_memcpy(b.centre + g, &centre, sizeof centre);
+  const I ok01 = ok & 1;
+  __builtin_memcpy(b.ok + g, &ok01, sizeof ok01);
+}
+
+[[gnu::always_inline]] inline void batch_fit(GaussMlBatch& b, const SensorNoise& noise) {
+  static_assert(kBatch % 4 == 0);
+  for (int g = 0; g < kBatch; g += 4) batch_fit_lanes<4>(b, g, noise);
 }
 
 #if defined(__x86_64__)
-__attribute__((target("avx2"))) void batch_fit_avx2(GaussMlBatch& b, const SensorNoise& noise) { batch_fit(b, noise); }
+static_assert(kBatch == 8, "one AVX2 vector of lanes");
+__attribute__((target("avx2"))) void batch_fit_avx2(GaussMlBatch& b, const SensorNoise& noise) {
+  batch_fit_lanes<8>(b, 0, noise);
+}
 #endif
 
 }  // namespace

@@ -139,9 +139,19 @@ TEST(ExtractScan, VectorLogAndExpEqualScalarBitForBit) {
       x[j] = std::exp(z[j]);
     }
     const f32x8 lx = fast_lnf(x), ez = fast_expf(z);
+    f32x4 x4, z4;
+    for (int j = 0; j < 4; ++j) {
+      x4[j] = x[j + 4];
+      z4[j] = z[j + 4];
+    }
+    const f32x4 lx4 = fast_lnf(x4), ez4 = fast_expf(z4);
     for (int j = 0; j < 8; ++j) {
       ASSERT_EQ(std::bit_cast<std::uint32_t>(lx[j]), std::bit_cast<std::uint32_t>(fast_lnf(x[j]))) << x[j];
       ASSERT_EQ(std::bit_cast<std::uint32_t>(ez[j]), std::bit_cast<std::uint32_t>(fast_expf(z[j]))) << z[j];
+    }
+    for (int j = 0; j < 4; ++j) {
+      ASSERT_EQ(std::bit_cast<std::uint32_t>(lx4[j]), std::bit_cast<std::uint32_t>(lx[j + 4]));
+      ASSERT_EQ(std::bit_cast<std::uint32_t>(ez4[j]), std::bit_cast<std::uint32_t>(ez[j + 4]));
     }
   }
 }
