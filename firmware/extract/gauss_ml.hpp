@@ -64,7 +64,8 @@ struct GaussMlBatch {
 };
 
 // Fits every lane (set unused lanes' xa = xb = 0; their results mean nothing). With the best instruction set
-// of this CPU (AVX2 on x86-64 when present, chosen once at run time; else the portable build of the same code).
+// of this CPU (on x86-64 AVX-512VL or AVX2 when present, chosen once at run time; else the portable build of
+// the same code: 4 lanes at a time, SSE2 / NEON). All builds give the same bits (no FMA contraction).
 void gauss_ml_centre_batch(GaussMlBatch& b, const SensorNoise& noise);
 // The portable build alone (for the test that both agree bit for bit), and which one the above uses.
 void gauss_ml_centre_batch_portable(GaussMlBatch& b, const SensorNoise& noise);

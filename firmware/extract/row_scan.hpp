@@ -88,8 +88,9 @@ void scan_row_portable(const T* row, std::uint32_t n, RowScan<T>& s) {
   s.sum = sum;
 }
 
-// True on x86-64 CPUs with AVX2 (detected once); false on every other target.
+// True on x86-64 CPUs with AVX2, resp. AVX-512 F + VL + DQ + BW (detected once); false on every other target.
 bool cpu_has_avx2();
+bool cpu_has_avx512vl();
 
 // Which implementation scan_row uses for 8-bit rows: "avx2", "sse2" or "portable".
 const char* scan_row_u8_isa();
