@@ -240,8 +240,12 @@ template <int W>
   const F af = __builtin_convertvector(good ? ai : 0.0, F), bf = __builtin_convertvector(bs, F),
           cf = __builtin_convertvector(good ? cs : 0.0, F);
   // 2. One Gauss-Newton step in the intensity domain, weights 1 / var(model) (see gauss_ml_centre), over the
-  // union of the lanes' windows; each lane's model is evaluated at x clamped into its window (fast_expf's
-  // domain) and masked outside it.
+  // union of the lanes' windows, masked outside each lane's. The model S(x) = exp(a + b x + c x^2) by
+  // recurrence outward from x = 0: S(x + 1) = S(x) R(x), R(x + 1) = R(x) exp(2c) (and the same leftward),
+  // seeded by four fast_expf whose arguments lie in its domain (|u0| <= 2, c >= -8, ln_peak in [-10, 30]).
+  // Within a lane's window S >= e^-50 (see gauss_ml_centre); past it S only falls, and the floor of 1e-30
+  // keeps it out of the denormals (slow) without touching any value that is used. Relative error of S after
+  // the <= 16 steps: < 1e-5 (against 12 % speckle).
   std::int32_t xmin = C, xmax = -C;
   for (int j = 0; j < W; ++j) {
     xmin = std::min(xmin, ka[j]);
@@ -250,14 +254,11 @@ template <int W>
   const float rr = static_cast<float>(noise.read * noise.read + 1.0 / 12.0);
   const float q2 = static_cast<float>(noise.shot * noise.shot), p2 = static_cast<float>(noise.speckle * noise.speckle);
   F gs[8] = {};  // per lane: w, w x, w x^2, w x^3, w x^4, we, we x, we x^2
-  for (int x = xmin; x <= xmax; ++x) {
+  const auto add = [&](int x, F S) {
     const float xf = static_cast<float>(x), x2 = xf * xf;
     const I xv = I{} + x;
     const F v = load<F>(&b.y[C + x][g]);
     const F m = one((xv >= ka) & (xv <= kb) & (v < cl));
-    const I xc = xv < ka ? ka : (xv > kb ? kb : xv);
-    const F xe = __builtin_convertvector(xc, F);
-    const F S = fast_expf(af + bf * xe + cf * (xe * xe));
     const F sv = m * S / (rr + S * (q2 + p2 * S));
     const F w = S * sv, we = (v - S) * sv;
     gs[0] += w;
@@ -268,6 +269,27 @@ template <int W>
     gs[5] += we;
     gs[6] += we * xf;
     gs[7] += we * x2;
+  };
+  const F tiny = F{} + 1e-30f;
+  const auto floor_at = [&](F v) { return v < tiny ? tiny : v; };
+  const F S0 = fast_expf(af), Q = fast_expf(cf + cf);
+  {
+    F S = S0, R = fast_expf(bf + cf);  // R: S(x + 1) / S(x)
+    for (int x = 0; x <= xmax; ++x) {
+      add(x, S);
+      S = floor_at(S * R);
+      R = floor_at(R * Q);
+    }
+  }
+  {
+    F Lr = fast_expf(cf - bf);  // S(x - 1) / S(x) at x = 0
+    F S = floor_at(S0 * Lr);
+    Lr = floor_at(Lr * Q);
+    for (int x = -1; x >= xmin; --x) {
+      add(x, S);
+      S = floor_at(S * Lr);
+      Lr = floor_at(Lr * Q);
+    }
   }
   D db, dc;
   solve_lanes<W>(gs, db, dc, regular);
