@@ -162,9 +162,9 @@ inline void solve_lanes(const typename Lanes<W>::F (&acc)[8], typename Lanes<W>:
   const D c00 = m[2] * m[4] - m[3] * m[3], c01 = m[1] * m[4] - m[3] * m[2], c02 = m[1] * m[3] - m[2] * m[2];
   const D det = m[0] * c00 - m[1] * c01 + m[2] * c02;
   regular = vabs(det) > 1e-12 * vmax(D{} + 1.0, m[0] * m[2] * m[4]);
-  const D dets = regular ? det : 1.0;
-  z1 = (m[0] * (m[6] * m[4] - m[3] * m[7]) - m[5] * c01 + m[2] * (m[1] * m[7] - m[6] * m[2])) / dets;
-  z2 = (m[0] * (m[2] * m[7] - m[6] * m[3]) - m[1] * (m[1] * m[7] - m[6] * m[2]) + m[5] * c02) / dets;
+  const D inv = 1.0 / (regular ? det : 1.0);  // one division for both
+  z1 = (m[0] * (m[6] * m[4] - m[3] * m[7]) - m[5] * c01 + m[2] * (m[1] * m[7] - m[6] * m[2])) * inv;
+  z2 = (m[0] * (m[2] * m[7] - m[6] * m[3]) - m[1] * (m[1] * m[7] - m[6] * m[2]) + m[5] * c02) * inv;
 }
 
 // Lanes [g, g + W) of the batch.
@@ -220,12 +220,13 @@ template <int W>
           m2 = __builtin_convertvector(a[2], D), r0 = __builtin_convertvector(a[5], D);
   DI good = (m0 >= 3.0) & regular & (cc < 0.0);
   const D bs = good ? bb : 0.0, cs = good ? cc : -1.0;  // failed lanes: a harmless model, exp(0)
-  const D u0 = -bs / (2.0 * cs);
+  const D ic = 1.0 / cs;  // one division for u0, sigma^2 and ln_peak
+  const D u0 = -0.5 * bs * ic;
   good &= vabs(u0) <= 2.0;
   const D ai = (r0 - bs * m1 - cs * m2) / vmax(m0, D{} + 1.0);
-  D sd = -0.5 / cs;
-  for (int j = 0; j < W; ++j) sd[j] = std::sqrt(sd[j]);
-  const D ln_peak = ai - bs * bs / (4.0 * cs);
+  D sd = -0.5 * ic;
+  for (int j = 0; j < W; ++j) sd[j] = __builtin_sqrt(sd[j]);  // > 0; no errno (-fno-math-errno): vsqrtpd
+  const D ln_peak = ai - 0.25 * bs * bs * ic;
   good &= (sd >= 0.25) & (ln_peak <= 30.0) & (ln_peak >= -10.0);
   // Window |x - u| <= 3 sigma inside the lane's samples (clamped first: the int conversions stay defined).
   D tlo = u0 - 3.0 * sd, thi = u0 + 3.0 * sd;
