@@ -254,8 +254,9 @@ template <int W>
   }
   const float rr = static_cast<float>(noise.read * noise.read + 1.0 / 12.0);
   const float q2 = static_cast<float>(noise.shot * noise.shot), p2 = static_cast<float>(noise.speckle * noise.speckle);
-  F gs[8] = {};  // per lane: w, w x, w x^2, w x^3, w x^4, we, we x, we x^2
-  const auto add = [&](int x, F S) {
+  // Both directions in one loop (two independent recurrences and two sets of sums: more work in flight).
+  F gr[8] = {}, gl[8] = {};  // per lane: w, w x, w x^2, w x^3, w x^4, we, we x, we x^2
+  const auto add = [&](F (&gs)[8], int x, F S) {
     const float xf = static_cast<float>(x), x2 = xf * xf;
     const I xv = I{} + x;
     const F v = load<F>(&b.y[C + x][g]);
@@ -274,24 +275,21 @@ template <int W>
   const F tiny = F{} + 1e-30f;
   const auto floor_at = [&](F v) { return v < tiny ? tiny : v; };
   const F S0 = fast_expf(af), Q = fast_expf(cf + cf);
-  {
-    F S = S0, R = fast_expf(bf + cf);  // R: S(x + 1) / S(x)
-    for (int x = 0; x <= xmax; ++x) {
-      add(x, S);
-      S = floor_at(S * R);
-      R = floor_at(R * Q);
-    }
+  F Sr = S0, Rr = fast_expf(bf + cf);  // rightward: S(x), S(x + 1) / S(x) at x = 0
+  F Ll = fast_expf(cf - bf);           // leftward: S(x - 1) / S(x) at x = 0
+  F Sl = floor_at(S0 * Ll);
+  Ll = floor_at(Ll * Q);
+  const int nr = xmax + 1, nl = -xmin;  // x = 0 .. xmax and x = -1 .. xmin
+  for (int d = 0; d < std::max(nr, nl); ++d) {
+    if (d < nr) add(gr, d, Sr);
+    if (d < nl) add(gl, -1 - d, Sl);
+    Sr = floor_at(Sr * Rr);
+    Rr = floor_at(Rr * Q);
+    Sl = floor_at(Sl * Ll);
+    Ll = floor_at(Ll * Q);
   }
-  {
-    F Lr = fast_expf(cf - bf);  // S(x - 1) / S(x) at x = 0
-    F S = floor_at(S0 * Lr);
-    Lr = floor_at(Lr * Q);
-    for (int x = -1; x >= xmin; --x) {
-      add(x, S);
-      S = floor_at(S * Lr);
-      Lr = floor_at(Lr * Q);
-    }
-  }
+  F gs[8];
+  for (int q = 0; q < 8; ++q) gs[q] = gr[q] + gl[q];
   D db, dc;
   solve_lanes<W>(gs, db, dc, regular);
   const D b1 = bs + db, c1 = cs + dc;
