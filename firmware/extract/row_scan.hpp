@@ -131,25 +131,6 @@ struct Vec16<std::uint16_t> {
   using VS = std::int16_t __attribute__((vector_size(16)));
 };
 
-// Horizontal max of a 16-byte vector by halving shuffles.
-inline std::uint8_t hmax(Vec16<std::uint8_t>::V v) {
-  using V = Vec16<std::uint8_t>::V;
-  const auto mx = [](V a, V b) { return a > b ? a : b; };
-  v = mx(v, __builtin_shufflevector(v, v, 8, 9, 10, 11, 12, 13, 14, 15, 0, 1, 2, 3, 4, 5, 6, 7));
-  v = mx(v, __builtin_shufflevector(v, v, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3));
-  v = mx(v, __builtin_shufflevector(v, v, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1));
-  v = mx(v, __builtin_shufflevector(v, v, 1, 0, 1, 0, 1, 0, 1, 0, 1, 0, 1, 0, 1, 0, 1, 0));
-  return v[0];
-}
-inline std::uint16_t hmax(Vec16<std::uint16_t>::V v) {
-  using V = Vec16<std::uint16_t>::V;
-  const auto mx = [](V a, V b) { return a > b ? a : b; };
-  v = mx(v, __builtin_shufflevector(v, v, 4, 5, 6, 7, 0, 1, 2, 3));
-  v = mx(v, __builtin_shufflevector(v, v, 2, 3, 0, 1, 2, 3, 0, 1));
-  v = mx(v, __builtin_shufflevector(v, v, 1, 0, 1, 0, 1, 0, 1, 0));
-  return v[0];
-}
-
 template <typename T, std::uint32_t Step>
 T max_outside(const T* row, const RowScan<T>& s, std::int64_t lo, std::int64_t hi) {
   using V = typename Vec16<T>::V;
@@ -189,12 +170,15 @@ T max_outside(const T* row, const RowScan<T>& s, std::int64_t lo, std::int64_t h
           mx[0] = vmax(mx[0], v & keep);
         }
       }
+      T m = 0;
       for (std::uint32_t q = 1; q < kParts; ++q) mx[0] = vmax(mx[0], mx[q]);
-      return hmax(mx[0]);
+      for (std::uint32_t j = 0; j < kW; ++j) m = mx[0][j] > m ? mx[0][j] : m;
+      return m;
     }
   }
   for (std::uint32_t q = 1; q < kParts; ++q) mx[0] = vmax(mx[0], mx[q]);
-  T m = hmax(mx[0]);
+  T m = 0;
+  for (std::uint32_t j = 0; j < kW; ++j) m = mx[0][j] > m ? mx[0][j] : m;
   const T left = range_max<T, Step>(row, static_cast<std::int64_t>(blo) * kBlock, lo);
   const T right = range_max<T, Step>(row, hi + 1, std::min<std::int64_t>(static_cast<std::int64_t>(bhi + 1) * kBlock, n));
   m = left > m ? left : m;

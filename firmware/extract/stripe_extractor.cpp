@@ -127,7 +127,7 @@ void stage_support(RowState<T>& st, double full_scale, const ExtractParams& p) {
   // Support of the peak: contiguous samples above bg + 20 % of the contrast, at most max_half_width away.
   // Integer samples: v > low  <=>  v > floor(low).
   const double low = bg + 0.2 * (peak - bg);
-  const std::int64_t low_i = static_cast<std::int64_t>(std::floor(low));
+  const std::int64_t low_i = static_cast<std::int64_t>(low);  // low >= 0: truncation = floor
   const auto iat = [&](std::int64_t i) { return static_cast<std::int64_t>(row[static_cast<std::size_t>(i) * Step]); };
   const std::int64_t hw = p.max_half_width;
   std::int64_t lo = imax, hi = imax;
@@ -185,7 +185,7 @@ void stage_centre(RowState<T>& st, double full_scale, const ExtractParams& p, de
 
   // Full width at half maximum by linear interpolation on both flanks (integer walks: v > half <=> v > floor).
   const double half = bg + 0.5 * contrast;
-  const std::int64_t half_i = static_cast<std::int64_t>(std::floor(half));
+  const std::int64_t half_i = static_cast<std::int64_t>(half);  // half >= 0: truncation = floor
   double left = static_cast<double>(imax), right = static_cast<double>(imax);
   {
     std::int64_t i = imax, j = imax;
@@ -268,8 +268,17 @@ void stage_centre(RowState<T>& st, double full_scale, const ExtractParams& p, de
       const double inv = 1.0 / scale;
       const double clip = (full_scale - bg) * inv;
       if (k < detail::kBatchHalf) {  // the batched fit (every stripe narrower than ~9 px FWHM)
-        for (std::int64_t i = first; i <= last; ++i)
-          batch.y[detail::kBatchHalf + (i - ic)][lane] = static_cast<float>((at(row, Step, i) - bg) * inv);
+        constexpr std::int64_t C = detail::kBatchHalf;
+        if (Step == 1 && ic - C >= 0 && ic + C <= static_cast<std::int64_t>(n)) {
+          // The whole lane, a fixed trip count in float (vectorized; samples outside [first, last] are masked
+          // by the fit).
+          const float bgf = static_cast<float>(bg), invf = static_cast<float>(inv);
+          const T* src = row + (ic - C);
+          for (std::int64_t x = 0; x < 2 * C; ++x) batch.y[x][lane] = (static_cast<float>(src[x]) - bgf) * invf;
+        } else {
+          for (std::int64_t i = first; i <= last; ++i)
+            batch.y[C + (i - ic)][lane] = static_cast<float>((at(row, Step, i) - bg) * inv);
+        }
         batch.xa[lane] = static_cast<std::int32_t>(first - ic);
         batch.xb[lane] = static_cast<std::int32_t>(last - ic);
         batch.contrast[lane] = contrast * inv;
