@@ -131,10 +131,9 @@ void stage_support(RowState<T>& st, double full_scale, const ExtractParams& p) {
   const auto iat = [&](std::int64_t i) { return static_cast<std::int64_t>(row[static_cast<std::size_t>(i) * Step]); };
   const std::int64_t hw = p.max_half_width;
   std::int64_t lo = imax, hi = imax;
-  std::int64_t support_sum = 0;
-  while (lo > 0 && imax - lo < hw && iat(lo - 1) > low_i) --lo;
-  while (hi + 1 < n && hi - imax < hw && iat(hi + 1) > low_i) ++hi;
-  for (std::int64_t i = lo; i <= hi; ++i) support_sum += iat(i);
+  std::int64_t support_sum = iat(imax);  // summed on the way (no second loop over the support)
+  for (std::int64_t v; lo > 0 && imax - lo < hw && (v = iat(lo - 1)) > low_i; --lo) support_sum += v;
+  for (std::int64_t v; hi + 1 < n && hi - imax < hw && (v = iat(hi + 1)) > low_i; ++hi) support_sum += v;
 
   // Background without the stripe's own energy.
   const std::int64_t rest = static_cast<std::int64_t>(n) - (hi - lo + 1);
