@@ -323,6 +323,16 @@ __attribute__((target("avx512f,avx512vl,avx512dq,avx512bw"))) void batch_fit_avx
 
 void gauss_ml_centre_batch_portable(GaussMlBatch& b, const SensorNoise& noise) { batch_fit(b, noise); }
 
+bool gauss_ml_centre_batch_avx2([[maybe_unused]] GaussMlBatch& b, [[maybe_unused]] const SensorNoise& noise) {
+#if defined(__x86_64__)
+  if (cpu_has_avx2()) {
+    batch_fit_avx2(b, noise);
+    return true;
+  }
+#endif
+  return false;
+}
+
 const char* gauss_ml_batch_isa() { return cpu_has_avx512vl() ? "avx512vl" : cpu_has_avx2() ? "avx2" : "portable"; }
 
 void gauss_ml_centre_batch(GaussMlBatch& b, const SensorNoise& noise) {

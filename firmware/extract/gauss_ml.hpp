@@ -67,8 +67,11 @@ struct GaussMlBatch {
 // of this CPU (on x86-64 AVX-512VL or AVX2 when present, chosen once at run time; else the portable build of
 // the same code: 4 lanes at a time, SSE2 / NEON). All builds give the same bits (no FMA contraction).
 void gauss_ml_centre_batch(GaussMlBatch& b, const SensorNoise& noise);
-// The portable build alone (for the test that both agree bit for bit), and which one the above uses.
+// The portable build alone and the AVX2 build alone (false, nothing done, where the CPU has no AVX2 or the
+// target is not x86-64), for the test that all builds agree bit for bit and the benchmark; and which build
+// gauss_ml_centre_batch uses.
 void gauss_ml_centre_batch_portable(GaussMlBatch& b, const SensorNoise& noise);
+bool gauss_ml_centre_batch_avx2(GaussMlBatch& b, const SensorNoise& noise);
 const char* gauss_ml_batch_isa();
 
 }  // namespace fs::fw::detail

@@ -83,7 +83,8 @@ void BM_ScanRow(benchmark::State& state) {
 BENCHMARK(BM_ScanRow)->Arg(0)->Arg(1);
 
 // The batched GaussMl fit alone: 8 stripe profiles (sigma 2.5 px, the cube frames' typical stripe) per call,
-// 0 = the portable build (what arm runs, here SSE2), 1 = the one extraction uses (AVX2 when present).
+// 0 = the portable build (what arm runs, here SSE2), 1 = the one extraction uses (AVX-512VL or AVX2 when
+// present), 2 = the AVX2 build.
 // Items = rows fitted.
 void BM_GaussMlBatch(benchmark::State& state) {
   fs::fw::detail::GaussMlBatch b;
@@ -99,16 +100,21 @@ void BM_GaussMlBatch(benchmark::State& state) {
     b.clip[j] = 200.0;
   }
   const fs::fw::detail::SensorNoise noise;
+  if (state.range(0) == 2 && !fs::fw::detail::gauss_ml_centre_batch_avx2(b, noise)) {
+    state.SkipWithError("no AVX2 here");
+    return;
+  }
   for (auto _ : state) {
     if (state.range(0) == 0) fs::fw::detail::gauss_ml_centre_batch_portable(b, noise);
+    else if (state.range(0) == 2) fs::fw::detail::gauss_ml_centre_batch_avx2(b, noise);
     else fs::fw::detail::gauss_ml_centre_batch(b, noise);
     benchmark::DoNotOptimize(b.centre);
     benchmark::ClobberMemory();
   }
   state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * kBatch));
-  state.SetLabel(state.range(0) == 0 ? "portable" : fs::fw::detail::gauss_ml_batch_isa());
+  state.SetLabel(state.range(0) == 0 ? "portable" : state.range(0) == 2 ? "avx2" : fs::fw::detail::gauss_ml_batch_isa());
 }
-BENCHMARK(BM_GaussMlBatch)->Arg(0)->Arg(1);
+BENCHMARK(BM_GaussMlBatch)->Arg(0)->Arg(1)->Arg(2);
 
 BENCHMARK(BM_Extract)->Arg(0)->Arg(1)->Arg(2)->Arg(3)->Arg(4);
 

@@ -238,11 +238,15 @@ TEST(ExtractScan, GaussMlBatchMatchesTheOneRowFit) {
       batch.contrast[j] = contrast[j];
       batch.clip[j] = clip[j];
     }
-    GaussMlBatch portable = batch, alone = batch;
+    GaussMlBatch portable = batch, avx2 = batch, alone = batch;
     gauss_ml_centre_batch(batch, SensorNoise{});
     gauss_ml_centre_batch_portable(portable, SensorNoise{});
     ASSERT_EQ(0, std::memcmp(batch.centre, portable.centre, sizeof batch.centre));
     ASSERT_EQ(0, std::memcmp(batch.ok, portable.ok, sizeof batch.ok));
+    if (gauss_ml_centre_batch_avx2(avx2, SensorNoise{})) {  // also where the dispatch picks AVX-512VL
+      ASSERT_EQ(0, std::memcmp(batch.centre, avx2.centre, sizeof batch.centre));
+      ASSERT_EQ(0, std::memcmp(batch.ok, avx2.ok, sizeof batch.ok));
+    }
     // Lane 0 fitted alone (the other lanes emptied) gives the same bits: results depend on their lane only.
     for (int j = 1; j < kBatch; ++j) {
       alone.xa[j] = alone.xb[j] = 0;
