@@ -90,6 +90,17 @@ Isa isa() {
 
 }  // namespace
 
+bool cpu_has_avx2() { return isa() == Isa::Avx2; }
+
+bool cpu_has_avx512vl() {
+  static const bool detected = [] {
+    __builtin_cpu_init();
+    return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") &&
+           __builtin_cpu_supports("avx512dq") && __builtin_cpu_supports("avx512bw");
+  }();
+  return detected;
+}
+
 const char* scan_row_u8_isa() { return isa() == Isa::Avx2 ? "avx2" : "sse2"; }
 
 void scan_row_u8(const std::uint8_t* row, std::uint32_t n, RowScan<std::uint8_t>& s) {
@@ -101,6 +112,9 @@ void scan_row_u8(const std::uint8_t* row, std::uint32_t n, RowScan<std::uint8_t>
 }
 
 #else
+
+bool cpu_has_avx2() { return false; }
+bool cpu_has_avx512vl() { return false; }
 
 const char* scan_row_u8_isa() { return "portable"; }
 

@@ -88,6 +88,10 @@ void scan_row_portable(const T* row, std::uint32_t n, RowScan<T>& s) {
   s.sum = sum;
 }
 
+// True on x86-64 CPUs with AVX2, resp. AVX-512 F + VL + DQ + BW (detected once); false on every other target.
+bool cpu_has_avx2();
+bool cpu_has_avx512vl();
+
 // Which implementation scan_row uses for 8-bit rows: "avx2", "sse2" or "portable".
 const char* scan_row_u8_isa();
 // The 8-bit pass with the best instruction set of this CPU (row_scan.cpp).
@@ -111,20 +115,70 @@ inline T range_max(const T* row, std::int64_t begin, std::int64_t end) {
 }
 
 // Max of every sample outside [lo, hi] (inclusive): lane maxima for the blocks clear of it, exact scans of the
-// parts of the (at most few) blocks it overlaps.
+// parts of the (at most few) blocks it overlaps. Generic vectors of one block's kLanes lane maxima (SSE2/AVX2 on
+// x86-64, NEON on arm); for contiguous rows (Step 1) the overlapped full blocks are read whole with the
+// samples inside [lo, hi] masked out, no per-sample loop.
+template <typename T>
+struct Vec16;  // 16 bytes of T as a generic vector (the SIMD width every target has), and its signed twin
+template <>
+struct Vec16<std::uint8_t> {
+  using V = std::uint8_t __attribute__((vector_size(16)));
+  using VS = std::int8_t __attribute__((vector_size(16)));
+};
+template <>
+struct Vec16<std::uint16_t> {
+  using V = std::uint16_t __attribute__((vector_size(16)));
+  using VS = std::int16_t __attribute__((vector_size(16)));
+};
+
 template <typename T, std::uint32_t Step>
 T max_outside(const T* row, const RowScan<T>& s, std::int64_t lo, std::int64_t hi) {
+  using V = typename Vec16<T>::V;
+  using VS = typename Vec16<T>::VS;
+  using ST = std::make_signed_t<T>;
+  constexpr std::uint32_t kW = 16 / sizeof(T), kParts = kLanes / kW;  // samples per vector, vectors per block
   const std::int64_t n = s.n;
   lo = std::clamp<std::int64_t>(lo, 0, n - 1);
   hi = std::clamp<std::int64_t>(hi, lo, n - 1);
   const std::uint32_t blo = static_cast<std::uint32_t>(lo / kBlock), bhi = static_cast<std::uint32_t>(hi / kBlock);
-  alignas(64) T mx[kLanes] = {};
-  for (std::uint32_t b = 0; b < s.nblocks; ++b) {
-    if (b >= blo && b <= bhi) continue;
-    for (std::uint32_t j = 0; j < kLanes; ++j) mx[j] = s.lane_max[b][j] > mx[j] ? s.lane_max[b][j] : mx[j];
+  V mx[kParts] = {};
+  const auto vmax = [](V a, V b) { return a > b ? a : b; };
+  const auto add_blocks = [&](std::uint32_t b0, std::uint32_t b1) {
+    for (std::uint32_t b = b0; b < b1; ++b) {
+      for (std::uint32_t q = 0; q < kParts; ++q) {
+        V v;
+        __builtin_memcpy(&v, s.lane_max[b] + q * kW, sizeof v);
+        mx[q] = vmax(mx[q], v);
+      }
+    }
+  };
+  add_blocks(0, blo);
+  add_blocks(bhi + 1, s.nblocks);
+  if constexpr (Step == 1) {
+    if (static_cast<std::int64_t>(bhi + 1) * kBlock <= n) {  // the overlapped blocks are full: masked reads
+      VS iota;
+      for (std::uint32_t j = 0; j < kW; ++j) iota[j] = static_cast<ST>(j);
+      for (std::uint32_t b = blo; b <= bhi; ++b) {
+        const std::int64_t base = static_cast<std::int64_t>(b) * kBlock;
+        const VS rlo = VS{} + static_cast<ST>(std::clamp<std::int64_t>(lo - base, -1, kBlock));
+        const VS rhi = VS{} + static_cast<ST>(std::clamp<std::int64_t>(hi - base, -1, kBlock));
+        for (std::uint32_t h = 0; h < kBlock; h += kW) {
+          V v;
+          __builtin_memcpy(&v, row + base + h, sizeof v);
+          const VS id = iota + static_cast<ST>(h);
+          const V keep = reinterpret_cast<const V&>(static_cast<const VS&>((id < rlo) | (id > rhi)));
+          mx[0] = vmax(mx[0], v & keep);
+        }
+      }
+      T m = 0;
+      for (std::uint32_t q = 1; q < kParts; ++q) mx[0] = vmax(mx[0], mx[q]);
+      for (std::uint32_t j = 0; j < kW; ++j) m = mx[0][j] > m ? mx[0][j] : m;
+      return m;
+    }
   }
+  for (std::uint32_t q = 1; q < kParts; ++q) mx[0] = vmax(mx[0], mx[q]);
   T m = 0;
-  for (std::uint32_t j = 0; j < kLanes; ++j) m = mx[j] > m ? mx[j] : m;
+  for (std::uint32_t j = 0; j < kW; ++j) m = mx[0][j] > m ? mx[0][j] : m;
   const T left = range_max<T, Step>(row, static_cast<std::int64_t>(blo) * kBlock, lo);
   const T right = range_max<T, Step>(row, hi + 1, std::min<std::int64_t>(static_cast<std::int64_t>(bhi + 1) * kBlock, n));
   m = left > m ? left : m;

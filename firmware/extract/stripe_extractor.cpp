@@ -58,69 +58,140 @@ std::uint32_t first_argmax(const T* row, const detail::RowScan<T>& s, T mx) {
   }
 }
 
+// A row whose GaussMl centre waits for the batched fit (lane `lane` of the block's GaussMlBatch): what
+// finish_row needs besides the batch's result.
+struct Deferred {
+  std::int64_t lo = 0, hi = 0, ic = 0;
+  double bg = 0.0;
+};
+
+// The centre of gravity of the support (GaussMl's fallback when no Gaussian fits, e.g. a clipped narrow top).
 template <typename T, std::uint32_t Step>
-RowPeak extract_row_impl(const T* row, std::uint32_t n, double full_scale, const ExtractParams& p) {
+double support_cog(const T* row, std::int64_t lo, std::int64_t hi, std::int64_t ic, double bg) {
+  double s = 0.0, sw = 0.0;
+  for (std::int64_t i = lo; i <= hi; ++i) {
+    const double v = std::max(0.0, at(row, Step, i) - bg);
+    s += v;
+    sw += v * static_cast<double>(i);
+  }
+  return s > 0.0 ? sw / s : static_cast<double>(ic);
+}
+
+// One row's analysis, in three stages so that extract_frame can run each stage over a block of rows before
+// the next (the rows' dependency chains -- divisions, walks, the calls -- then overlap in the CPU instead of
+// running one after the other); extract_row runs them back to back. Same code either way, same results.
+template <typename T>
+struct RowState {
+  const T* row = nullptr;
+  std::uint32_t n = 0;
+  bool active = false;  // still being analysed (false: `r` is final, or the row waits for the batch)
+  bool deferred = false;  // waits for the batched GaussMl fit (then `d` holds the rest)
   RowPeak r;
-  if (n < 5) return r;
+  Deferred d;
+  double bg = 0.0, peak = 0.0, contrast = 0.0;
+  T mx = 0;
+  std::uint32_t imax = 0;
+  std::int64_t lo = 0, hi = 0;
   detail::RowScan<T> scan;
-  detail::scan_row<T, Step>(row, n, scan);
-  n = scan.n;  // clamps absurd widths
+};
+
+// Stage 1: the row pass, background = row mean, peak = row max; rows without contrast end here.
+template <typename T, std::uint32_t Step>
+void stage_scan(RowState<T>& st, const T* row, std::uint32_t n, double full_scale, const ExtractParams& p) {
+  st.row = row;
+  st.r = RowPeak{};
+  st.active = st.deferred = false;
+  if (n < 5) return;
+  detail::scan_row<T, Step>(row, n, st.scan);
+  st.n = st.scan.n;  // clamps absurd widths
   const double scale = full_scale / 255.0;
-  double bg = static_cast<double>(scan.sum) / n;
-  const T mx = scan.max;
-  const double peak = static_cast<double>(mx);
-  if (peak - bg < p.min_contrast * scale) return r;
-  const std::uint32_t imax = first_argmax<T, Step>(row, scan, mx);
-  const std::uint64_t sum = scan.sum;
+  st.bg = static_cast<double>(st.scan.sum) / st.n;
+  st.mx = st.scan.max;
+  st.peak = static_cast<double>(st.mx);
+  st.active = !(st.peak - st.bg < p.min_contrast * scale);
+}
+
+// Stage 2: arg-max, support, background without the support, saturation.
+template <typename T, std::uint32_t Step>
+void stage_support(RowState<T>& st, double full_scale, const ExtractParams& p) {
+  const T* row = st.row;
+  const std::uint32_t n = st.n;
+  const double scale = full_scale / 255.0;
+  const double peak = st.peak;
+  double bg = st.bg;
+  const std::uint32_t imax = first_argmax<T, Step>(row, st.scan, st.mx);
+  st.imax = imax;
+  const std::uint64_t sum = st.scan.sum;
+  st.active = false;
 
   // Support of the peak: contiguous samples above bg + 20 % of the contrast, at most max_half_width away.
   // Integer samples: v > low  <=>  v > floor(low).
   const double low = bg + 0.2 * (peak - bg);
-  const std::int64_t low_i = static_cast<std::int64_t>(std::floor(low));
+  const std::int64_t low_i = static_cast<std::int64_t>(low);  // low >= 0: truncation = floor
   const auto iat = [&](std::int64_t i) { return static_cast<std::int64_t>(row[static_cast<std::size_t>(i) * Step]); };
   const std::int64_t hw = p.max_half_width;
   std::int64_t lo = imax, hi = imax;
-  while (lo > 0 && imax - lo < hw && iat(lo - 1) > low_i) --lo;
-  while (hi + 1 < n && hi - imax < hw && iat(hi + 1) > low_i) ++hi;
+  std::int64_t support_sum = iat(imax);  // summed on the way (no second loop over the support)
+  for (std::int64_t v; lo > 0 && imax - lo < hw && (v = iat(lo - 1)) > low_i; --lo) support_sum += v;
+  for (std::int64_t v; hi + 1 < n && hi - imax < hw && (v = iat(hi + 1)) > low_i; ++hi) support_sum += v;
 
   // Background without the stripe's own energy.
-  std::int64_t support_sum = 0;
-  for (std::int64_t i = lo; i <= hi; ++i) support_sum += iat(i);
   const std::int64_t rest = static_cast<std::int64_t>(n) - (hi - lo + 1);
   if (rest > 0) bg = static_cast<double>(static_cast<std::int64_t>(sum) - support_sum) / static_cast<double>(rest);
   const double contrast = peak - bg;
-  if (contrast < p.min_contrast * scale) return r;
-  r.peak = peak;
+  if (contrast < p.min_contrast * scale) return;
+  st.r.peak = peak;
 
   // Saturation plateau.
   if (peak >= full_scale) {
     std::uint32_t run = 0;
     for (std::int64_t i = imax; i < n && at(row, Step, i) >= full_scale; ++i) ++run;
     if (run >= p.saturation_run) {
-      r.status = RowStatus::Saturated;
-      return r;
+      st.r.status = RowStatus::Saturated;
+      return;
     }
   }
+  st.bg = bg;
+  st.contrast = contrast;
+  st.lo = lo;
+  st.hi = hi;
+  st.active = true;
+}
+
+// Stage 3: the double-peak test, FWHM, and the sub-pixel centre (GaussMl: the row's window into lane `lane` of
+// the batch, finished by finish_row once the batch is fitted).
+template <typename T, std::uint32_t Step>
+void stage_centre(RowState<T>& st, double full_scale, const ExtractParams& p, detail::GaussMlBatch& batch, int lane) {
+  const T* row = st.row;
+  const std::uint32_t n = st.n;
+  const double scale = full_scale / 255.0;
+  const double bg = st.bg, contrast = st.contrast;
+  const T mx = st.mx;
+  const std::uint32_t imax = st.imax;
+  const std::int64_t lo = st.lo, hi = st.hi;
+  const std::int64_t hw = p.max_half_width;
+  const auto iat = [&](std::int64_t i) { return static_cast<std::int64_t>(row[static_cast<std::size_t>(i) * Step]); };
+  RowPeak& r = st.r;
+  st.active = false;
 
   // Second peak outside the support (and the flank sample next to it on each side).
   const double second_limit = bg + p.ambiguous_ratio * contrast;
-  const double second = static_cast<double>(detail::max_outside<T, Step>(row, scan, lo - 1, hi + 1));
+  const double second = static_cast<double>(detail::max_outside<T, Step>(row, st.scan, lo - 1, hi + 1));
   if (second > second_limit || (hi - lo) >= 2 * hw) {
     r.status = RowStatus::Ambiguous;
-    return r;
+    return;
   }
 
   // Full width at half maximum by linear interpolation on both flanks (integer walks: v > half <=> v > floor).
   const double half = bg + 0.5 * contrast;
-  const std::int64_t half_i = static_cast<std::int64_t>(std::floor(half));
+  const std::int64_t half_i = static_cast<std::int64_t>(half);  // half >= 0: truncation = floor
   double left = static_cast<double>(imax), right = static_cast<double>(imax);
   {
-    std::int64_t i = imax;
+    std::int64_t i = imax, j = imax;
     while (i > lo && iat(i - 1) > half_i) --i;
+    while (j < hi && iat(j + 1) > half_i) ++j;
     const double a = at(row, Step, i - (i > 0 ? 1 : 0)), b = at(row, Step, i);
     left = (i > 0 && b != a) ? static_cast<double>(i) - (b - half) / (b - a) : static_cast<double>(i);
-    std::int64_t j = imax;
-    while (j < hi && iat(j + 1) > half_i) ++j;
     const double c = at(row, Step, j), d = at(row, Step, j + (j + 1 < n ? 1 : 0));
     right = (j + 1 < n && c != d) ? static_cast<double>(j) + (c - half) / (c - d) : static_cast<double>(j);
   }
@@ -187,29 +258,47 @@ RowPeak extract_row_impl(const T* row, std::uint32_t n, double full_scale, const
     case SubpixelMethod::GaussMl: {
       // Samples minus background in 8-bit DN over ic +- (3 sigma + 3), sigma from the FWHM.
       constexpr std::int64_t kMaxK = 64;
-      const std::int64_t k = std::clamp<std::int64_t>(static_cast<std::int64_t>(std::ceil(r.width * (3.0 / 2.3548))) + 3,
-                                                      4, kMaxK);
+      const double kw = r.width * (3.0 / 2.3548);  // >= 0 and small: ceil by truncation
+      std::int64_t kc = static_cast<std::int64_t>(std::min(kw, 1e6));
+      kc += kw > static_cast<double>(kc) ? 1 : 0;
+      const std::int64_t k = std::clamp<std::int64_t>(kc + 3, 4, kMaxK);
       const std::int64_t first = std::max<std::int64_t>(0, ic - k);
       const std::int64_t last = std::min<std::int64_t>(static_cast<std::int64_t>(n) - 1, ic + k);
-      std::array<float, 2 * kMaxK + 1 + detail::kChunk> y;
       const double inv = 1.0 / scale;
+      const double clip = (full_scale - bg) * inv;
+      if (k < detail::kBatchHalf) {  // the batched fit (every stripe narrower than ~9 px FWHM)
+        constexpr std::int64_t C = detail::kBatchHalf;
+        if (Step == 1 && ic - C >= 0 && ic + C <= static_cast<std::int64_t>(n)) {
+          // The whole lane, a fixed trip count in float (vectorized; samples outside [first, last] are masked
+          // by the fit).
+          const float bgf = static_cast<float>(bg), invf = static_cast<float>(inv);
+          const T* src = row + (ic - C);
+          for (std::int64_t x = 0; x < 2 * C; ++x) batch.y[x][lane] = (static_cast<float>(src[x]) - bgf) * invf;
+        } else {
+          for (std::int64_t i = first; i <= last; ++i)
+            batch.y[C + (i - ic)][lane] = static_cast<float>((at(row, Step, i) - bg) * inv);
+        }
+        batch.xa[lane] = static_cast<std::int32_t>(first - ic);
+        batch.xb[lane] = static_cast<std::int32_t>(last - ic);
+        batch.contrast[lane] = contrast * inv;
+        batch.clip[lane] = clip;
+        st.d = Deferred{lo, hi, ic, bg};
+        st.deferred = true;
+        r.status = RowStatus::Ok;
+        return;
+      }
+      std::array<float, 2 * kMaxK + 1 + detail::kChunk> y;
       const std::int64_t count = last - first + 1;
       for (std::int64_t i = 0; i < count; ++i)
         y[static_cast<std::size_t>(i)] = static_cast<float>((at(row, Step, first + i) - bg) * inv);
       std::fill_n(y.begin() + count, detail::kChunk, 0.0f);  // the fit reads (and masks out) up to kChunk more
-      const double clip = (full_scale - bg) * inv;
       const detail::SensorNoise noise{p.read_noise, p.shot_noise, p.speckle};
       double c = 0.0;
       if (detail::gauss_ml_centre(y.data(), static_cast<int>(last - first + 1), static_cast<int>(ic - first),
                                   contrast * inv, clip, noise, c)) {
         col = static_cast<double>(first) + c;
-      } else {  // no Gaussian fits (e.g. a clipped narrow top): centre of gravity of the support
-        double s = 0.0, sw = 0.0;
-        for (std::int64_t i = lo; i <= hi; ++i) {
-          s += v(i);
-          sw += v(i) * static_cast<double>(i);
-        }
-        col = s > 0.0 ? sw / s : static_cast<double>(ic);
+      } else {
+        col = support_cog<T, Step>(row, lo, hi, ic, bg);
       }
       break;
     }
@@ -227,7 +316,30 @@ RowPeak extract_row_impl(const T* row, std::uint32_t n, double full_scale, const
   // A stripe's centre lies within its support (guards every method against edge extrapolation).
   r.col = std::clamp(col, static_cast<double>(lo) - 0.5, static_cast<double>(hi) + 0.5);
   r.status = RowStatus::Ok;
-  return r;
+}
+
+// Completes a row analyse_row deferred, once its batch has been fitted.
+template <typename T, std::uint32_t Step>
+void finish_row(const T* row, const Deferred& d, const detail::GaussMlBatch& batch, int lane, RowPeak& r) {
+  const double col = batch.ok[lane] ? static_cast<double>(d.ic) + batch.centre[lane]
+                                    : support_cog<T, Step>(row, d.lo, d.hi, d.ic, d.bg);
+  // A stripe's centre lies within its support (guards every method against edge extrapolation).
+  r.col = std::clamp(col, static_cast<double>(d.lo) - 0.5, static_cast<double>(d.hi) + 0.5);
+}
+
+// One row alone (extract_row): the stages back to back, a batch of one.
+template <typename T, std::uint32_t Step>
+RowPeak extract_row_impl(const T* row, std::uint32_t n, double full_scale, const ExtractParams& p) {
+  RowState<T> st;
+  detail::GaussMlBatch batch;
+  stage_scan<T, Step>(st, row, n, full_scale, p);
+  if (st.active) stage_support<T, Step>(st, full_scale, p);
+  if (st.active) stage_centre<T, Step>(st, full_scale, p, batch, 0);
+  if (st.deferred) {
+    detail::gauss_ml_centre_batch(batch, detail::SensorNoise{p.read_noise, p.shot_noise, p.speckle});
+    finish_row<T, Step>(row, st.d, batch, 0, st.r);
+  }
+  return st.r;
 }
 
 }  // namespace
@@ -245,33 +357,67 @@ RowPeak extract_row<std::uint16_t>(const std::uint16_t* row, std::uint32_t n, st
   return extract_row_impl<std::uint16_t, 1>(row, n, full_scale, p);
 }
 
+namespace {
+
+// Rows in blocks of kBatch: each stage over the block's rows (row pass; support and background; shape and
+// centre, GaussMl rows into the lanes of the batch), then one batched GaussMl fit for the block, then the
+// block's points in row order.
+template <typename T, std::uint32_t Step>
+void extract_rows(const FrameView& f, double full_scale, const ExtractParams& params, std::span<msg::StripePoint> out,
+                  ExtractCounts& c) {
+  constexpr int L = detail::kBatch;
+  RowState<T> st[L];
+  detail::GaussMlBatch batch;
+  const detail::SensorNoise noise{params.read_noise, params.shot_noise, params.speckle};
+  for (std::uint32_t y0 = 0; y0 < f.height; y0 += L) {
+    const int rows = static_cast<int>(std::min<std::uint32_t>(L, f.height - y0));
+    for (int i = 0; i < rows; ++i) {
+      const auto* row =
+          reinterpret_cast<const T*>(f.data + static_cast<std::size_t>(y0 + static_cast<std::uint32_t>(i)) * f.stride);
+      stage_scan<T, Step>(st[i], row, f.width, full_scale, params);
+    }
+    for (int i = 0; i < rows; ++i)
+      if (st[i].active) stage_support<T, Step>(st[i], full_scale, params);
+    bool any = false;
+    for (int i = 0; i < rows; ++i) {
+      if (st[i].active) stage_centre<T, Step>(st[i], full_scale, params, batch, i);
+      if (!st[i].deferred) batch.xa[i] = batch.xb[i] = 0;  // an unused lane
+      any |= st[i].deferred;
+    }
+    if (any) {
+      for (int i = rows; i < L; ++i) batch.xa[i] = batch.xb[i] = 0;
+      detail::gauss_ml_centre_batch(batch, noise);
+      for (int i = 0; i < rows; ++i)
+        if (st[i].deferred) finish_row<T, Step>(st[i].row, st[i].d, batch, i, st[i].r);
+    }
+    for (int i = 0; i < rows; ++i) {
+      const RowPeak& r = st[i].r;
+      ++c.rows;
+      switch (r.status) {
+        case RowStatus::NoStripe: ++c.no_stripe; continue;
+        case RowStatus::Ambiguous: ++c.ambiguous; continue;
+        case RowStatus::Saturated: ++c.saturated; continue;
+        case RowStatus::Ok: break;
+      }
+      if (c.points >= out.size()) continue;
+      msg::StripePoint& pt = out[c.points++];
+      pt.row = static_cast<std::uint16_t>(y0 + static_cast<std::uint32_t>(i));
+      pt.col = static_cast<float>(r.col);
+      pt.peak = static_cast<std::uint16_t>(std::min(r.peak, 65535.0));
+      pt.width = static_cast<float>(r.width);
+    }
+  }
+}
+
+}  // namespace
+
 ExtractCounts extract_frame(const FrameView& f, const ExtractParams& params, std::span<msg::StripePoint> out) {
   ExtractCounts c;
   if (!f.data || f.width == 0 || f.height == 0) return c;
-  for (std::uint32_t y = 0; y < f.height; ++y) {
-    const std::uint8_t* base = f.data + static_cast<std::size_t>(y) * f.stride;
-    RowPeak r;
-    switch (f.format) {
-      case PixelFormat::Mono8: r = extract_row<std::uint8_t>(base, f.width, 1, 255.0, params); break;
-      case PixelFormat::Yuyv: r = extract_row<std::uint8_t>(base, f.width, 2, 255.0, params); break;
-      case PixelFormat::Mono16: {
-        r = extract_row<std::uint16_t>(reinterpret_cast<const std::uint16_t*>(base), f.width, 1, 65535.0, params);
-        break;
-      }
-    }
-    ++c.rows;
-    switch (r.status) {
-      case RowStatus::NoStripe: ++c.no_stripe; continue;
-      case RowStatus::Ambiguous: ++c.ambiguous; continue;
-      case RowStatus::Saturated: ++c.saturated; continue;
-      case RowStatus::Ok: break;
-    }
-    if (c.points >= out.size()) continue;
-    msg::StripePoint& pt = out[c.points++];
-    pt.row = static_cast<std::uint16_t>(y);
-    pt.col = static_cast<float>(r.col);
-    pt.peak = static_cast<std::uint16_t>(std::min(r.peak, 65535.0));
-    pt.width = static_cast<float>(r.width);
+  switch (f.format) {
+    case PixelFormat::Mono8: extract_rows<std::uint8_t, 1>(f, 255.0, params, out, c); break;
+    case PixelFormat::Yuyv: extract_rows<std::uint8_t, 2>(f, 255.0, params, out, c); break;
+    case PixelFormat::Mono16: extract_rows<std::uint16_t, 1>(f, 65535.0, params, out, c); break;
   }
   return c;
 }

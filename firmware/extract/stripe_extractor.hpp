@@ -11,7 +11,10 @@
 // Cramer-Rao bound, with no outliers, so it is the default).
 //
 // Speed: one vectorized pass per row (row_scan.hpp: lane maxima per 64-sample block + the row sum), then
-// scalar work only around the peak. No heap allocation: the caller provides the output span.
+// scalar work only around the peak. extract_frame takes the rows in blocks of 8: each stage of the per-row
+// work runs over the block before the next (the rows' latency chains overlap), and the GaussMl centres of
+// the block are fitted together, one row per SIMD lane (gauss_ml.hpp, GaussMlBatch). extract_row runs the
+// same code for one row and gives the same bits. No heap allocation: the caller provides the output span.
 #include <cstdint>
 #include <span>
 

@@ -1,14 +1,16 @@
 // bench_extract: stripe extraction throughput on a 1280x1024 Mono8 frame of the cube scene (scene renderer,
 // default noise) next to memcpy of the same frame in the same run. bytes_per_second = pixels per second.
 // BM_ScanRow: the per-row pass alone over the frame, 0 = the portable auto-vectorized loop, 1 = the path
-// extraction uses (SIMD on x86-64; label says which).
+// extraction uses (SIMD on x86-64; label says which). BM_GaussMlBatch: the batched sub-pixel fit alone.
 #include <benchmark/benchmark.h>
 
+#include <cmath>
 #include <cstring>
 #include <memory>
 #include <string>
 #include <vector>
 
+#include "firmware/extract/gauss_ml.hpp"
 #include "firmware/extract/row_scan.hpp"
 #include "firmware/extract/stripe_extractor.hpp"
 #include "hw-sim/scene/scene.hpp"
@@ -79,6 +81,40 @@ void BM_ScanRow(benchmark::State& state) {
   state.SetLabel(state.range(0) == 0 ? "portable" : fs::fw::detail::scan_row_u8_isa());
 }
 BENCHMARK(BM_ScanRow)->Arg(0)->Arg(1);
+
+// The batched GaussMl fit alone: 8 stripe profiles (sigma 2.5 px, the cube frames' typical stripe) per call,
+// 0 = the portable build (what arm runs, here SSE2), 1 = the one extraction uses (AVX-512VL or AVX2 when
+// present), 2 = the AVX2 build.
+// Items = rows fitted.
+void BM_GaussMlBatch(benchmark::State& state) {
+  fs::fw::detail::GaussMlBatch b;
+  using fs::fw::detail::kBatch;
+  using fs::fw::detail::kBatchHalf;
+  for (int j = 0; j < kBatch; ++j) {
+    const double u = -0.45 + 0.11 * j, s = 2.5;
+    for (int x = -kBatchHalf; x < kBatchHalf; ++x)
+      b.y[kBatchHalf + x][j] = static_cast<float>(150.0 * std::exp(-(x - u) * (x - u) / (2 * s * s)) + 0.3 * ((x * 7 + j) % 5));
+    b.xa[j] = -10;
+    b.xb[j] = 10;
+    b.contrast[j] = 150.0;
+    b.clip[j] = 200.0;
+  }
+  const fs::fw::detail::SensorNoise noise;
+  if (state.range(0) == 2 && !fs::fw::detail::gauss_ml_centre_batch_avx2(b, noise)) {
+    state.SkipWithError("no AVX2 here");
+    return;
+  }
+  for (auto _ : state) {
+    if (state.range(0) == 0) fs::fw::detail::gauss_ml_centre_batch_portable(b, noise);
+    else if (state.range(0) == 2) fs::fw::detail::gauss_ml_centre_batch_avx2(b, noise);
+    else fs::fw::detail::gauss_ml_centre_batch(b, noise);
+    benchmark::DoNotOptimize(b.centre);
+    benchmark::ClobberMemory();
+  }
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * kBatch));
+  state.SetLabel(state.range(0) == 0 ? "portable" : state.range(0) == 2 ? "avx2" : fs::fw::detail::gauss_ml_batch_isa());
+}
+BENCHMARK(BM_GaussMlBatch)->Arg(0)->Arg(1)->Arg(2);
 
 BENCHMARK(BM_Extract)->Arg(0)->Arg(1)->Arg(2)->Arg(3)->Arg(4);
 

@@ -111,5 +111,60 @@ TEST(ExtractScene, GaussMlToleratesAWrongNoiseModel) {
   }
 }
 
+// extract_frame works through blocks of rows (the batched GaussMl fit, rows in SIMD lanes); extract_row fits a
+// row alone. Both must give the same points bit for bit, for every method and pixel format, on the
+// renderer's frames (so the accuracy measured above through extract_row is the frame path's).
+TEST(ExtractScene, FrameGivesTheRowByRowResults) {
+  const sim::Scene scene = sim::load_scene(source_dir() / "hw-sim/scenes/cube.json");
+  sim::StripeRenderer r(scene);
+  const auto& cam = scene.calibration.camera;
+  const std::uint32_t w = cam.width, h = cam.height;
+  std::vector<std::uint8_t> img(static_cast<std::size_t>(w) * h), yuyv(img.size() * 2);
+  std::vector<std::uint16_t> img16(img.size());
+  std::vector<msg::StripePoint> out(h);
+  int compared = 0;
+  for (double step : {30.0, 250.0, 470.0}) {
+    r.render_step(step, 3, sim::FrameBuffer{img.data(), w, h, w, sim::FrameFormat::Mono8});
+    for (std::size_t i = 0; i < img.size(); ++i) {
+      img16[i] = static_cast<std::uint16_t>(img[i] * 257 + (i % 7));
+      yuyv[2 * i] = img[i];
+      yuyv[2 * i + 1] = static_cast<std::uint8_t>(i);
+    }
+    for (auto m : {fw::SubpixelMethod::GaussMl, fw::SubpixelMethod::CentreOfGravity, fw::SubpixelMethod::GaussFit}) {
+      fw::ExtractParams p;
+      p.method = m;
+      for (int format = 0; format < 3; ++format) {
+        const fw::FrameView f =
+            format == 0   ? fw::FrameView{img.data(), w, h, w, fw::PixelFormat::Mono8, 0, 0, 0}
+            : format == 1 ? fw::FrameView{reinterpret_cast<const std::uint8_t*>(img16.data()), w, h, 2 * w,
+                                          fw::PixelFormat::Mono16, 0, 0, 0}
+                          : fw::FrameView{yuyv.data(), w, h, 2 * w, fw::PixelFormat::Yuyv, 0, 0, 0};
+        const fw::ExtractCounts c = fw::extract_frame(f, p, out);
+        std::uint32_t k = 0, no_stripe = 0;
+        for (std::uint32_t v = 0; v < h; ++v) {
+          const fw::RowPeak rp =
+              format == 0 ? fw::extract_row<std::uint8_t>(img.data() + std::size_t{v} * w, w, 1, 255.0, p)
+              : format == 1
+                  ? fw::extract_row<std::uint16_t>(img16.data() + std::size_t{v} * w, w, 1, 65535.0, p)
+                  : fw::extract_row<std::uint8_t>(yuyv.data() + std::size_t{v} * 2 * w, w, 2, 255.0, p);
+          no_stripe += rp.status == fw::RowStatus::NoStripe;
+          if (rp.status != fw::RowStatus::Ok) continue;
+          ASSERT_LT(k, c.points) << "row " << v;
+          const msg::StripePoint& pt = out[k++];
+          ASSERT_EQ(pt.row, v);
+          ASSERT_EQ(pt.col, static_cast<float>(rp.col)) << "row " << v << " format " << format;
+          ASSERT_EQ(pt.width, static_cast<float>(rp.width)) << "row " << v;
+          ASSERT_EQ(pt.peak, static_cast<std::uint16_t>(std::min(rp.peak, 65535.0))) << "row " << v;
+          ++compared;
+        }
+        EXPECT_EQ(k, c.points);
+        EXPECT_EQ(no_stripe, c.no_stripe);
+        EXPECT_EQ(c.rows, h);
+      }
+    }
+  }
+  EXPECT_GT(compared, 3 * 3 * 3 * 500);
+}
+
 }  // namespace
 }  // namespace fs::test
