@@ -62,11 +62,15 @@ MatchParams preset(std::string_view name) {
     return p;
   }
   if (name == "scan") {
-    // t7.34 (all attributes) with solutions ranked by cost + zeta * unexplained neighbour area (params.hpp), and
-    // a rotation-fit threshold for scanned normals (a few degrees of error): e_rotfit <= 0.01, i.e. matched
-    // normals off by ~8 deg on average at most (t7.34: 1, no limit).
-    MatchParams p = base("scan", 5e-2, 4e-2, 1e-2, 1e-2, 0.9, 20, 2, 1, 0.005);
+    // For scanned scenes: t7.34 (all attributes) with solutions ranked by cost + zeta * unexplained neighbour area
+    // (params.hpp), rotation-fit increments <= 0.005 (a matched normal off by ~6 deg at most; t7.34: 1, no limit),
+    // TH_omega 10 deg with the rigidity test from level-1 parents too (normals of scanned planes err by a few
+    // degrees at most, not 20), and the one-sided area condition (a face is never seen larger than 1.3x + 30 mm2).
+    MatchParams p = base("scan", 5e-2, 4e-2, 1e-2, 1e-2, 0.9, 10, 2, 1, 0.005);
     p.zeta = 0.1;
+    p.rigidity_pairs = true;
+    p.th_area_ratio = 1.3;
+    p.th_area_slack_mm2 = 30.0;
     return p;
   }
   if (name == "t9.3") return base("t9.3", 0.0, 0.0, 1e-2, 1e-2, 0.8, 20, 6, 0.1, 1);

@@ -161,7 +161,7 @@ PerturbedRun run_perturbed(const MatchParams& p, unsigned seed) {
 // configurations (cupolas: squares and triangles meeting at equal angles) often put a small wrong 3-face match
 // of an ambiguous part of the view first once the split face raises the correct match's cost, or a wrong large
 // match whose rotation fit is poor. The `scan` preset (params.cpp: solutions ranked by cost + zeta * unexplained
-// neighbour area, rotation-fit increments <= 0.005) fixes most of them. Nine seeds of views: the cube and the
+// neighbour area, rotation-fit increments <= 0.005, TH_omega 10 deg from level-1 parents on) fixes most of them. Nine seeds of views: the cube and the
 // truncated pyramid must always come out right; the share of correct first solutions is reported and bounded.
 TEST(Inexact, PerturbedViewsCorrectFirst) {
   PerturbedRun thesis, scan;
