@@ -188,6 +188,162 @@ int single_face_hypotheses(const Library& library, const PfrgNode& face, const P
   return written;
 }
 
+std::size_t convex_hull_in_place(std::vector<Eigen::Vector2d>& pts, std::vector<Eigen::Vector2d>& scratch) {
+  const std::size_t n = pts.size();
+  if (n < 3) return n;
+  std::sort(pts.begin(), pts.end(), [](const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+    return a.x() != b.x() ? a.x() < b.x() : a.y() < b.y();
+  });
+  // Turn test with a relative tolerance, so that (nearly) collinear points along an edge are dropped.
+  auto cross = [](const Eigen::Vector2d& o, const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+    const double c = (a.x() - o.x()) * (b.y() - o.y()) - (a.y() - o.y()) * (b.x() - o.x());
+    return c - 1e-9 * (a - o).norm() * (b - o).norm();
+  };
+  scratch.resize(2 * n);   // capacity reserved by the caller: no allocation once warm
+  std::size_t k = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    while (k >= 2 && cross(scratch[k - 2], scratch[k - 1], pts[i]) <= 0) --k;
+    scratch[k++] = pts[i];
+  }
+  for (std::size_t i = n - 1, lower = k + 1; i-- > 0;) {
+    while (k >= lower && cross(scratch[k - 2], scratch[k - 1], pts[i]) <= 0) --k;
+    scratch[k++] = pts[i];
+  }
+  --k;   // the last point repeats the first
+  for (std::size_t i = 0; i < k; ++i) pts[i] = scratch[i];
+  return k;
+}
+
+namespace {
+
+double segment_distance(const Eigen::Vector2d& p, const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+  const Eigen::Vector2d ab = b - a;
+  const double len2 = ab.squaredNorm();
+  const double s = len2 > 0 ? std::clamp((p - a).dot(ab) / len2, 0.0, 1.0) : 0.0;
+  return (a + s * ab - p).norm();
+}
+
+template <class Poly>
+double boundary_distance(const Eigen::Vector2d& p, const Poly& poly, std::size_t n) {
+  double best = std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < n; ++i) best = std::min(best, segment_distance(p, poly[i], poly[(i + 1) % n]));
+  return best;
+}
+
+}  // namespace
+
+int top_face_hypotheses(const Library& library, const PfrgNode& face, const Plane& table,
+                        std::span<const Eigen::Vector2d> hull, const Vec3& u, const Vec3& v, const TopFaceParams& p,
+                        std::span<Hypothesis> out) {
+  if (face.supernode || !face.has_plane || hull.size() < 3) return 0;
+  const double height = face.offset - table.d;   // face plane above the table (normals within a few degrees)
+  const double cos_anti = std::cos(p.antiparallel_deg * M_PI / 180.0);
+  // Hull centroid and long edges (>= 25 % of the longest).
+  double hull_max = 0.0;
+  for (std::size_t i = 0; i < hull.size(); ++i) hull_max = std::max(hull_max, (hull[(i + 1) % hull.size()] - hull[i]).norm());
+  constexpr std::size_t kMaxPoly = 64;
+  std::array<Eigen::Vector2d, kMaxPoly> poly{}, turned{};
+  struct Turn {
+    double score, angle;
+    Eigen::Vector2d shift;
+  };
+  std::array<Turn, 8> best{};
+  int written = 0;
+  for (std::size_t mi = 0; mi < library.models.size(); ++mi) {
+    const Model& model = library.models[mi];
+    for (std::size_t fi = 0; fi < model.faces.size(); ++fi) {
+      const ModelFace& f = model.faces[fi];
+      if (face.area < p.min_area_ratio * f.area || face.area > p.area_ratio * f.area + p.area_slack_mm2) continue;
+      if (f.loops.empty() || f.loops[0].size() < 3 || f.loops[0].size() > kMaxPoly) continue;
+      // A resting face g antiparallel to f at the right distance.
+      int g = -1;
+      for (std::size_t gi = 0; gi < model.faces.size() && g < 0; ++gi) {
+        const ModelFace& mg = model.faces[gi];
+        if (gi == fi || f.normal.dot(mg.normal) > -cos_anti) continue;
+        if (std::abs((f.offset + mg.offset) - height) <= p.height_tol_mm) g = static_cast<int>(gi);
+      }
+      if (g < 0) continue;
+      // R0: f's normal onto the scene face's; then f's outer polygon and centroid in the (u, v) basis.
+      const Mat3 R0 = Eigen::Quaterniond::FromTwoVectors(f.normal, face.normal).toRotationMatrix();
+      const auto& loop = f.loops[0];
+      const std::size_t n = loop.size();
+      double poly_max = 0.0;
+      for (std::size_t i = 0; i < n; ++i) {
+        const Vec3 w = R0 * loop[i];
+        poly[i] = Eigen::Vector2d(w.dot(u), w.dot(v));
+      }
+      for (std::size_t i = 0; i < n; ++i) poly_max = std::max(poly_max, (poly[(i + 1) % n] - poly[i]).norm());
+      const Vec3 cf = R0 * f.centroid;
+      const Eigen::Vector2d c_poly(cf.dot(u), cf.dot(v));
+      const Eigen::Vector2d c_scene(face.centroid.dot(u), face.centroid.dot(v));
+      int nbest = 0;
+      for (std::size_t hi = 0; hi < hull.size(); ++hi) {
+        const Eigen::Vector2d eh = hull[(hi + 1) % hull.size()] - hull[hi];
+        if (eh.norm() < 0.25 * hull_max) continue;
+        for (std::size_t pi = 0; pi < n; ++pi) {
+          const Eigen::Vector2d ep = poly[(pi + 1) % n] - poly[pi];
+          if (ep.norm() < 0.25 * poly_max) continue;
+          const double angle = std::atan2(eh.y(), eh.x()) - std::atan2(ep.y(), ep.x());
+          const Eigen::Rotation2Dd rot(angle);
+          const Eigen::Vector2d shift = c_scene - rot * c_poly;
+          for (std::size_t i = 0; i < n; ++i) turned[i] = rot * poly[i] + shift;
+          double sum = 0.0;
+          for (const Eigen::Vector2d& q : hull) sum += boundary_distance(q, turned, n);
+          for (std::size_t i = 0; i < n; ++i) sum += boundary_distance(turned[i], hull, hull.size());
+          const double score = sum / static_cast<double>(hull.size() + n);
+          if (score > p.max_outline_mm) continue;
+          // Keep the best max_turns distinct turns (1 deg apart).
+          bool dup = false;
+          for (int k = 0; k < nbest; ++k) {
+            const double d = std::remainder(best[static_cast<std::size_t>(k)].angle - angle, 2 * M_PI);
+            if (std::abs(d) < M_PI / 180.0) {
+              dup = true;
+              if (score < best[static_cast<std::size_t>(k)].score) best[static_cast<std::size_t>(k)] = Turn{score, angle, shift};
+            }
+          }
+          if (dup) continue;
+          const int cap = std::clamp(p.max_turns, 1, static_cast<int>(best.size()));
+          if (nbest < cap) {
+            best[static_cast<std::size_t>(nbest++)] = Turn{score, angle, shift};
+          } else {
+            int worst = 0;
+            for (int k = 1; k < nbest; ++k)
+              if (best[static_cast<std::size_t>(k)].score > best[static_cast<std::size_t>(worst)].score) worst = k;
+            if (score < best[static_cast<std::size_t>(worst)].score) best[static_cast<std::size_t>(worst)] = Turn{score, angle, shift};
+          }
+        }
+      }
+      for (int k = 0; k < nbest; ++k) {
+        if (written >= static_cast<int>(out.size())) return written;
+        const Turn& tr = best[static_cast<std::size_t>(k)];
+        const Mat3 R = Eigen::AngleAxisd(tr.angle, face.normal).toRotationMatrix() * R0;
+        // In-plane: the turned polygon's shift; along the normal: f on the scene face's plane.
+        const Vec3 t = u * tr.shift.x() + v * tr.shift.y() +
+                       face.normal * (face.offset - f.offset - face.normal.dot(u * tr.shift.x() + v * tr.shift.y()));
+        Hypothesis& h = out[static_cast<std::size_t>(written++)];
+        h.model = static_cast<int>(mi);
+        h.rank = 0;
+        h.path.clear();
+        h.matches.clear();
+        h.matches.push_back(FaceMatch{face.id, static_cast<int>(fi), false});
+        h.level = 1;
+        h.R = R;
+        h.t = t;
+        h.free_dims = 0;
+        h.free_dir = Vec3::Zero();
+        h.cost = tr.score * 1e-3;   // outline fit (m) as a tie-break
+        h.rotfit_error = 0.0;
+        h.degenerate = false;
+        h.merged = false;
+        h.instance = 0;
+        h.verify = VerifyResult{};
+        h.inlier_cells.clear();
+      }
+    }
+  }
+  return written;
+}
+
 double prescore(const HypothesisContext& c, const Hypothesis& h) {
   const Model& model = c.library.models[static_cast<std::size_t>(h.model)];
   double predicted = 0.0, explained = 0.0, penalty = 1.0;

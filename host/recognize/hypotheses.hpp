@@ -51,6 +51,30 @@ struct SingleFaceParams {
 int single_face_hypotheses(const Library& library, const PfrgNode& face, const Plane& table,
                            const SingleFaceParams& p, std::span<Hypothesis> out);
 
+// The same for a lone face parallel to the table (a box or prism seen from above, its sides edge-on): the model
+// rests on a face g antiparallel to the matched face f, which leaves the turn about the vertical open. It is
+// taken from the outline: `hull` is the convex hull of the scene face's points in the plane basis (u, v) (u x v
+// along the face normal, origin anywhere); every pair of long edges of the hull and of f's outer polygon gives a
+// candidate turn, each is scored by the mean distance of the hull's vertices to the turned polygon's boundary and
+// of the polygon's to the hull's, and the best max_turns per (model, f) within max_outline_mm are kept. The
+// distance between f and g must equal the face's height above the table within height_tol_mm.
+struct TopFaceParams {
+  double antiparallel_deg = 2.0;
+  double min_area_ratio = 0.7;
+  double area_ratio = 1.3;
+  double area_slack_mm2 = 30.0;
+  double height_tol_mm = 3.0;
+  double max_outline_mm = 3.0;
+  int max_turns = 2;
+};
+int top_face_hypotheses(const Library& library, const PfrgNode& face, const Plane& table,
+                        std::span<const Eigen::Vector2d> hull, const Vec3& u, const Vec3& v, const TopFaceParams& p,
+                        std::span<Hypothesis> out);
+
+// Convex hull (counter-clockwise, Andrew's monotone chain) of pts in place: pts is sorted and its first k entries
+// become the hull; returns k. No allocation.
+std::size_t convex_hull_in_place(std::vector<Eigen::Vector2d>& pts, std::vector<Eigen::Vector2d>& scratch);
+
 // Geometric plausibility of a hypothesis before the (costly) low-level verification, in [0, 1]: the share of
 // the model's predicted visible area (front faces, weighted down toward grazing view) that matched scene faces
 // explain, times a penalty for every matched scene face larger than its model face (a face cannot be seen

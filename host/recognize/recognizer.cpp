@@ -118,6 +118,7 @@ struct Recognizer::Impl {
   std::vector<int> lone_faces;  // indices into the split graph's nodes of faces that border no other face
   std::vector<char> lone_tried; // by scene node id: single-face hypotheses made already
   Pfrg rest;                    // the scene graph without the faces of accepted objects (rounds after the first)
+  std::vector<Eigen::Vector2d> hull, hull_scratch;   // outline of a lone face parallel to the table
   bool round_small = false;     // this round searches every part with mparams_small
 
   // rest = scene without the faces accepted objects hold (and their arcs). False when no face is left.
@@ -149,7 +150,9 @@ struct Recognizer::Impl {
     return x;
   }
 
-  void split_components(const Pfrg& g, int min_faces) {
+  // viewpoint: the sensor position; each part then looks at it from its faces' centroid (the visibility condition
+  // needs the real viewing direction: a scene's mean normal leans toward its largest faces).
+  void split_components(const Pfrg& g, int min_faces, const Vec3* viewpoint = nullptr) {
     int max_id = 0;
     for (const auto& n : g.nodes) max_id = std::max(max_id, n.id);
     const auto size = static_cast<std::size_t>(max_id) + 1;
@@ -206,6 +209,16 @@ struct Recognizer::Impl {
       parts[static_cast<std::size_t>(p)].nodes.push_back(n);
       ++part_faces[static_cast<std::size_t>(p)];
     }
+    if (viewpoint && !g.has_observer)
+      for (std::size_t k = 0; k < nparts; ++k) {
+        Vec3 c = Vec3::Zero();
+        double w = 0.0;
+        for (const auto& n : parts[k].nodes)
+          if (!n.supernode && n.has_plane) c += n.area * n.centroid, w += n.area;
+        if (w <= 0.0) continue;
+        const Vec3 d = *viewpoint - c / w;
+        if (d.norm() > 1e-9) parts[k].observer = d.normalized();
+      }
     for (const auto& a : g.arcs) {
       const bool sa = is_super(a.a), sb = is_super(a.b);
       const int pa = sa ? -1 : part_of[static_cast<std::size_t>(a.a)];
@@ -289,6 +302,8 @@ Recognizer::Recognizer(const Library& library, const RecognizeParams& params, st
   for (auto& b : impl_->slot_cells) b.reserve(max_samples);
   impl_->slot_owner.reserve(impl_->slot_cells.size());
   for (auto& v : impl_->verifiers) v.reserve(max_samples);
+  impl_->hull.reserve(max_samples);
+  impl_->hull_scratch.reserve(2 * max_samples);
   result_.objects.reserve(static_cast<std::size_t>(std::max(params.max_objects, 1)));
   impl_->spare_objects.resize(result_.objects.capacity());
   for (Hypothesis& h : impl_->spare_objects) {
@@ -397,12 +412,12 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
     t0 = Clock::now();
     const Pfrg* graph = &scene_;
     if (round == 0) {
-      im.split_components(scene_, min_part);
+      im.split_components(scene_, min_part, &cloud.viewpoint);
       out.stats.components = static_cast<int>(im.nparts);
     } else {
       if (!small_parts || !im.build_rest(scene_)) break;
       graph = &im.rest;
-      im.split_components(im.rest, params_.small_part_min_level);
+      im.split_components(im.rest, params_.small_part_min_level, &cloud.viewpoint);
     }
     im.round_small = round > 0;
     im.pool.run(im.nparts == 0 ? 0 : library_.models.size(),
@@ -488,8 +503,28 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
         im.lone_tried[static_cast<std::size_t>(face.id)] = 1;
         const std::size_t room =
             std::min(im.hyps.size() - im.nhyp, static_cast<std::size_t>(std::max(params_.single_face_max, 0)));
-        const int n = single_face_hypotheses(library_, face, im.table, sp,
-                                             std::span<Hypothesis>(im.hyps.data() + im.nhyp, room));
+        int n = 0;
+        if (std::abs(face.normal.dot(im.table.n)) < std::cos(sp.min_tilt_deg * M_PI / 180.0)) {
+          n = single_face_hypotheses(library_, face, im.table, sp, std::span<Hypothesis>(im.hyps.data() + im.nhyp, room));
+        } else {
+          // Parallel to the table: the turn about the vertical comes from the face's outline (fine samples).
+          const Vec3 u = face.normal.unitOrthogonal();
+          const Vec3 v = face.normal.cross(u);
+          im.hull.clear();
+          const auto& cells = im.fine.cells();
+          const auto& pts = im.fine.points();
+          for (std::size_t k = 0; k < cells.size(); ++k)
+            if (cells[k] < seg_.labels.size() && seg_.labels[cells[k]] == face.id - 1) {
+              const Vec3 q = pts[k].cast<double>();
+              im.hull.emplace_back(q.dot(u), q.dot(v));
+            }
+          im.hull.resize(convex_hull_in_place(im.hull, im.hull_scratch));
+          TopFaceParams tp;
+          tp.area_ratio = sp.area_ratio;
+          tp.area_slack_mm2 = sp.area_slack_mm2;
+          n = top_face_hypotheses(library_, face, im.table, im.hull, u, v, tp,
+                                  std::span<Hypothesis>(im.hyps.data() + im.nhyp, room));
+        }
         im.nhyp += static_cast<std::size_t>(n);
         out.stats.single_face += n;
       }

@@ -22,6 +22,8 @@
 #include "common/error.hpp"
 #include "host/library/library.hpp"
 #include "host/library/model.hpp"
+#include <nlohmann/json.hpp>
+#include "host/pfrg/pfrg.hpp"
 #include "host/recognize/pose.hpp"
 #include "host/recognize/recognizer.hpp"
 #include "hw-sim/scene/ground_truth_grid.hpp"
@@ -174,6 +176,7 @@ int run(const Args& args) {
       for (std::size_t oi = 0; oi < rs.scene.objects.size(); ++oi)
         if (rs.catalog_index[oi] >= 0)
           std::printf("  truth %s\n", library.models[static_cast<std::size_t>(rs.catalog_index[oi])].name.c_str());
+      if (std::getenv("FS_DUMP_GRAPH")) std::printf("GRAPH %s\n", fs::host::to_json(recognizer.scene_graph()).dump().c_str());
       for (const auto* h : recognizer.candidates())
         std::printf("  cand %-44s lvl %d faces %zu pre %.3f conf %.3f expl %.2f sup %.1f low %.1f in %d viol %d occ %d rot-to-truth %.1f\n",
                     library.models[static_cast<std::size_t>(h->model)].name.c_str(), h->level, h->matches.size(),

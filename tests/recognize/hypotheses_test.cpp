@@ -214,3 +214,64 @@ TEST(SingleFaceHypotheses, RecoverTheRestingPoseFromOneFaceAndTheTable) {
 }
 
 }  // namespace
+
+namespace {
+
+// Top-face hypotheses: a box standing on its base, turned 25 deg about the vertical, seen from above so that only
+// its top is a region. The turn comes from the top's outline (its convex hull), the height must fit: the true
+// pose is among the hypotheses (up to the box's symmetry, centre within 1e-6 mm); a box of another height gives
+// none; the hull helper returns the rectangle's 4 corners from a dense sampling of it.
+TEST(TopFaceHypotheses, TurnFromTheOutlineAndHeightFromTheTable) {
+  fs::host::Library lib;
+  lib.add(fs::host::build_model(fs::read_mesh(fs::test::source_dir() / "hw-sim/scenes/meshes/box.off")));
+  const fs::host::Model& m = lib.models[0];
+  std::size_t top = 0;
+  for (std::size_t f = 0; f < m.faces.size(); ++f)
+    if (m.faces[f].normal.z() > m.faces[top].normal.z()) top = f;
+  ASSERT_GT(m.faces[top].normal.z(), 0.999);   // the mesh stands on z = min, top face up
+  double zmin = 1e9;
+  for (const auto& f : m.faces)
+    for (const Vec3& v : f.loops[0]) zmin = std::min(zmin, v.z());
+  const Mat3 R = Eigen::AngleAxisd(25.0 * M_PI / 180.0, Vec3::UnitZ()).toRotationMatrix();
+  const Vec3 t(-40, 30, -zmin);
+  const fs::Plane table;
+  PfrgNode face;
+  face.id = 9;
+  face.normal = Vec3::UnitZ();
+  face.centroid = R * m.faces[top].centroid + t;
+  face.offset = face.centroid.z();
+  face.area = m.faces[top].area;
+  face.has_plane = true;
+  const Vec3 u = face.normal.unitOrthogonal(), v = face.normal.cross(u);
+  // Dense samples of the top rectangle, then their hull.
+  std::vector<Eigen::Vector2d> pts, scratch;
+  const auto& loop = m.faces[top].loops[0];
+  ASSERT_EQ(loop.size(), 4u);
+  for (int i = 0; i <= 40; ++i)
+    for (int j = 0; j <= 40; ++j) {
+      const Vec3 a = loop[0] + (loop[1] - loop[0]) * (i / 40.0) + (loop[3] - loop[0]) * (j / 40.0);
+      const Vec3 w = R * a + t;
+      pts.emplace_back(w.dot(u), w.dot(v));
+    }
+  scratch.reserve(2 * pts.size());
+  pts.resize(fs::host::rec::convex_hull_in_place(pts, scratch));
+  EXPECT_EQ(pts.size(), 4u);
+
+  std::vector<Hypothesis> out(16);
+  const int n = fs::host::rec::top_face_hypotheses(lib, face, table, pts, u, v, {}, out);
+  ASSERT_GT(n, 0);
+  bool found = false;
+  for (int k = 0; k < n; ++k) {
+    const Hypothesis& h = out[static_cast<std::size_t>(k)];
+    if (fs::host::rec::rotation_angle_deg_sym(R, h.R, m) < 1e-6 &&
+        ((R * m.center + t) - (h.R * m.center + h.t)).norm() < 1e-6)
+      found = true;
+  }
+  EXPECT_TRUE(found);
+  PfrgNode higher = face;
+  higher.offset += 10.0;   // 10 mm higher than the box is tall: no model fits
+  higher.centroid.z() += 10.0;
+  EXPECT_EQ(fs::host::rec::top_face_hypotheses(lib, higher, table, pts, u, v, {}, out), 0);
+}
+
+}  // namespace
