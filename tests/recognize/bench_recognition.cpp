@@ -3,7 +3,7 @@
 // positives, CPU time and the allocations of a warm recognize(), per scene category.
 //
 //   bench_recognition [--scenes N] [--seed S] [--categories single,separated,occluded,empty] [--steps 500]
-//                     [--noise 0.05] [--threads 1] [--alloc-every 1] [--verbose] [--candidates] [--only I] [--preset NAME] [--min-level N] [--solutions N] [--max-states N] [--area-ratio R] [--omega DEG] [--max-solutions N] [--no-rigidity-pairs] [--scene-stats]
+//                     [--noise 0.05] [--threads 1] [--alloc-every 1] [--verbose] [--candidates] [--only I] [--preset NAME] [--min-level N] [--solutions N] [--max-states N] [--area-ratio R] [--omega DEG] [--max-solutions N] [--no-rigidity-pairs] [--scene-stats] [--dump-graph]
 //
 // --alloc-every K: the allocation count is taken in every K-th round of the categories (all categories).
 //
@@ -75,6 +75,7 @@ struct Args {
   long max_solutions = 0;    // TH_solutions of one match (0 = the recognizer's default)
   bool no_rigidity_pairs = false;   // switch the level-1 rigidity off (the thesis)
   bool scene_stats = false;  // one line per scene: graph parts, faces, search states, matching time
+  bool dump_graph = false;   // with --candidates: the scene PFRG JSON (for facetscan match)
 };
 
 Args parse_args(int argc, char** argv) {
@@ -103,6 +104,7 @@ Args parse_args(int argc, char** argv) {
     else if (k == "--max-solutions") a.max_solutions = std::stol(value());
     else if (k == "--no-rigidity-pairs") a.no_rigidity_pairs = true;
     else if (k == "--scene-stats") a.scene_stats = true;
+    else if (k == "--dump-graph") a.dump_graph = a.candidates = a.verbose = true;
     else if (k == "--categories") {
       a.categories.clear();
       std::string list = value();
@@ -176,7 +178,7 @@ int run(const Args& args) {
       for (std::size_t oi = 0; oi < rs.scene.objects.size(); ++oi)
         if (rs.catalog_index[oi] >= 0)
           std::printf("  truth %s\n", library.models[static_cast<std::size_t>(rs.catalog_index[oi])].name.c_str());
-      if (std::getenv("FS_DUMP_GRAPH")) std::printf("GRAPH %s\n", fs::host::to_json(recognizer.scene_graph()).dump().c_str());
+      if (args.dump_graph) std::printf("scene PFRG %s\n", fs::host::to_json(recognizer.scene_graph()).dump().c_str());
       for (const auto* h : recognizer.candidates())
         std::printf("  cand %-44s lvl %d faces %zu pre %.3f conf %.3f expl %.2f sup %.1f low %.1f in %d viol %d occ %d rot-to-truth %.1f\n",
                     library.models[static_cast<std::size_t>(h->model)].name.c_str(), h->level, h->matches.size(),
