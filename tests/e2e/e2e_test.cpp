@@ -22,6 +22,7 @@
 #include <fstream>
 #include <iterator>
 #include <sstream>
+#include <map>
 #include <string>
 #include <thread>
 #include <utility>
@@ -218,6 +219,22 @@ TEST(EndToEndDemo, CanTwinRecognizesTheCube) {
   EXPECT_FALSE(j["scan"]["partial"].get<bool>()) << j.dump(1);
   ASSERT_EQ(j["objects"].size(), 1u) << j.dump(1);
   expect_object(j["objects"][0], "cube", 30.0, {-60.0, 0.0, 0.0});   // hw-sim/scenes/cube.json
+}
+
+// The main job: the default scene's four objects from the rendered scan, in pose (hw-sim/scenes/default.json):
+// the cube (two faces, touching the wedge) and the wedge (its slope) come from the recognizer's later rounds.
+TEST(EndToEndDemo, DefaultSceneFindsAllFourObjects) {
+  const DemoOutcome d = demo_into("", "demo-default");
+  ASSERT_FALSE(HasFailure());
+  const nlohmann::json& j = d.result;
+  ASSERT_EQ(j["objects"].size(), 4u) << j.dump(1);
+  std::map<std::string, nlohmann::json> by_model;
+  for (const auto& o : j["objects"]) by_model[o["model"].get<std::string>()] = o;
+  ASSERT_EQ(by_model.size(), 4u) << j.dump(1);
+  expect_object(by_model["truncated_pyramid"], "truncated_pyramid", 20.0, {-40.0, -50.0, 0.0});
+  expect_object(by_model["hex_prism"], "hex_prism", 0.0, {-112.0, -52.0, 0.0});
+  expect_object(by_model["cube"], "cube", 0.0, {-95.0, 55.0, 0.0});
+  expect_object(by_model["wedge"], "wedge", 0.0, {-35.0, 55.0, 0.0});
 }
 
 // A stalled mirror: the firmware detects it and stops in its fault state (exit code 2); the demo reports what
