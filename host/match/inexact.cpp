@@ -682,7 +682,11 @@ struct InexactMatcher::Impl {
     return ok;
   }
 
-  // Area share of the real scene faces adjacent to x's matched scene faces that x leaves unmatched (zeta).
+  // U of the zeta ranking (params.hpp), two sides. Scene: the area share of the real scene faces adjacent to x's
+  // matched scene faces that x leaves unmatched. Model (needs x's rotation, so 0 until x is fitted): the area
+  // share of the reference faces adjacent to x's matched ones that x leaves unmatched although its rotation turns
+  // them clearly toward the sensor (within 75 deg of the observer): in a wrong pose of a part that looks like
+  // another part, such faces should have been seen next to the match.
   double unexplained(const State& x) const {
     NodeSet around;
     double matched = 0.0;
@@ -692,6 +696,23 @@ struct InexactMatcher::Impl {
     });
     double open = 0.0;
     (around & S->real).minus(x.cs).for_each([&](int i) { open += S->area[static_cast<std::size_t>(i)]; });
+    return open + matched > 0.0 ? open / (open + matched) : 0.0;
+  }
+  double unexplained_model(int id) const {
+    const State& x = pool[static_cast<std::size_t>(id)];
+    if (!x.fitted || x.degenerate) return 0.0;
+    const Mat3& R = fitdata[static_cast<std::size_t>(id)].R;
+    const double cos_seen = std::cos(75.0 * std::numbers::pi / 180.0);
+    NodeSet around;
+    double matched = 0.0;
+    x.cr.for_each([&](int i) {
+      around = around | G->adj[static_cast<std::size_t>(i)];
+      matched += G->area[static_cast<std::size_t>(i)];
+    });
+    double open = 0.0;
+    (around & G->real).minus(x.cr).for_each([&](int i) {
+      if ((R * G->normal[static_cast<std::size_t>(i)]).dot(S->observer) > cos_seen) open += G->area[static_cast<std::size_t>(i)];
+    });
     return open + matched > 0.0 ? open / (open + matched) : 0.0;
   }
 
@@ -807,7 +828,11 @@ struct InexactMatcher::Impl {
     auto later = [](const HeapItem& a, const HeapItem& b) { return a.cost > b.cost || (a.cost == b.cost && a.id > b.id); };
     // Ranking key: cost (+ zeta * unexplained neighbour area, which does not depend on the fit, so a lower bound
     // of the cost plus it is a lower bound of the key).
-    auto key = [&](const State& x) { return p.zeta > 0 ? x.cost + p.zeta * unexplained(x) : x.cost; };
+    auto key = [&](const State& x) {
+      if (p.zeta <= 0) return x.cost;
+      const int id = static_cast<int>(&x - pool.data());
+      return x.cost + p.zeta * (unexplained(x) + unexplained_model(id));
+    };
     topk.clear();
     for (int id : leaves) topk.push_back(HeapItem{key(pool[static_cast<std::size_t>(id)]), 0, id});
     std::make_heap(topk.begin(), topk.end(), later);
@@ -851,7 +876,7 @@ struct InexactMatcher::Impl {
       sol.rotfit_error = x.rotfit;
       sol.rotation = fitdata[static_cast<std::size_t>(ranked[k])].R;
       sol.cost = x.cost;
-      sol.unexplained = unexplained(x);
+      sol.unexplained = unexplained(x) + unexplained_model(ranked[k]);
       sol.complete = x.expanded;
       sol.partial = x.level < p.th_minlevel;
       sol.degenerate = x.degenerate;
