@@ -685,8 +685,9 @@ struct InexactMatcher::Impl {
   // U of the zeta ranking (params.hpp), two sides. Scene: the area share of the real scene faces adjacent to x's
   // matched scene faces that x leaves unmatched. Model (needs x's rotation, so 0 until x is fitted): the area
   // share of the reference faces adjacent to x's matched ones that x leaves unmatched although its rotation turns
-  // them clearly toward the sensor (within 75 deg of the observer): in a wrong pose of a part that looks like
-  // another part, such faces should have been seen next to the match.
+  // them toward the sensor (weight 1 within 60 deg of the observer, falling to 0 at 90 deg, where faces are seen
+  // edge-on): in a wrong pose of a part that looks like another part, such faces should have been seen next to
+  // the match.
   double unexplained(const State& x) const {
     NodeSet around;
     double matched = 0.0;
@@ -702,7 +703,7 @@ struct InexactMatcher::Impl {
     const State& x = pool[static_cast<std::size_t>(id)];
     if (!x.fitted || x.degenerate) return 0.0;
     const Mat3& R = fitdata[static_cast<std::size_t>(id)].R;
-    const double cos_seen = std::cos(75.0 * std::numbers::pi / 180.0);
+    const double cos_full = std::cos(60.0 * std::numbers::pi / 180.0);   // weight 1 up to 60 deg, 0 at 90 deg
     NodeSet around;
     double matched = 0.0;
     x.cr.for_each([&](int i) {
@@ -711,7 +712,8 @@ struct InexactMatcher::Impl {
     });
     double open = 0.0;
     (around & G->real).minus(x.cr).for_each([&](int i) {
-      if ((R * G->normal[static_cast<std::size_t>(i)]).dot(S->observer) > cos_seen) open += G->area[static_cast<std::size_t>(i)];
+      const double c = (R * G->normal[static_cast<std::size_t>(i)]).dot(S->observer);
+      open += std::clamp(c / cos_full, 0.0, 1.0) * G->area[static_cast<std::size_t>(i)];
     });
     return open + matched > 0.0 ? open / (open + matched) : 0.0;
   }
