@@ -133,7 +133,7 @@ void add_match_commands(CLI::App& app) {
   m->add_option("scene", mo->scene, "scene PFRG JSON")->required()->check(CLI::ExistingFile);
   m->add_option("refs", mo->refs, "reference PFRG JSON file(s)")->required()->check(CLI::ExistingFile);
   m->add_option("--params", mo->params,
-                "parameter preset (t7.19 t7.28 t7.30 t7.32 t7.34 t7.41 t9.3 default) or JSON file");
+                "parameter preset (t7.19 t7.28 t7.30 t7.32 t7.34 = default, t7.41 t9.3 fast scan) or JSON file");
   m->add_flag("--json", mo->json, "JSON output on stdout");
   m->add_option("--solutions", mo->solutions, "solutions to print (default 3)")->check(CLI::Range(1, 100000));
   m->add_option("--threads", mo->threads, "threads for several references (default: all cores)");

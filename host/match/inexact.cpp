@@ -433,7 +433,6 @@ struct InexactMatcher::Impl {
       // 3 rigidity applies to every candidate of this parent, 4 visibility forward too.
       const bool rigid_now = rigid_on && use_rot;
       const bool rigid_pair = rigid_on && p.rigidity_pairs && par.level == 1;
-      const double omega_rad = p.th_omega_deg * std::numbers::pi / 180.0;
       const bool vis_forward = vis_on && use_rot;
       const bool vis_backward = vis_on && !use_rot && par.level == 1;
       int created = 0;
@@ -450,8 +449,10 @@ struct InexactMatcher::Impl {
         const Vec3 nr = gr.normal[ur];
         const Vec3 pred = pf.R * nr;   // predicted scene normal
         const bool pred_invisible = vis_forward && pred.dot(obs) < cos_vis;
-        const double angle_r = rigid_pair
-            ? std::acos(std::clamp(gr.normal[static_cast<std::size_t>(par.r)].dot(nr), -1.0, 1.0)) : 0.0;
+        // |angle(r0, r) - angle(s0, s)| <= TH_omega  <=>  cos(difference) = c_r c_s + s_r s_s >= cos TH_omega
+        // (both angles in [0, pi]), so no acos in the candidate loop.
+        const double cr0 = rigid_pair ? std::clamp(gr.normal[static_cast<std::size_t>(par.r)].dot(nr), -1.0, 1.0) : 0.0;
+        const double sr0 = std::sqrt(std::max(0.0, 1.0 - cr0 * cr0));
         int stop_s = -1;
         scan_s.for_each([&](int s) {
           if (stop) return;
@@ -460,10 +461,11 @@ struct InexactMatcher::Impl {
           const Vec3& ns = gs.normal[us];
           // 3 rigidity (forward check from parents of level >= 2)
           if (rigid_now && pred.dot(ns) < cos_omega) return removed(Condition::kRigidity);
-          if (rigid_pair &&
-              std::abs(angle_r - std::acos(std::clamp(gs.normal[static_cast<std::size_t>(par.s)].dot(ns), -1.0, 1.0))) >
-                  omega_rad)
-            return removed(Condition::kRigidity);
+          if (rigid_pair) {
+            const double cs0 = std::clamp(gs.normal[static_cast<std::size_t>(par.s)].dot(ns), -1.0, 1.0);
+            if (cr0 * cs0 + sr0 * std::sqrt(std::max(0.0, 1.0 - cs0 * cs0)) < cos_omega)
+              return removed(Condition::kRigidity);
+          }
           // 4 visibility: forward from level >= 2 parents; backward check of new level-2 states
           if (pred_invisible) return removed(Condition::kVisibility);
           const std::size_t pk = ur * kMaxNodes + us;

@@ -18,13 +18,20 @@ int ParallelMatcher::threads() const { return static_cast<int>(matchers_.size())
 std::vector<ReferenceResult> ParallelMatcher::match(const Pfrg& scene, std::span<const Pfrg> refs,
                                                     const MatchParams& params, std::size_t max_solutions) {
   std::vector<ReferenceResult> results(refs.size());
+  // Largest references first (their searches take longest), so that no thread is left with a big one at the end;
+  // results stay in reference order, so the order of work does not show.
+  std::vector<std::size_t> order(refs.size());
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::stable_sort(order.begin(), order.end(),
+                   [&](std::size_t a, std::size_t b) { return refs[a].nodes.size() > refs[b].nodes.size(); });
   std::atomic<std::size_t> next{0};
   std::exception_ptr error;
   std::mutex error_mutex;
   auto worker = [&](InexactMatcher& m) {
     for (;;) {
-      const std::size_t i = next.fetch_add(1);
-      if (i >= refs.size()) return;
+      const std::size_t k = next.fetch_add(1);
+      if (k >= refs.size()) return;
+      const std::size_t i = order[k];
       try {
         const MatchResult& r = m.match(scene, refs[i], params);
         ReferenceResult& out = results[i];

@@ -65,12 +65,15 @@ MatchParams preset(std::string_view name) {
     // For scanned scenes: t7.34 (all attributes) with solutions ranked by cost + zeta * unexplained neighbour area
     // (params.hpp), rotation-fit increments <= 0.005 (a matched normal off by ~6 deg at most; t7.34: 1, no limit),
     // TH_omega 10 deg with the rigidity test from level-1 parents too (normals of scanned planes err by a few
-    // degrees at most, not 20), and the one-sided area condition (a face is never seen larger than 1.3x + 30 mm2).
+    // degrees at most, not 20), the one-sided area condition (a face is never seen larger than 1.3x + 30 mm2) and
+    // a 10000-state budget (a search of a many-faced reference with congruent faces can otherwise spend 50000
+    // states before its first leaf).
     MatchParams p = base("scan", 5e-2, 4e-2, 1e-2, 1e-2, 0.9, 10, 2, 1, 0.005);
     p.zeta = 0.1;
     p.rigidity_pairs = true;
     p.th_area_ratio = 1.3;
     p.th_area_slack_mm2 = 30.0;
+    p.max_states = 10000;
     return p;
   }
   if (name == "t9.3") return base("t9.3", 0.0, 0.0, 1e-2, 1e-2, 0.8, 20, 6, 0.1, 1);
@@ -183,7 +186,8 @@ nlohmann::json to_json(const MatchParams& p) {
                       {"th_area_ratio", num(p.th_area_ratio)}, {"th_area_slack_mm2", num(p.th_area_slack_mm2)},
                       {"th_arcatt", num(p.th_arcatt)},  {"th_rotfit", num(p.th_rotfit)},
                       {"degenerate_deg", p.degenerate_deg}, {"max_states", p.max_states},
-                      {"max_time_ms", num(p.max_time_ms)},  {"keep_partial", p.keep_partial}};
+                      {"max_time_ms", num(p.max_time_ms)},  {"keep_partial", p.keep_partial},
+                      {"zeta", p.zeta},                 {"rigidity_pairs", p.rigidity_pairs}};
   j["th_maxlevel"] = p.th_maxlevel == std::numeric_limits<int>::max() ? nlohmann::json("inf") : nlohmann::json(p.th_maxlevel);
   j["max_solutions"] = p.max_solutions == std::numeric_limits<std::int64_t>::max() ? nlohmann::json("inf")
                                                                                      : nlohmann::json(p.max_solutions);

@@ -466,6 +466,14 @@ TEST(Params, PresetsAndJson) {
   EXPECT_EQ(back.enabled, p.enabled);
   EXPECT_EQ(back.th_cost, p.th_cost);
   EXPECT_TRUE(std::isinf(back.th_rotfit) == std::isinf(p.th_rotfit));
+  // The scan preset's beyond-the-thesis switches round-trip as well.
+  const MatchParams scan = preset("scan");
+  const MatchParams scan_back = params_from_json(to_json(scan), "rt");
+  EXPECT_EQ(scan_back.zeta, scan.zeta);
+  EXPECT_TRUE(scan_back.rigidity_pairs);
+  EXPECT_EQ(scan_back.th_area_ratio, 1.3);
+  EXPECT_EQ(scan_back.max_states, 10000);
+  EXPECT_THROW(params_from_json(nlohmann::json::parse(R"({"rigidity_pairs":1})"), "p"), fs::Error);
   EXPECT_THROW(params_from_json(nlohmann::json::parse(R"({"alfa":1})"), "p"), fs::Error);
   EXPECT_THROW(params_from_json(nlohmann::json::parse(R"({"conditions":{"x":true}})"), "p"), fs::Error);
   EXPECT_THROW(params_from_json(nlohmann::json::parse(R"({"alpha":-1})"), "p"), fs::Error);
