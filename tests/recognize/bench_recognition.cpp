@@ -3,7 +3,7 @@
 // positives, CPU time and the allocations of a warm recognize(), per scene category.
 //
 //   bench_recognition [--scenes N] [--seed S] [--categories single,separated,occluded,empty] [--steps 500]
-//                     [--noise 0.05] [--threads 1] [--alloc-every 1] [--verbose] [--candidates] [--only I] [--preset NAME] [--min-level N] [--solutions N] [--max-states N] [--area-ratio R] [--omega DEG] [--max-solutions N] [--no-rigidity-pairs] [--scene-stats] [--dump-graph]
+//                     [--noise 0.05] [--threads 1] [--alloc-every 1] [--verbose] [--candidates] [--only I] [--preset NAME] [--min-level N] [--solutions N] [--max-states N] [--area-ratio R] [--omega DEG] [--max-solutions N] [--no-rigidity-pairs] [--scene-stats] [--dump-graph] [--max-verified N] [--verify-per-face N]
 //
 // --alloc-every K: the allocation count is taken in every K-th round of the categories (all categories).
 //
@@ -76,6 +76,8 @@ struct Args {
   bool no_rigidity_pairs = false;   // switch the level-1 rigidity off (the thesis)
   bool scene_stats = false;  // one line per scene: graph parts, faces, search states, matching time
   bool dump_graph = false;   // with --candidates: the scene PFRG JSON (for facetscan match)
+  int max_verified = 0;      // hypotheses verified per round (0 = default)
+  int verify_per_face = 0;   // a scene face draws at most this many into verification (0 = default)
 };
 
 Args parse_args(int argc, char** argv) {
@@ -105,6 +107,8 @@ Args parse_args(int argc, char** argv) {
     else if (k == "--no-rigidity-pairs") a.no_rigidity_pairs = true;
     else if (k == "--scene-stats") a.scene_stats = true;
     else if (k == "--dump-graph") a.dump_graph = a.candidates = a.verbose = true;
+    else if (k == "--max-verified") a.max_verified = std::stoi(value());
+    else if (k == "--verify-per-face") a.verify_per_face = std::stoi(value());
     else if (k == "--categories") {
       a.categories.clear();
       std::string list = value();
@@ -143,6 +147,8 @@ int run(const Args& args) {
   if (args.omega >= 0) params.rigidity_deg = args.omega;
   if (args.max_solutions > 0) params.max_solutions = args.max_solutions;
   if (args.no_rigidity_pairs) params.rigidity_pairs = false;
+  if (args.max_verified > 0) params.max_verified = args.max_verified;
+  if (args.verify_per_face > 0) params.verify_per_face = args.verify_per_face;
   const std::size_t cells =
       static_cast<std::size_t>(args.steps) * fs::ScannerCalibration::bench_default().camera.height;
   fs::host::rec::Recognizer recognizer(library, params, cells);
