@@ -126,6 +126,31 @@ int merge_compatible(const HypothesisContext& c, std::span<Hypothesis> hyps, std
   return merges;
 }
 
+namespace {
+
+// A hypothesis of one face match (scene face -> model face fi) in pose (R, t); the buffers of h are reused.
+void one_face_hypothesis(Hypothesis& h, int model, int scene_face, int fi, const Mat3& R, const Vec3& t, double cost) {
+  h.model = model;
+  h.rank = 0;
+  h.path.clear();
+  h.matches.clear();
+  h.matches.push_back(FaceMatch{scene_face, fi, false});
+  h.level = 1;
+  h.R = R;
+  h.t = t;
+  h.free_dims = 0;
+  h.free_dir = Vec3::Zero();
+  h.cost = cost;
+  h.rotfit_error = 0.0;
+  h.degenerate = false;
+  h.merged = false;
+  h.instance = 0;
+  h.verify = VerifyResult{};
+  h.inlier_cells.clear();
+}
+
+}  // namespace
+
 int single_face_hypotheses(const Library& library, const PfrgNode& face, const Plane& table,
                            const SingleFaceParams& p, std::span<Hypothesis> out) {
   if (face.supernode || !face.has_plane) return 0;
@@ -150,7 +175,7 @@ int single_face_hypotheses(const Library& library, const PfrgNode& face, const P
     const Model& model = library.models[mi];
     for (std::size_t fi = 0; fi < model.faces.size(); ++fi) {
       const ModelFace& f = model.faces[fi];
-      if (face.area < p.min_area_ratio * f.area || face.area > p.area_ratio * f.area + p.area_slack_mm2) continue;
+      if (!p.area.fits(face.area, f.area)) continue;
       for (std::size_t gi = 0; gi < model.faces.size(); ++gi) {
         if (gi == fi) continue;
         const ModelFace& g = model.faces[gi];
@@ -164,24 +189,8 @@ int single_face_hypotheses(const Library& library, const PfrgNode& face, const P
         // n_s . t = d_s - off_f (matched plane), n_table . t = d_table + off_g (g on the table),
         // u . t = u . (c_s - R c_f) (the face's centroid along the common line).
         const Vec3 rhs(face.offset - f.offset, table.d + g.offset, u.dot(face.centroid - R * f.centroid));
-        Hypothesis& h = out[static_cast<std::size_t>(written++)];
-        h.model = static_cast<int>(mi);
-        h.rank = 0;
-        h.path.clear();
-        h.matches.clear();
-        h.matches.push_back(FaceMatch{face.id, static_cast<int>(fi), false});
-        h.level = 1;
-        h.R = R;
-        h.t = Minv * rhs;
-        h.free_dims = 0;
-        h.free_dir = Vec3::Zero();
-        h.cost = 0.0;
-        h.rotfit_error = 0.0;
-        h.degenerate = false;
-        h.merged = false;
-        h.instance = 0;
-        h.verify = VerifyResult{};
-        h.inlier_cells.clear();
+        one_face_hypothesis(out[static_cast<std::size_t>(written++)], static_cast<int>(mi), face.id,
+                            static_cast<int>(fi), R, Minv * rhs, 0.0);
       }
     }
   }
@@ -253,7 +262,7 @@ int top_face_hypotheses(const Library& library, const PfrgNode& face, const Plan
     const Model& model = library.models[mi];
     for (std::size_t fi = 0; fi < model.faces.size(); ++fi) {
       const ModelFace& f = model.faces[fi];
-      if (face.area < p.min_area_ratio * f.area || face.area > p.area_ratio * f.area + p.area_slack_mm2) continue;
+      if (!p.area.fits(face.area, f.area)) continue;
       if (f.loops.empty() || f.loops[0].size() < 3 || f.loops[0].size() > kMaxPoly) continue;
       // A resting face g antiparallel to f at the right distance.
       int g = -1;
@@ -320,24 +329,9 @@ int top_face_hypotheses(const Library& library, const PfrgNode& face, const Plan
         // In-plane: the turned polygon's shift; along the normal: f on the scene face's plane.
         const Vec3 t = u * tr.shift.x() + v * tr.shift.y() +
                        face.normal * (face.offset - f.offset - face.normal.dot(u * tr.shift.x() + v * tr.shift.y()));
-        Hypothesis& h = out[static_cast<std::size_t>(written++)];
-        h.model = static_cast<int>(mi);
-        h.rank = 0;
-        h.path.clear();
-        h.matches.clear();
-        h.matches.push_back(FaceMatch{face.id, static_cast<int>(fi), false});
-        h.level = 1;
-        h.R = R;
-        h.t = t;
-        h.free_dims = 0;
-        h.free_dir = Vec3::Zero();
-        h.cost = tr.score * 1e-3;   // outline fit (m) as a tie-break
-        h.rotfit_error = 0.0;
-        h.degenerate = false;
-        h.merged = false;
-        h.instance = 0;
-        h.verify = VerifyResult{};
-        h.inlier_cells.clear();
+        // Cost: the outline fit (in m) as a tie-break.
+        one_face_hypothesis(out[static_cast<std::size_t>(written++)], static_cast<int>(mi), face.id,
+                            static_cast<int>(fi), R, t, tr.score * 1e-3);
       }
     }
   }

@@ -41,12 +41,19 @@ int merge_compatible(const HypothesisContext& c, std::span<Hypothesis> hyps, std
 // give the translation. Faces within min_tilt_deg of the table's orientation (the pose about the vertical is
 // then open) and model faces with area_s < min_area_ratio * area_f or area_s > area_ratio * area_f + slack are
 // skipped. Writes at most out.size() hypotheses (model, one match, R, t) and returns how many.
-struct SingleFaceParams {
-  double angle_tol_deg = 2.0;
-  double min_tilt_deg = 10.0;
+// Which model faces may stand for the scene face: min_area_ratio * area_f <= area_s <= area_ratio * area_f + slack.
+struct FaceAreaFit {
   double min_area_ratio = 0.7;
   double area_ratio = 1.3;
   double area_slack_mm2 = 30.0;
+  bool fits(double area_s, double area_f) const {
+    return area_s >= min_area_ratio * area_f && area_s <= area_ratio * area_f + area_slack_mm2;
+  }
+};
+struct SingleFaceParams {
+  double angle_tol_deg = 2.0;
+  double min_tilt_deg = 10.0;
+  FaceAreaFit area;
 };
 int single_face_hypotheses(const Library& library, const PfrgNode& face, const Plane& table,
                            const SingleFaceParams& p, std::span<Hypothesis> out);
@@ -60,9 +67,7 @@ int single_face_hypotheses(const Library& library, const PfrgNode& face, const P
 // distance between f and g must equal the face's height above the table within height_tol_mm.
 struct TopFaceParams {
   double antiparallel_deg = 2.0;
-  double min_area_ratio = 0.7;
-  double area_ratio = 1.3;
-  double area_slack_mm2 = 30.0;
+  FaceAreaFit area;
   double height_tol_mm = 3.0;
   double max_outline_mm = 3.0;
   int max_turns = 2;

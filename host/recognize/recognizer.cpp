@@ -494,8 +494,8 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
     if (params_.single_face_min_area_mm2 > 0 && im.have_table) {
       SingleFaceParams sp;
       if (params_.match_area_ratio > 0) {
-        sp.area_ratio = params_.match_area_ratio;
-        sp.area_slack_mm2 = params_.match_area_slack_mm2;
+        sp.area.area_ratio = params_.match_area_ratio;
+        sp.area.area_slack_mm2 = params_.match_area_slack_mm2;
       }
       for (int idx : im.lone_faces) {
         const PfrgNode& face = graph->nodes[static_cast<std::size_t>(idx)];
@@ -520,8 +520,7 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
             }
           im.hull.resize(convex_hull_in_place(im.hull, im.hull_scratch));
           TopFaceParams tp;
-          tp.area_ratio = sp.area_ratio;
-          tp.area_slack_mm2 = sp.area_slack_mm2;
+          tp.area = sp.area;
           n = top_face_hypotheses(library_, face, im.table, im.hull, u, v, tp,
                                   std::span<Hypothesis>(im.hyps.data() + im.nhyp, room));
         }
