@@ -280,6 +280,16 @@ TEST(EndToEndOffline, RecognizesTheRecordedScan) {
   expect_pyramid(j);
   EXPECT_EQ(j["input"]["format"], "fscan");
   EXPECT_TRUE(j["input"]["complete_scan"].get<bool>());
+  EXPECT_GE(j["stats"]["rounds"].get<int>(), 1);
+  // --max-solutions: the thesis' search to exhaustion (0 = the parameters' own TH_solutions) finds the pyramid
+  // too; a negative count is refused naming the option.
+  const CmdResult all = run(facetscan() + " recognize " + scan.string() + " -l " + library() +
+                            " --max-solutions 0 -q --json " + (d / "all.json").string());
+  ASSERT_EQ(all.code, 0) << all.out;
+  expect_pyramid(read_json(d / "all.json"));
+  const CmdResult bad = run(facetscan() + " recognize " + scan.string() + " -l " + library() + " --max-solutions -1");
+  EXPECT_NE(bad.code, 0);
+  EXPECT_NE(bad.out.find("--max-solutions"), std::string::npos) << bad.out;
 }
 
 // A scan exported as an organized point cloud (millimetres) is recognized like the scan itself.
