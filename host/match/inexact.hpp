@@ -61,7 +61,8 @@ struct MatchStats {
   std::int64_t subset_removed = 0;
   std::int64_t solutions = 0;          // after the subset condition (may exceed the reported capacity)
   int best_state = -1;                 // state number of solution 1
-  double cost_ratio = 0.0;             // cost(solution 2) / cost(solution 1); NaN with < 2 solutions
+  double cost_ratio = 0.0;             // cost(solution 2) / cost(solution 1); NaN with < 2 solutions (with zeta > 0
+                                       // the solutions are ranked by cost + zeta U, so it can be < 1)
   StopReason stop = StopReason::kNoStates;
   double time_ms = 0.0;
   // When the lowest-cost complete leaf was found (states created so far, time since the start).

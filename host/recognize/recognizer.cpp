@@ -41,6 +41,10 @@ struct ModelSlots {
 }  // namespace
 
 struct Recognizer::Impl {
+  // Scene node ids: regions 1..kMaxRegions and the supernode after them (by-id tables need this many entries).
+  static constexpr std::size_t kMaxRegions = 8192;
+  static constexpr std::size_t kMaxNodeIds = kMaxRegions + 2;
+  static constexpr std::size_t kLoneFaceRoom = 4;   // lone faces per round whose single-face hypotheses fit for sure
   explicit Impl(const Library& lib, const RecognizeParams& p, int threads)
       : pool(threads), per_model(lib.models.size()) {
     match::MatcherLimits limits;
@@ -59,7 +63,9 @@ struct Recognizer::Impl {
         s.matches.reserve(kMaxMatches);
       }
     }
-    const std::size_t max_h = lib.models.size() * static_cast<std::size_t>(p.solutions_per_model);
+    // The search solutions of every reference, plus room for the single-face hypotheses of kLoneFaceRoom lone faces.
+    const std::size_t max_h = lib.models.size() * static_cast<std::size_t>(p.solutions_per_model) +
+                              kLoneFaceRoom * static_cast<std::size_t>(std::max(p.single_face_max, 0));
     hyps.resize(max_h);
     for (auto& h : hyps) {
       h.matches.reserve(kMaxMatches);
@@ -67,11 +73,11 @@ struct Recognizer::Impl {
     }
     order.reserve(max_h);
     picked.reserve(max_h);
-    face_cover.reserve(8192);
+    face_cover.reserve(kMaxNodeIds);
     alive.reserve(max_h);
     pairs.reserve(256);
-    node_used.reserve(8192);
-    scene_index.reserve(8192);
+    node_used.reserve(kMaxNodeIds);
+    scene_index.reserve(kMaxNodeIds);
     accepted.reserve(64);
   }
 
@@ -121,24 +127,46 @@ struct Recognizer::Impl {
   std::vector<Eigen::Vector2d> hull, hull_scratch;   // outline of a lone face parallel to the table
   bool round_small = false;     // this round searches every part with mparams_small
 
-  // rest = scene without the faces accepted objects hold (and their arcs). False when no face is left.
+  // rest = scene without the faces accepted objects hold. A kept face that bordered an accepted one borders the
+  // unknown there, so that arc becomes one to the supernode (one per face; the node-degree condition counts a
+  // face's neighbours, the supernode included). False when no face is left.
+  std::vector<char> rest_super_arc;   // by node id: the kept face has an arc to the supernode in rest
   bool build_rest(const Pfrg& g) {
     rest.nodes.clear();
     rest.arcs.clear();
     rest.name = g.name;
     rest.observer = g.observer;
     rest.has_observer = g.has_observer;
-    int faces = 0;
+    int faces = 0, super_id = -1;
     auto kept = [&](int id) { return id >= 0 && static_cast<std::size_t>(id) < node_used.size() && !node_used[static_cast<std::size_t>(id)]; };
     for (const auto& n : g.nodes)
       if (n.supernode || kept(n.id)) {
         rest.nodes.push_back(n);
         faces += n.supernode ? 0 : 1;
+        if (n.supernode && super_id < 0) super_id = n.id;
       }
-    for (const auto& a : g.arcs)
-      if (kept(a.a) && kept(a.b)) rest.arcs.push_back(a);
+    rest_super_arc.assign(node_used.size(), 0);
+    auto is_super = [&](int id) { const PfrgNode* n = g.find(id); return n && n->supernode; };
+    for (const auto& a : g.arcs) {
+      const bool sa = is_super(a.a), sb = is_super(a.b);
+      if ((sa || kept(a.a)) && (sb || kept(a.b))) {
+        rest.arcs.push_back(a);
+        if (sa && kept(a.b)) rest_super_arc[static_cast<std::size_t>(a.b)] = 1;
+        if (sb && kept(a.a)) rest_super_arc[static_cast<std::size_t>(a.a)] = 1;
+      }
+    }
+    if (super_id >= 0)
+      for (const auto& a : g.arcs) {
+        const bool ka = kept(a.a), kb = kept(a.b);
+        if (ka == kb || is_super(a.a) || is_super(a.b)) continue;   // both kept, both accepted, or to the supernode
+        const int face = ka ? a.a : a.b;
+        if (rest_super_arc[static_cast<std::size_t>(face)]) continue;
+        rest_super_arc[static_cast<std::size_t>(face)] = 1;
+        rest.arcs.push_back(PfrgArc{face, super_id, a.border});
+      }
     return faces > 0;
   }
+
   std::size_t nparts = 0;
   std::vector<int> uf;          // union-find parent by node id
   std::vector<int> part_of;     // node id -> part index (-1)
@@ -272,8 +300,8 @@ void select_covering(Recognizer::Impl& im, int per_face, std::size_t limit, Ok o
 Recognizer::Recognizer(const Library& library, const RecognizeParams& params, std::size_t max_cells)
     : library_(library),
       params_(params),
-      segmenter_(params.segment, seg::SegmentLimits{max_cells, 8192, 32768}),
-      pfrg_builder_(8192, 32768) {
+      segmenter_(params.segment, seg::SegmentLimits{max_cells, Impl::kMaxRegions, 32768}),
+      pfrg_builder_(Impl::kMaxRegions, 32768) {
   segmenter_.prepare(seg_);
   pfrg_builder_.prepare(scene_);
   impl_ = std::make_unique<Impl>(library, params_, params.threads);
@@ -287,14 +315,15 @@ Recognizer::Recognizer(const Library& library, const RecognizeParams& params, st
     part.arcs.reserve(2048);
     part.name.reserve(64);
   }
-  impl_->uf.reserve(8192);
-  impl_->lone_faces.reserve(8192);
-  impl_->lone_tried.reserve(8192);
-  impl_->rest.nodes.reserve(8192);
+  impl_->uf.reserve(Impl::kMaxNodeIds);
+  impl_->lone_faces.reserve(Impl::kMaxNodeIds);
+  impl_->lone_tried.reserve(Impl::kMaxNodeIds);
+  impl_->rest.nodes.reserve(Impl::kMaxNodeIds);
+  impl_->rest_super_arc.reserve(Impl::kMaxNodeIds);
   impl_->rest.arcs.reserve(32768);
   impl_->rest.name.reserve(64);
-  impl_->part_of.reserve(8192);
-  impl_->comp_size.reserve(8192);
+  impl_->part_of.reserve(Impl::kMaxNodeIds);
+  impl_->comp_size.reserve(Impl::kMaxNodeIds);
   // Fine samples of a grid of max_cells cells: at most ceil(h/s) * ceil(w/s) <= cells/s^2 + cells/s + 1.
   const std::size_t step = static_cast<std::size_t>(std::max(1, params.verify.sample_step));
   const std::size_t max_samples = max_cells / (step * step) + max_cells / step + 1;
@@ -454,6 +483,7 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
                 },
                 &im);
     out.stats.match_ms += ms_since(t0);
+    out.stats.rounds = round + 1;
 
     // 3. Hypotheses: pose, expansion, compatible merge.
     t0 = Clock::now();
@@ -500,9 +530,9 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
       for (int idx : im.lone_faces) {
         const PfrgNode& face = graph->nodes[static_cast<std::size_t>(idx)];
         if (face.area < params_.single_face_min_area_mm2 || im.lone_tried[static_cast<std::size_t>(face.id)]) continue;
-        im.lone_tried[static_cast<std::size_t>(face.id)] = 1;
         const std::size_t room =
             std::min(im.hyps.size() - im.nhyp, static_cast<std::size_t>(std::max(params_.single_face_max, 0)));
+        if (room == 0) break;   // the pool is full this round: the face is tried again in the next one
         int n = 0;
         if (std::abs(face.normal.dot(im.table.n)) < std::cos(sp.min_tilt_deg * M_PI / 180.0)) {
           n = single_face_hypotheses(library_, face, im.table, sp, std::span<Hypothesis>(im.hyps.data() + im.nhyp, room));
@@ -526,6 +556,8 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
         }
         im.nhyp += static_cast<std::size_t>(n);
         out.stats.single_face += n;
+        // Done with this face unless its hypotheses were cut short by the room left.
+        if (static_cast<std::size_t>(n) < room) im.lone_tried[static_cast<std::size_t>(face.id)] = 1;
       }
       im.alive.resize(im.nhyp, 1);
     }
@@ -656,7 +688,6 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
     // Give the inlier buffers back to their slots (the next round reuses the hypotheses).
     for (std::size_t k = 0; k < im.slot_owner.size(); ++k) std::swap(im.hyps[im.slot_owner[k]].inlier_cells, im.slot_cells[k]);
     im.slot_owner.clear();
-    out.stats.rounds = round + 1;
     if (out.objects.size() == accepted_before && round > 0) break;
     if (static_cast<int>(out.objects.size()) >= params_.max_objects) break;
   }
