@@ -684,40 +684,37 @@ struct InexactMatcher::Impl {
     return ok;
   }
 
-  // U of the zeta ranking (params.hpp), two sides. Scene: the area share of the real scene faces adjacent to x's
-  // matched scene faces that x leaves unmatched. Model (needs x's rotation, so 0 until x is fitted): the area
-  // share of the reference faces adjacent to x's matched ones that x leaves unmatched although its rotation turns
-  // them toward the sensor (weight 1 within 60 deg of the observer, falling to 0 at 90 deg, where faces are seen
-  // edge-on): in a wrong pose of a part that looks like another part, such faces should have been seen next to
-  // the match.
-  double unexplained(const State& x) const {
+  // U of the zeta ranking (params.hpp), two sides, each the area share of the real faces adjacent to a match's
+  // faces that it leaves unmatched, weighted by face_weight(i) in [0, 1]: the open area over that plus the
+  // matched area of graph g for the core set `core`.
+  template <class Weight>
+  static double open_neighbour_share(const CompactGraph& g, const NodeSet& core, Weight face_weight) {
     NodeSet around;
     double matched = 0.0;
-    x.cs.for_each([&](int i) {
-      around = around | S->adj[static_cast<std::size_t>(i)];
-      matched += S->area[static_cast<std::size_t>(i)];
+    core.for_each([&](int i) {
+      around = around | g.adj[static_cast<std::size_t>(i)];
+      matched += g.area[static_cast<std::size_t>(i)];
     });
     double open = 0.0;
-    (around & S->real).minus(x.cs).for_each([&](int i) { open += S->area[static_cast<std::size_t>(i)]; });
+    (around & g.real).minus(core).for_each([&](int i) { open += face_weight(i) * g.area[static_cast<std::size_t>(i)]; });
     return open + matched > 0.0 ? open / (open + matched) : 0.0;
   }
+  // Scene side: every unmatched scene face next to the match counts.
+  double unexplained(const State& x) const {
+    return open_neighbour_share(*S, x.cs, [](int) { return 1.0; });
+  }
+  // Model side (needs x's rotation, so 0 until x is fitted): unmatched reference faces next to the match count as
+  // far as the rotation turns them toward the sensor (weight 1 within 60 deg of the observer, falling to 0 at
+  // 90 deg, where faces are seen edge-on): in a wrong pose of a part that looks like another part, such faces
+  // should have been seen next to the match.
   double unexplained_model(int id) const {
     const State& x = pool[static_cast<std::size_t>(id)];
     if (!x.fitted || x.degenerate) return 0.0;
     const Mat3& R = fitdata[static_cast<std::size_t>(id)].R;
-    const double cos_full = std::cos(60.0 * std::numbers::pi / 180.0);   // weight 1 up to 60 deg, 0 at 90 deg
-    NodeSet around;
-    double matched = 0.0;
-    x.cr.for_each([&](int i) {
-      around = around | G->adj[static_cast<std::size_t>(i)];
-      matched += G->area[static_cast<std::size_t>(i)];
+    constexpr double kCosFull = 0.5;   // cos 60 deg
+    return open_neighbour_share(*G, x.cr, [&](int i) {
+      return std::clamp((R * G->normal[static_cast<std::size_t>(i)]).dot(S->observer) / kCosFull, 0.0, 1.0);
     });
-    double open = 0.0;
-    (around & G->real).minus(x.cr).for_each([&](int i) {
-      const double c = (R * G->normal[static_cast<std::size_t>(i)]).dot(S->observer);
-      open += std::clamp(c / cos_full, 0.0, 1.0) * G->area[static_cast<std::size_t>(i)];
-    });
-    return open + matched > 0.0 ? open / (open + matched) : 0.0;
   }
 
   void collect(MatchStats& st) {
@@ -767,15 +764,16 @@ struct InexactMatcher::Impl {
     for (std::size_t i = 0; i < leaves.size(); ++i) {
       const int id = leaves[i];
       const State& a = pool[static_cast<std::size_t>(id)];
+      // Candidates come in level-descending order; those of a level <= a's cannot hold it.
       bool sub = false;
+      auto check = [&](const KeptCore& b) {   // true: stop scanning
+        if (b.level <= a.level) return true;
+        sub = covered(a, b);
+        return sub;
+      };
       if (index_full) {
-        for (const KeptCore& b : kept_cores) {
-          if (b.level <= a.level) break;
-          if (covered(a, b)) {
-            sub = true;
-            break;
-          }
-        }
+        for (const KeptCore& b : kept_cores)
+          if (check(b)) break;
       } else {
         int best = -1, best_count = std::numeric_limits<int>::max();
         for (int q = id; q > 0 && best_count > 0; q = pool[static_cast<std::size_t>(q)].parent) {
@@ -783,14 +781,8 @@ struct InexactMatcher::Impl {
           if (pair_count[static_cast<std::size_t>(k)] < best_count) best = k, best_count = pair_count[static_cast<std::size_t>(k)];
         }
         for (int e = best_count > 0 ? pair_head[static_cast<std::size_t>(best)] : -1; e >= 0;
-             e = pair_entries[static_cast<std::size_t>(e)].next) {
-          const KeptCore& b = kept_cores[static_cast<std::size_t>(pair_entries[static_cast<std::size_t>(e)].kept)];
-          if (b.level <= a.level) break;
-          if (covered(a, b)) {
-            sub = true;
-            break;
-          }
-        }
+             e = pair_entries[static_cast<std::size_t>(e)].next)
+          if (check(kept_cores[static_cast<std::size_t>(pair_entries[static_cast<std::size_t>(e)].kept)])) break;
       }
       if (sub) {
         ++st.subset_removed;
@@ -830,8 +822,8 @@ struct InexactMatcher::Impl {
     // lazily created state's key is its cost lower bound until it reaches the top and is fitted.
     const std::size_t n = std::min(kept, solutions.size());
     auto later = [](const HeapItem& a, const HeapItem& b) { return a.cost > b.cost || (a.cost == b.cost && a.id > b.id); };
-    // Ranking key: cost (+ zeta * unexplained neighbour area, which does not depend on the fit, so a lower bound
-    // of the cost plus it is a lower bound of the key).
+    // Ranking key: cost + zeta U. For a state not fitted yet its cost is a lower bound and U_model is 0 (it needs
+    // the rotation; it is >= 0 once fitted), so the key is a lower bound of the final one, as the lazy top-k needs.
     auto key = [&](const State& x) {
       if (p.zeta <= 0) return x.cost;
       const int id = static_cast<int>(&x - pool.data());

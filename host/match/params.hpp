@@ -63,11 +63,14 @@ struct MatchParams {
   double th_arcatt = 1.0;
   double th_rotfit = kInf;
   double degenerate_deg = 1.0;       // matched reference normals all within this of one axis = degenerate
-  // Solution ranking (beyond the thesis, 7.7): solutions are ordered by cost + zeta * U, where U is the share of
-  // unexplained neighbour area, area(unmatched real scene faces adjacent to the match) / (that + area(matched
-  // scene faces)). The thesis cost is normalized per level, so a small wrong match of an ambiguous part of a view
-  // can cost less than the correct larger one; U counts the faces that such a match leaves next to it. The search
-  // itself is unchanged. 0 (the thesis presets) = order by cost.
+  // Solution ranking (beyond the thesis, 7.7): solutions are ordered by cost + zeta * U, U = U_scene + U_model.
+  // U_scene = area(unmatched real scene faces adjacent to the match) / (that + area(matched scene faces)); U_model
+  // the same on the reference side, each unmatched face weighted by how squarely the solution's rotation turns it
+  // toward the sensor (1 within 60 deg, 0 edge-on). The thesis cost is normalized per level, so a small wrong
+  // match of an ambiguous part of a view can cost less than the correct larger one (U_scene counts the faces it
+  // leaves next to it), and a wrong pose of a part that looks like another can tie the right one (U_model counts
+  // the faces that pose would show and the scene lacks). The search itself is unchanged. 0 (the thesis presets) =
+  // order by cost.
   double zeta = 0.0;
   // Switches, one per condition of table 7.6 (index = Condition).
   std::array<bool, kConditionCount> enabled{true, true, true, true, true, true, true, true, true, true, true, true};
