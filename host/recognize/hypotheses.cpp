@@ -151,14 +151,16 @@ void one_face_hypothesis(Hypothesis& h, int model, int scene_face, int fi, const
 
 }  // namespace
 
+bool parallel_to_table(const PfrgNode& face, const Plane& table, double min_tilt_deg) {
+  return face.normal.cross(table.n).norm() < std::sin(min_tilt_deg * M_PI / 180.0);
+}
+
 int single_face_hypotheses(const Library& library, const PfrgNode& face, const Plane& table,
                            const SingleFaceParams& p, std::span<Hypothesis> out) {
-  if (face.supernode || !face.has_plane) return 0;
+  if (face.supernode || !face.has_plane || parallel_to_table(face, table, p.min_tilt_deg)) return 0;
   const Vec3 ns = face.normal;
   const Vec3 down = -table.n;
-  const Vec3 axis = ns.cross(table.n);
-  if (axis.norm() < std::sin(p.min_tilt_deg * M_PI / 180.0)) return 0;
-  const Vec3 u = axis.normalized();
+  const Vec3 u = ns.cross(table.n).normalized();
   const double scene_angle = std::acos(std::clamp(ns.dot(down), -1.0, 1.0));
   const double tol = p.angle_tol_deg * M_PI / 180.0;
   // Target frame of the triad: scene normal, then the common direction of the scene face and the table.
@@ -247,7 +249,7 @@ int top_face_hypotheses(const Library& library, const PfrgNode& face, const Plan
   if (face.supernode || !face.has_plane || hull.size() < 3) return 0;
   const double height = face.offset - table.d;   // face plane above the table (normals within a few degrees)
   const double cos_anti = std::cos(p.antiparallel_deg * M_PI / 180.0);
-  // Hull centroid and long edges (>= 25 % of the longest).
+  // Long edges are those of >= 25 % of the longest (hull and polygon alike).
   double hull_max = 0.0;
   for (std::size_t i = 0; i < hull.size(); ++i) hull_max = std::max(hull_max, (hull[(i + 1) % hull.size()] - hull[i]).norm());
   constexpr std::size_t kMaxPoly = 64;
@@ -326,9 +328,8 @@ int top_face_hypotheses(const Library& library, const PfrgNode& face, const Plan
         if (written >= static_cast<int>(out.size())) return written;
         const Turn& tr = best[static_cast<std::size_t>(k)];
         const Mat3 R = Eigen::AngleAxisd(tr.angle, face.normal).toRotationMatrix() * R0;
-        // In-plane: the turned polygon's shift; along the normal: f on the scene face's plane.
-        const Vec3 t = u * tr.shift.x() + v * tr.shift.y() +
-                       face.normal * (face.offset - f.offset - face.normal.dot(u * tr.shift.x() + v * tr.shift.y()));
+        // In-plane: the turned polygon's shift; along the normal (u, v are orthogonal to it): f on the face's plane.
+        const Vec3 t = u * tr.shift.x() + v * tr.shift.y() + face.normal * (face.offset - f.offset);
         // Cost: the outline fit (in m) as a tie-break.
         one_face_hypothesis(out[static_cast<std::size_t>(written++)], static_cast<int>(mi), face.id,
                             static_cast<int>(fi), R, t, tr.score * 1e-3);

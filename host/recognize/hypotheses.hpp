@@ -33,15 +33,8 @@ int expand(const HypothesisContext& c, Hypothesis& h, std::vector<PlanePair>& sc
 int merge_compatible(const HypothesisContext& c, std::span<Hypothesis> hyps, std::vector<char>& alive,
                      std::vector<PlanePair>& scratch);
 
-// Beyond the thesis: pose hypotheses for a scene face that borders no other scene face (an object that shows a
-// single face, e.g. a pyramid lying on a side with only its base turned up). Such an object rests on the table
-// on one of its faces g: matching a model face f to the scene face and g to the table gives two normal pairs,
-// hence the rotation (when the angle between f and g equals the angle between the scene face and the table's
-// downward normal, within angle_tol_deg); the two planes and the scene face's centroid along their common line
-// give the translation. Faces within min_tilt_deg of the table's orientation (the pose about the vertical is
-// then open) and model faces with area_s < min_area_ratio * area_f or area_s > area_ratio * area_f + slack are
-// skipped. Writes at most out.size() hypotheses (model, one match, R, t) and returns how many.
-// Which model faces may stand for the scene face: min_area_ratio * area_f <= area_s <= area_ratio * area_f + slack.
+// Which model faces may stand for a lone scene face: min_area_ratio * area_f <= area_s <= area_ratio * area_f +
+// slack.
 struct FaceAreaFit {
   double min_area_ratio = 0.7;
   double area_ratio = 1.3;
@@ -50,6 +43,19 @@ struct FaceAreaFit {
     return area_s >= min_area_ratio * area_f && area_s <= area_ratio * area_f + area_slack_mm2;
   }
 };
+
+// A scene face within min_tilt_deg of the table's orientation: its pose about the vertical is open
+// (top_face_hypotheses); a tilted one gets single_face_hypotheses.
+bool parallel_to_table(const PfrgNode& face, const Plane& table, double min_tilt_deg);
+
+// Beyond the thesis: pose hypotheses for a scene face that borders no other scene face (an object that shows a
+// single face, e.g. a pyramid lying on a side with only its base turned up). Such an object rests on the table
+// on one of its faces g: matching a model face f to the scene face and g to the table gives two normal pairs,
+// hence the rotation (when the angle between f and g equals the angle between the scene face and the table's
+// downward normal, within angle_tol_deg); the two planes and the scene face's centroid along their common line
+// give the translation. Faces parallel to the table (parallel_to_table with min_tilt_deg) and model faces whose
+// area does not fit are skipped. Writes at most out.size() hypotheses (model, one match, R, t) and returns how
+// many.
 struct SingleFaceParams {
   double angle_tol_deg = 2.0;
   double min_tilt_deg = 10.0;

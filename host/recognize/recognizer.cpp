@@ -78,7 +78,6 @@ struct Recognizer::Impl {
     pairs.reserve(256);
     node_used.reserve(kMaxNodeIds);
     scene_index.reserve(kMaxNodeIds);
-    accepted.reserve(64);
   }
 
   WorkerPool pool;
@@ -101,7 +100,6 @@ struct Recognizer::Impl {
   // when reported, swapped back at the next scan), so reporting never allocates.
   std::vector<Hypothesis> spare_objects;
   std::vector<std::size_t> slot_owner;
-  std::vector<std::size_t> accepted;
   std::vector<std::size_t> picked;  // scratch of select_covering
   std::vector<int> face_cover;      // by scene node id
   // Matching context.
@@ -125,7 +123,34 @@ struct Recognizer::Impl {
   std::vector<char> lone_tried; // by scene node id: single-face hypotheses made already
   Pfrg rest;                    // the scene graph without the faces of accepted objects (rounds after the first)
   std::vector<Eigen::Vector2d> hull, hull_scratch;   // outline of a lone face parallel to the table
+
+  // hull = convex hull of the fine samples of `face` (scene node id = region + 1), in the plane basis (u, v).
+  void outline(const PfrgNode& face, const std::vector<std::int32_t>& labels, const Vec3& u, const Vec3& v) {
+    hull.clear();
+    const auto& cells = fine.cells();
+    const auto& pts = fine.points();
+    for (std::size_t k = 0; k < cells.size(); ++k)
+      if (cells[k] < labels.size() && labels[cells[k]] == face.id - 1) {
+        const Vec3 q = pts[k].cast<double>();
+        hull.emplace_back(q.dot(u), q.dot(v));
+      }
+    hull.resize(convex_hull_in_place(hull, hull_scratch));
+  }
   bool round_small = false;     // this round searches every part with mparams_small
+
+  // By scene node id: 1 for the supernode(s), set per scan (the graphs split below are the scene or part of it,
+  // with the same ids). Ids without an entry count as unknown, i.e. as the supernode.
+  std::vector<char> super_by_id;
+  void mark_supernodes(const Pfrg& g) {
+    int max_id = 0;
+    for (const auto& n : g.nodes) max_id = std::max(max_id, n.id);
+    super_by_id.assign(static_cast<std::size_t>(max_id) + 1, 0);
+    for (const auto& n : g.nodes)
+      if (n.supernode) super_by_id[static_cast<std::size_t>(n.id)] = 1;
+  }
+  bool is_super(int id) const {
+    return id < 0 || static_cast<std::size_t>(id) >= super_by_id.size() || super_by_id[static_cast<std::size_t>(id)];
+  }
 
   // rest = scene without the faces accepted objects hold. A kept face that bordered an accepted one borders the
   // unknown there, so that arc becomes one to the supernode (one per face; the node-degree condition counts a
@@ -146,7 +171,6 @@ struct Recognizer::Impl {
         if (n.supernode && super_id < 0) super_id = n.id;
       }
     rest_super_arc.assign(node_used.size(), 0);
-    auto is_super = [&](int id) { const PfrgNode* n = g.find(id); return n && n->supernode; };
     for (const auto& a : g.arcs) {
       const bool sa = is_super(a.a), sb = is_super(a.b);
       if ((sa || kept(a.a)) && (sb || kept(a.b))) {
@@ -188,10 +212,6 @@ struct Recognizer::Impl {
     for (std::size_t i = 0; i < size; ++i) uf[i] = static_cast<int>(i);
     part_of.assign(size, -1);
     comp_size.assign(size, 0);
-    auto is_super = [&](int id) {
-      const PfrgNode* n = g.find(id);
-      return n == nullptr || n->supernode;
-    };
     for (const auto& a : g.arcs)
       if (!is_super(a.a) && !is_super(a.b)) {
         const int ra = find(a.a), rb = find(a.b);
@@ -320,6 +340,7 @@ Recognizer::Recognizer(const Library& library, const RecognizeParams& params, st
   impl_->lone_tried.reserve(Impl::kMaxNodeIds);
   impl_->rest.nodes.reserve(Impl::kMaxNodeIds);
   impl_->rest_super_arc.reserve(Impl::kMaxNodeIds);
+  impl_->super_by_id.reserve(Impl::kMaxNodeIds);
   impl_->rest.arcs.reserve(32768);
   impl_->rest.name.reserve(64);
   impl_->part_of.reserve(Impl::kMaxNodeIds);
@@ -410,6 +431,7 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
   for (std::size_t i = 0; i < scene_.nodes.size(); ++i) im.scene_index[static_cast<std::size_t>(scene_.nodes[i].id)] = static_cast<int>(i);
   im.node_used.assign(static_cast<std::size_t>(max_id) + 1, 0);
   im.lone_tried.assign(static_cast<std::size_t>(max_id) + 1, 0);
+  im.mark_supernodes(scene_);
   if (im.cell_owner.size() < cloud.points.size()) im.cell_owner.resize(cloud.points.size(), -1);
   HypothesisContext hc{library_, scene_, im.scene_index, cloud.viewpoint, params_};
   // The measured points verification looks at (built once per scan).
@@ -534,21 +556,13 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
             std::min(im.hyps.size() - im.nhyp, static_cast<std::size_t>(std::max(params_.single_face_max, 0)));
         if (room == 0) break;   // the pool is full this round: the face is tried again in the next one
         int n = 0;
-        if (std::abs(face.normal.dot(im.table.n)) < std::cos(sp.min_tilt_deg * M_PI / 180.0)) {
+        if (!parallel_to_table(face, im.table, sp.min_tilt_deg)) {
           n = single_face_hypotheses(library_, face, im.table, sp, std::span<Hypothesis>(im.hyps.data() + im.nhyp, room));
         } else {
           // Parallel to the table: the turn about the vertical comes from the face's outline (fine samples).
           const Vec3 u = face.normal.unitOrthogonal();
           const Vec3 v = face.normal.cross(u);
-          im.hull.clear();
-          const auto& cells = im.fine.cells();
-          const auto& pts = im.fine.points();
-          for (std::size_t k = 0; k < cells.size(); ++k)
-            if (cells[k] < seg_.labels.size() && seg_.labels[cells[k]] == face.id - 1) {
-              const Vec3 q = pts[k].cast<double>();
-              im.hull.emplace_back(q.dot(u), q.dot(v));
-            }
-          im.hull.resize(convex_hull_in_place(im.hull, im.hull_scratch));
+          im.outline(face, seg_.labels, u, v);
           TopFaceParams tp;
           tp.area = sp.area;
           n = top_face_hypotheses(library_, face, im.table, im.hull, u, v, tp,
