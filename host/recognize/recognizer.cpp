@@ -636,9 +636,14 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
     im.refine_phase = false;
     im.pool.run(im.order.size(), verify_task, &im);
     auto rekey = [&] {
+      // Of two hypotheses that fit equally, the one explaining more measured points goes first: a model that
+      // covers only part of an object (a prism for the augmented prism) leaves the rest unexplained.
+      int most_inliers = 1;
+      for (std::size_t i : im.order) most_inliers = std::max(most_inliers, im.hyps[i].verify.inliers);
       for (std::size_t i : im.order) {
         Hypothesis& h = im.hyps[i];
-        h.key = h.cost + params_.confidence_weight * (1.0 - h.verify.confidence);
+        h.key = h.cost + params_.confidence_weight * (1.0 - h.verify.confidence) -
+                params_.inlier_weight * static_cast<double>(h.verify.inliers) / static_cast<double>(most_inliers);
       }
       // std::sort with the index as tie-break (std::stable_sort would take a temporary buffer from the heap).
       std::sort(im.order.begin(), im.order.end(), [&](std::size_t a, std::size_t b) {

@@ -69,6 +69,7 @@ struct RecognizeParams {
   // Acceptance.
   double min_confidence = 0.6;
   double confidence_weight = 0.2;     // ordering key = cost + weight * (1 - confidence)
+  double inlier_weight = 0.01;        //   - inlier_weight * inliers / (most inliers of the round's hypotheses)
   double max_shared_inliers = 0.3;    // two objects may not explain more than this share of the same points
   int max_objects = 16;
   int max_verified = 96;              // hypotheses checked against the cloud (highest prescore first)

@@ -20,7 +20,7 @@ struct SegmentParams {
   // <= dist_abs_mm + dist_rel * range^2 (the range^2 term models triangulation / Kinect depth noise).
   double angle_deg = 15.0;
   double seed_angle_deg = 6.0;        // a seed's 4 neighbours must agree with its normal within this
-  double dist_abs_mm = 0.6;
+  double dist_abs_mm = 0.3;
   double dist_rel = 0.0;              // 1/mm
   // Edge refinement: unassigned cells next to a region join it when within edge_dist_factor * dist.
   double edge_dist_factor = 2.0;

@@ -4,6 +4,7 @@
 //
 //   bench_recognition [--scenes N] [--seed S] [--categories single,separated,occluded,empty] [--steps 500]
 //                     [--noise 0.05] [--threads 1] [--alloc-every 1] [--verbose] [--candidates] [--only I] [--preset NAME] [--min-level N] [--solutions N] [--max-states N] [--area-ratio R] [--omega DEG] [--max-solutions N] [--no-rigidity-pairs] [--scene-stats] [--dump-graph] [--max-verified N] [--verify-per-face N]
+//                     [--seg-dist MM] [--seg-merge-angle DEG] [--refine-per-face N] [--max-refined N] [--rounds N] [--inlier-weight W]
 //
 // --alloc-every K: the allocation count is taken in every K-th round of the categories (all categories).
 //
@@ -78,6 +79,12 @@ struct Args {
   bool dump_graph = false;   // with --candidates: the scene PFRG JSON (for facetscan match)
   int max_verified = 0;      // hypotheses verified per round (0 = default)
   int verify_per_face = 0;   // a scene face draws at most this many into verification (0 = default)
+  int refine_per_face = 0;   // 0 = default
+  double inlier_weight = -1;   // RecognizeParams::inlier_weight (< 0 = default)
+  int rounds = 0;            // rounds of matching + verification (0 = default)
+  int max_refined = 0;       // 0 = default
+  double seg_dist = -1;      // segmentation dist_abs_mm (< 0 = the laser default)
+  double seg_merge_angle = -1;  // segmentation merge_angle_deg (< 0 = the laser default)
 };
 
 Args parse_args(int argc, char** argv) {
@@ -109,6 +116,12 @@ Args parse_args(int argc, char** argv) {
     else if (k == "--dump-graph") a.dump_graph = a.candidates = a.verbose = true;
     else if (k == "--max-verified") a.max_verified = std::stoi(value());
     else if (k == "--verify-per-face") a.verify_per_face = std::stoi(value());
+    else if (k == "--inlier-weight") a.inlier_weight = std::stod(value());
+    else if (k == "--rounds") a.rounds = std::stoi(value());
+    else if (k == "--refine-per-face") a.refine_per_face = std::stoi(value());
+    else if (k == "--max-refined") a.max_refined = std::stoi(value());
+    else if (k == "--seg-dist") a.seg_dist = std::stod(value());
+    else if (k == "--seg-merge-angle") a.seg_merge_angle = std::stod(value());
     else if (k == "--categories") {
       a.categories.clear();
       std::string list = value();
@@ -149,6 +162,12 @@ int run(const Args& args) {
   if (args.no_rigidity_pairs) params.rigidity_pairs = false;
   if (args.max_verified > 0) params.max_verified = args.max_verified;
   if (args.verify_per_face > 0) params.verify_per_face = args.verify_per_face;
+  if (args.inlier_weight >= 0) params.inlier_weight = args.inlier_weight;
+  if (args.rounds > 0) params.rounds = args.rounds;
+  if (args.refine_per_face > 0) params.refine_per_face = args.refine_per_face;
+  if (args.max_refined > 0) params.max_refined = args.max_refined;
+  if (args.seg_dist >= 0) params.segment.dist_abs_mm = args.seg_dist;
+  if (args.seg_merge_angle >= 0) params.segment.merge_angle_deg = args.seg_merge_angle;
   const std::size_t cells =
       static_cast<std::size_t>(args.steps) * fs::ScannerCalibration::bench_default().camera.height;
   fs::host::rec::Recognizer recognizer(library, params, cells);
@@ -221,10 +240,12 @@ int run(const Args& args) {
         for (std::size_t oi = 0; oi < rs.scene.objects.size(); ++oi)
           if (h->model == rs.catalog_index[oi]) {
             const auto& tm = library.models[static_cast<std::size_t>(h->model)];
-            std::printf("  truth-hyp %s lvl %d faces %zu pre %.3f cost %.4f rot-to-truth %.1f t-err %.1f\n",
+            std::printf("  truth-hyp %s lvl %d faces %zu pre %.3f cost %.4f rot-to-truth %.1f t-err %.1f hits %d in %d viol %d occ %d expl %.2f conf %.3f scene",
                         tm.name.c_str(), h->level, h->matches.size(), h->prescore, h->cost,
                         fs::host::rec::rotation_angle_deg_sym(rs.scene.objects[oi].rotation, h->R, tm),
-                        (h->t - rs.scene.objects[oi].translation).norm());
+                        (h->t - rs.scene.objects[oi].translation).norm(), h->verify.hits, h->verify.inliers, h->verify.violations, h->verify.occluded, h->verify.explained, h->verify.confidence);
+            for (const auto& m : h->matches) std::printf(" %d", m.scene);
+            std::printf("\n");
           }
     }
 

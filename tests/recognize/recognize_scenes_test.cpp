@@ -157,7 +157,7 @@ TEST(RecognizeScenes, WarmRecognizeAllocatesNothing) {
   EXPECT_GE(rd.stats.rounds, 2);
 }
 
-// A scene whose graph has faces but no part with TH_minlevel faces (a thin plate: its top and edge-on rims)
+// A scene whose graph has faces but nothing the library matches (a thin plate: its top and at most a 1.5 mm rim)
 // after a scene with objects: the result must be empty, not the previous scan's objects.
 TEST(RecognizeScenes, SceneWithoutAMatchablePartReportsNothingAfterAFullScene) {
   SceneRun s = scan("cube-pyramid-separate");
@@ -178,7 +178,7 @@ TEST(RecognizeScenes, SceneWithoutAMatchablePartReportsNothingAfterAFullScene) {
   const fs::host::OrganizedCloud cloud = grid_of(plate_scene, 5);
   const auto& r = rec.recognize(cloud, &table);
   EXPECT_GT(r.stats.scene_nodes, 0);
-  EXPECT_EQ(r.stats.components, 0);
+  EXPECT_LE(r.stats.components, 1);   // the top and a 1.5 mm rim (resolved at the laser's 0.3 mm tolerance) may be one
   EXPECT_TRUE(r.objects.empty()) << fs::host::rec::to_json(r, library()).dump();
   EXPECT_EQ(r.stats.hypotheses, 0);
 }
