@@ -33,6 +33,13 @@ ModelGeometry::ModelGeometry(const Model& model)
     f.loop_start.push_back(static_cast<std::uint32_t>(f.pts.size()));
     faces_.push_back(std::move(f));
   }
+  // Convex: every vertex on the inner side of every face plane. A ray then enters through exactly one front face,
+  // so cast() may stop at the first front face that contains its hit.
+  convex_ = true;
+  for (const Face& f : faces_)
+    for (const ModelFace& mf : model.faces)
+      for (const auto& loop : mf.loops)
+        for (const Vec3& p : loop) convex_ = convex_ && f.n.dot(p) <= f.offset + 1e-6 * (1.0 + radius_);
 }
 
 bool ModelGeometry::inside(const Face& f, const Eigen::Vector2d& q) const {
@@ -68,6 +75,7 @@ int ModelGeometry::cast(const Vec3& origin, const Vec3& dir, double& distance) c
     if (!inside(f, Eigen::Vector2d(f.u.dot(h), f.v.dot(h)))) continue;
     best_s = s;
     best = static_cast<int>(i);
+    if (convex_) break;
   }
   distance = best_s;
   return best;

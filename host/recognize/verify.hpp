@@ -47,6 +47,7 @@ class ModelGeometry {
   const Model& model() const { return *model_; }
   double radius() const { return radius_; }
   const Vec3& center() const { return center_; }
+  bool convex() const { return convex_; }
 
  private:
   struct Face {
@@ -61,6 +62,7 @@ class ModelGeometry {
   std::vector<Face> faces_;
   Vec3 center_;
   double radius_;
+  bool convex_ = false;
 };
 
 // The measured points verification looks at: every sample_step-th valid cell, grouped in blocks of

@@ -193,10 +193,10 @@ int run(const Args& args) {
     const std::string note = r.note;
     if (args.scene_stats)
       std::printf("scene seed %llu %s: %d graph parts, %d faces, %lld search states, matching %.1f ms, %d hypotheses "
-                  "(%d single-face)\n",
+                  "(%d single-face), cpu %.1f ms: segmentation + PFRG %.1f, verification %.1f, %d rounds\n",
                   static_cast<unsigned long long>(seed), fs::sim::to_string(cat), r.stats.components,
                   r.stats.scene_nodes, static_cast<long long>(r.stats.states), r.stats.match_ms, r.stats.hypotheses,
-                  r.stats.single_face);
+                  r.stats.single_face, cpu, r.stats.segment_ms + r.stats.pfrg_ms, r.stats.verify_ms, r.stats.rounds);
     if (args.candidates) {
       std::printf("scene seed %llu: %d scene nodes, %d hypotheses\n", static_cast<unsigned long long>(seed),
                   r.stats.scene_nodes, r.stats.hypotheses);

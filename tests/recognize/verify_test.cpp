@@ -1,0 +1,83 @@
+// Unit tests of the verification geometry (host/recognize/verify.hpp): ray casting against a model in its own
+// frame, on a convex model (the cube: the first front face containing the hit ends the search) and on a
+// non-convex one (a U-shaped prism: a ray crosses two front faces and the nearer one must win).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <vector>
+
+#include "common/mesh.hpp"
+#include "host/library/model.hpp"
+#include "host/recognize/verify.hpp"
+#include "support/test_paths.hpp"
+
+namespace {
+
+using fs::Vec3;
+
+// The polygon (x, z) extruded over y in [-h, h]; the polygon is counter-clockwise seen from -y.
+fs::Mesh extrude_xz(const std::vector<std::pair<double, double>>& poly, double h) {
+  fs::Mesh m;
+  m.name = "extruded";
+  const auto n = static_cast<std::uint32_t>(poly.size());
+  for (const auto& [x, z] : poly) m.vertices.emplace_back(x, -h, z);
+  for (const auto& [x, z] : poly) m.vertices.emplace_back(x, h, z);
+  std::vector<std::uint32_t> front, back;
+  for (std::uint32_t i = 0; i < n; ++i) {
+    front.push_back(i);               // y = -h, normal -y: counter-clockwise seen from -y
+    back.push_back(2 * n - 1 - i);    // y = +h, normal +y: reversed
+  }
+  m.faces.push_back(front);
+  m.faces.push_back(back);
+  for (std::uint32_t i = 0; i < n; ++i) {
+    const std::uint32_t j = (i + 1) % n;
+    m.faces.push_back({j, i, n + i, n + j});
+  }
+  return m;
+}
+
+TEST(ModelGeometry, ConvexCubeRayEntersThroughTheFaceItHits) {
+  const fs::host::Model cube =
+      fs::host::build_model(fs::read_mesh(fs::test::source_dir() / "hw-sim/scenes/meshes/cube.off"));
+  const fs::host::rec::ModelGeometry g(cube);
+  EXPECT_TRUE(g.convex());
+  // Straight down onto the centre, and a slanted ray: both must hit the face whose plane they cross first
+  // while inside its outline, at the plane distance.
+  for (const Vec3& dir : {Vec3(0, 0, -1), Vec3(0.2, -0.1, -1).normalized()}) {
+    const Vec3 origin = cube.center - 300.0 * dir;
+    double s = 0.0;
+    const int face = g.cast(origin, dir, s);
+    ASSERT_GE(face, 0);
+    const fs::host::ModelFace& f = cube.faces[static_cast<std::size_t>(face)];
+    EXPECT_LT(f.normal.dot(dir), 0.0);
+    EXPECT_NEAR(f.normal.dot(origin + s * dir), f.offset, 1e-9);
+    // No other face plane is crossed earlier inside the solid: the hit point lies on the surface.
+    for (const fs::host::ModelFace& o : cube.faces) EXPECT_LE(o.normal.dot(origin + s * dir), o.offset + 1e-9);
+  }
+  double s = 0.0;
+  EXPECT_EQ(g.cast(cube.center + Vec3(0, 0, 300), Vec3(1, 0, 0), s), -1);   // passes above
+}
+
+TEST(ModelGeometry, NonConvexUShapeGivesTheNearestOfTwoFrontFaces) {
+  // Two prongs (x in [0, 10] and [40, 50], up to z = 30) on a base (z in [0, 10]).
+  const fs::Mesh u = extrude_xz({{0, 0}, {50, 0}, {50, 30}, {40, 30}, {40, 10}, {10, 10}, {10, 30}, {0, 30}}, 10);
+  const fs::host::Model model = fs::host::build_model(u);
+  const fs::host::rec::ModelGeometry g(model);
+  EXPECT_FALSE(g.convex());
+  // A ray from +x at prong height enters the right prong's outer wall (x = 50) and, past the gap, the left
+  // prong's inner wall (x = 10), both facing it: the outer wall is the hit.
+  for (const Vec3& dir : {Vec3(-1, 0, 0), Vec3(1, 0, 0)}) {
+    const Vec3 origin(dir.x() < 0 ? 100.0 : -50.0, 0.0, 20.0);
+    double s = 0.0;
+    const int face = g.cast(origin, dir, s);
+    ASSERT_GE(face, 0);
+    const double x_hit = origin.x() + s * dir.x();
+    EXPECT_NEAR(x_hit, dir.x() < 0 ? 50.0 : 0.0, 1e-9);
+  }
+  // Through the gap from above: the base's top (z = 10) between the prongs.
+  double s = 0.0;
+  ASSERT_GE(g.cast(Vec3(25, 0, 100), Vec3(0, 0, -1), s), 0);
+  EXPECT_NEAR(s, 90.0, 1e-9);
+}
+
+}  // namespace
