@@ -40,6 +40,8 @@ struct Segmentation {
   std::vector<Region> regions;
   std::vector<Border> borders;
   bool truncated = false;             // the region / border budget ran out; the rest is left unknown
+  double noise_mm = 0.0;              // the scan's estimated depth noise (sigma, mm; 0 = too few samples)
+  double dist_mm = 0.0;               // the point-to-plane tolerance used: max(dist_abs_mm, dist_noise_factor x noise)
 
   // Reserves everything for grids up to max_cells and up to max_regions regions (no allocation later).
   void reserve(std::size_t max_cells, std::size_t max_regions, std::size_t max_borders) {

@@ -94,7 +94,43 @@ void Segmenter::reserve(std::size_t n) {
   edge_cell_.resize(2 * n + 8);
   edge_border_.resize(2 * n + 8);
   bins_.resize(n + 1024);
+  noise_samples_.reserve(kNoiseSamples);
   limits_.max_cells = std::max(limits_.max_cells, n);
+}
+
+// The component of p[c-1] - 2 p[c] + p[c+1] across the local tangent p[c+1] - p[c-1]: 0 on a plane (the three
+// points lie on the line where the row meets the surface, whatever their spacing), noise of variance ~6 sigma^2
+// otherwise. The median over a subsample of depth-continuous triples ignores creases and edges.
+void Segmenter::estimate_noise(const OrganizedCloud& cloud) {
+  noise_samples_.clear();
+  const std::uint32_t w = cloud.width, h = cloud.height;
+  dist_abs_ = params_.dist_abs_mm;
+  noise_mm_ = 0.0;
+  if (w < 3 || h == 0) return;
+  const std::size_t per_row = w - 2;
+  const std::uint32_t stride =
+      std::max<std::uint32_t>(1, static_cast<std::uint32_t>((per_row * h + kNoiseSamples - 1) / kNoiseSamples));
+  const float jump2 = float(params_.jump_abs_mm * params_.jump_abs_mm);
+  for (std::uint32_t r = 0; r < h; r += stride) {
+    const Eigen::Vector3f* row = cloud.points.data() + std::size_t(r) * w;
+    for (std::uint32_t c = 1; c + 1 < w && noise_samples_.size() < kNoiseSamples; ++c) {
+      const Eigen::Vector3f& a = row[c - 1];
+      const Eigen::Vector3f& b = row[c];
+      const Eigen::Vector3f& d = row[c + 1];
+      if (!finite(a) || !finite(b) || !finite(d)) continue;
+      const Eigen::Vector3f t = d - a;
+      const float tt = t.squaredNorm();
+      if (!(tt > 0.0f) || (b - a).squaredNorm() > jump2 || (d - b).squaredNorm() > jump2) continue;
+      const Eigen::Vector3f d2 = a - 2.0f * b + d;
+      noise_samples_.push_back((d2 - (d2.dot(t) / tt) * t).norm());
+    }
+  }
+  if (noise_samples_.size() < 64) return;
+  auto mid = noise_samples_.begin() + static_cast<std::ptrdiff_t>(noise_samples_.size() / 2);
+  std::nth_element(noise_samples_.begin(), mid, noise_samples_.end());
+  // |N(0, 6 s^2)| has median 0.6745 sqrt(6) s.
+  noise_mm_ = double(*mid) / (0.6745 * std::sqrt(6.0));
+  dist_abs_ = std::max(params_.dist_abs_mm, params_.dist_noise_factor * noise_mm_);
 }
 
 void Segmenter::prepare(Segmentation& out) const {
@@ -129,6 +165,9 @@ void Segmenter::segment(const OrganizedCloud& cloud, Segmentation& out) {
     }
   }
   region_count_ = 0;
+  estimate_noise(cloud);
+  out.noise_mm = noise_mm_;
+  out.dist_mm = dist_abs_;
   compute_normals(cloud);
   grow_regions(cloud, out);
   refine_edges(cloud);
@@ -167,7 +206,7 @@ void Segmenter::compute_normals(const OrganizedCloud& cloud) {
   // scalar path with one-sided tangents.
   auto thresholds_row = [&](int r) {
     const std::size_t b = std::size_t(r) * W;
-    soa_row(P[b].data(), w, vpk, float(params_.jump_abs_mm), float(params_.jump_rel), float(params_.dist_abs_mm),
+    soa_row(P[b].data(), w, vpk, float(params_.jump_abs_mm), float(params_.jump_rel), float(dist_abs_),
             float(params_.dist_rel), X + b, Y + b, Z + b, J2 + b, dist_.data() + b, ST + b);
     for (std::size_t i = b; i < b + W; ++i) lab_[i] = ST[i] ? kUnassigned : kNil;   // ST: 1 = kValid or 0
   };
@@ -554,7 +593,7 @@ void Segmenter::merge_regions(const OrganizedCloud& /*cloud*/, Segmentation& out
     const PlaneF& pb = plane_[std::size_t(b.b)];
     if (pa.n.dot(pb.n) < cm) continue;
     const float range = (pa.c - viewpoint_.cast<float>()).norm();
-    const float tol = fd * float(params_.dist_abs_mm + params_.dist_rel * double(range) * double(range));
+    const float tol = fd * float(dist_abs_ + params_.dist_rel * double(range) * double(range));
     if (std::abs(pa.n.dot(pb.c - pa.c)) > tol || std::abs(pb.n.dot(pa.c - pb.c)) > tol) continue;
     const std::int32_t ra = find(b.a), rb = find(b.b);
     if (ra == rb) continue;
