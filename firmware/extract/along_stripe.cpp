@@ -62,7 +62,7 @@ double along_stripe_sigma(std::span<const msg::StripePoint> pts) {
   for (std::size_t j = 1; j + 1 < pts.size(); ++j) {
     if (!joined(pts[j - 1], pts[j]) || !joined(pts[j], pts[j + 1])) continue;
     const double d2 = std::abs(static_cast<double>(pts[j - 1].col) - 2.0 * pts[j].col + pts[j + 1].col);
-    ++hist[std::min(kBins - 1, static_cast<int>(d2 / kBin))];
+    ++hist[std::min(kBins - 1, static_cast<int>(d2 * (1.0 / kBin)))];
     ++count;
   }
   if (count < 16) return 0.0;
@@ -74,84 +74,109 @@ double along_stripe_sigma(std::span<const msg::StripePoint> pts) {
   return 1.4826 * median / std::sqrt(6.0);  // MAD -> sigma of d2, / sqrt(6) -> one row's
 }
 
-void refine_along_stripe(std::span<msg::StripePoint> pts, std::uint32_t rows, double sigma) {
-  if (rows < 3 || pts.size() < 3 || !(sigma > 0.0)) return;
-  const int h = static_cast<int>(std::min(rows, kAlongStripeMaxRows) / 2);
-  constexpr int kRing = 16;  // > h: the original centres of the rows already refined
-  static_assert(kRing > static_cast<int>(kAlongStripeMaxRows / 2));
-  float orig[kRing];
+namespace {
+
+// refine_along_stripe for a window of 2H + 1 rows, kChunk points at a time: first the full-window fit of every
+// point of the chunk (a fixed-trip-count float loop over the points: vectorized), then the points in order,
+// each taking that fit when its window is whole and explained, else the rows it has (near a run's end, at a
+// corner or step: the generic fits).
+constexpr int kChunk = 64;
+
+template <int H>
+void refine(std::span<msg::StripePoint> pts, double sigma) {
+  constexpr int kW = 2 * H + 1;
   const double s2 = sigma * sigma;
-  struct {  // the full window's constants (x = -h .. h; halves x = -h .. 0 and 0 .. h)
-    double inv_n, inv_sxx, mean_half, inv_dxx_half, chi2_full, slope_limit;
-  } k{};
-  k.inv_n = 1.0 / (2 * h + 1);
-  k.inv_sxx = 3.0 / (h * (h + 1.0) * (2 * h + 1.0));
-  k.mean_half = 0.5 * h;
-  k.inv_dxx_half = 1.0 / sxx_run(h);
-  k.chi2_full = kChi2_99[2 * h - 1];
-  k.slope_limit = kSlopeSigmas * std::sqrt(s2 * 2.0 / sxx_run(h));
+  // The full window's constants (x = -H .. H; halves x = -H .. 0 and 0 .. H).
+  constexpr float inv_n = 1.0f / kW, inv_sxx = static_cast<float>(3.0 / (H * (H + 1.0) * (2 * H + 1.0)));
+  constexpr float mean_half = 0.5f * H, inv_dxx_half = static_cast<float>(1.0 / sxx_run(H));
+  const float chi2_full = static_cast<float>(kChi2_99[2 * H - 1] * s2);
+  const float slope_limit = static_cast<float>(kSlopeSigmas * std::sqrt(s2 * 2.0 / sxx_run(H)));
   const std::size_t n = pts.size();
-  int a = 0;               // contiguous rows before i (at most h)
+  // c[H + j + x] = the original centre of point i0 + j + x (the H before the chunk carried over: refined by now).
+  float c[kChunk + 2 * H] = {};
+  float at0[kChunk];
+  std::int32_t ok[kChunk];
+  int a = 0;                // contiguous rows before i (at most H)
   std::size_t run_end = 0;  // first index after i's run
-  for (std::size_t i = 0; i < n; ++i) {
-    if (i > 0 && i < run_end) a = std::min(a + 1, h);
-    else a = 0;
-    if (i >= run_end) {
-      run_end = i + 1;
-      while (run_end < n && joined(pts[run_end - 1], pts[run_end])) ++run_end;
-    }
-    const int b = static_cast<int>(std::min<std::size_t>(static_cast<std::size_t>(h), run_end - 1 - i));
-    const float own = pts[i].col;
-    orig[i % kRing] = own;
-    if (a + b < 2) continue;
-    const auto y = [&](int x) {  // the original centre of row i + x, relative to row i's
-      const std::size_t j = i + static_cast<std::size_t>(static_cast<std::ptrdiff_t>(x));
-      return static_cast<double>(x < 0 ? orig[j % kRing] : pts[j].col) - own;
-    };
-    Line full;
-    bool ok;
-    if (a == h && b == h) {  // the common case, a full window: fixed x, the sums' constants precomputed
-      double sy = 0, sxy = 0, syy = 0, syl = 0, sxyl = 0;  // the left half x <= 0; the right = all - left + y(0)
-      for (int x = -h; x <= h; ++x) {
-        const double v = y(x);
+  for (std::size_t i0 = 0; i0 < n; i0 += kChunk) {
+    const int m = static_cast<int>(std::min<std::size_t>(kChunk, n - i0));
+    for (int x = 0; x < H; ++x) c[x] = c[kChunk + x];  // the previous chunk's last H originals
+    for (int j = 0; j < kChunk + H; ++j) c[H + j] = i0 + j < n ? pts[i0 + static_cast<std::size_t>(j)].col : 0.0f;
+    for (int j = 0; j < kChunk; ++j) {
+      const float own = c[H + j];
+      float sy = 0, sxy = 0, syy = 0, syl = 0, sxyl = 0;  // l: the left half x <= 0
+      for (int x = -H; x <= H; ++x) {
+        const float v = c[H + j + x] - own, xf = static_cast<float>(x);
         sy += v;
-        sxy += x * v;
+        sxy += xf * v;
         syy += v * v;
-        if (x <= 0) {
+        if (x <= 0) {  // x is a constant of the unrolled loop
           syl += v;
-          sxyl += x * v;
+          sxyl += xf * v;
         }
       }
-      full.n = 2 * h + 1;
-      full.at0 = sy * k.inv_n;
-      full.slope = sxy * k.inv_sxx;
-      full.ssr = syy - full.at0 * sy - full.slope * sxy;
-      full.var0 = k.inv_n;
-      const double syr = sy - syl, sxyr = sxy - sxyl;  // x >= 1; row i adds 0 to x y and is in both halves
-      const double slope_l = (sxyl - k.mean_half * -1.0 * syl) * k.inv_dxx_half;  // mean x of the left: -h/2
-      const double slope_r = (sxyr - k.mean_half * syr) * k.inv_dxx_half;       // right: x = 0..h (v(0) = 0)
-      ok = full.ssr <= k.chi2_full * s2 && std::abs(slope_l - slope_r) <= k.slope_limit;
-    } else {
-      full = fit(y, -a, b);
-      ok = explains(full, s2);
-      if (ok && a >= 1 && b >= 1) {  // no kink at row i: the halves' slopes agree
-        const Line l = fit(y, -a, 0), r = fit(y, 0, b);
-        const double sd = std::sqrt(s2 * (1.0 / sxx_run(a) + 1.0 / sxx_run(b)));
-        ok = std::abs(l.slope - r.slope) <= kSlopeSigmas * sd;
-      }
+      const float mean = sy * inv_n, slope = sxy * inv_sxx;
+      const float ssr = syy - mean * sy - slope * sxy;
+      // The right half x = 0 .. H: all minus the left (row i's own value is 0 here, in both halves).
+      const float slope_l = (sxyl + mean_half * syl) * inv_dxx_half;  // mean x of the left: -H / 2
+      const float slope_r = ((sxy - sxyl) - mean_half * (sy - syl)) * inv_dxx_half;
+      const float ds = slope_l - slope_r;
+      at0[j] = mean;
+      ok[j] = (ssr <= chi2_full) & (ds <= slope_limit) & (ds >= -slope_limit);
     }
-    Line best = full;
-    if (!ok) {
-      best = Line{};
+    for (int j = 0; j < m; ++j) {
+      const std::size_t i = i0 + static_cast<std::size_t>(j);
+      if (i > 0 && i < run_end) a = std::min(a + 1, H);
+      else a = 0;
+      if (i >= run_end) {
+        run_end = i + 1;
+        while (run_end < n && joined(pts[run_end - 1], pts[run_end])) ++run_end;
+      }
+      const int b = static_cast<int>(std::min<std::size_t>(H, run_end - 1 - i));
+      if (a + b < 2) continue;
+      const float own = c[H + j];
+      if (a == H && b == H && ok[j]) {  // the common case
+        pts[i].col = own + at0[j];
+        continue;
+      }
+      const auto y = [&](int x) { return static_cast<double>(c[H + j + x]) - own; };  // relative to row i's
+      Line best{};
       best.var0 = 1.0;  // the row alone
-      for (const auto& [xa, xb] : {std::pair{-a, 0}, std::pair{0, b}}) {
-        if (xb - xa < 2) continue;
-        const Line side = fit(y, xa, xb);
-        if (explains(side, s2) && side.var0 < best.var0) best = side;
+      if (!(a == H && b == H)) {  // near the end of a run: the rows there
+        const Line full = fit(y, -a, b);
+        bool fits = explains(full, s2);
+        if (fits && a >= 1 && b >= 1) {  // no kink at row i: the halves' slopes agree
+          const Line l = fit(y, -a, 0), r = fit(y, 0, b);
+          const double sd = std::sqrt(s2 * (1.0 / sxx_run(a) + 1.0 / sxx_run(b)));
+          fits = std::abs(l.slope - r.slope) <= kSlopeSigmas * sd;
+        }
+        if (fits) best = full;
       }
-      if (best.n == 0) continue;
+      if (best.n == 0) {  // one side of row i, the one explained with the smaller variance; else the row alone
+        for (const auto& [xa, xb] : {std::pair{-a, 0}, std::pair{0, b}}) {
+          if (xb - xa < 2) continue;
+          const Line side = fit(y, xa, xb);
+          if (explains(side, s2) && side.var0 < best.var0) best = side;
+        }
+        if (best.n == 0) continue;
+      }
+      pts[i].col = static_cast<float>(own + best.at0);
     }
-    pts[i].col = static_cast<float>(own + best.at0);
+  }
+}
+
+}  // namespace
+
+void refine_along_stripe(std::span<msg::StripePoint> pts, std::uint32_t rows, double sigma) {
+  if (rows < 3 || pts.size() < 3 || !(sigma > 0.0)) return;
+  switch (std::min(rows, kAlongStripeMaxRows) / 2) {
+    case 1: refine<1>(pts, sigma); break;
+    case 2: refine<2>(pts, sigma); break;
+    case 3: refine<3>(pts, sigma); break;
+    case 4: refine<4>(pts, sigma); break;
+    case 5: refine<5>(pts, sigma); break;
+    case 6: refine<6>(pts, sigma); break;
+    default: refine<7>(pts, sigma); break;
   }
 }
 
