@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include "common/error.hpp"
+#include "firmware/extract/along_stripe.hpp"
 
 namespace fs::fw {
 
@@ -105,6 +106,11 @@ void apply_config_json(FwConfig& c, const std::string& text, const std::string& 
         else if (ek == "read_noise") e.read_noise = get_num<double>(ev, src, f, 0, 1000);
         else if (ek == "shot_noise") e.shot_noise = get_num<double>(ev, src, f, 0, 100);
         else if (ek == "speckle") e.speckle = get_num<double>(ev, src, f, 0, 10);
+        else if (ek == "along_stripe") {
+          const auto rows = get_num<std::uint32_t>(ev, src, f, 0, kAlongStripeMaxRows);
+          if (rows > 1 && rows % 2 == 0) bad(src, f, "expected 0 or 1 (off) or an odd number of rows 3..15");
+          e.along_stripe = rows;
+        }
         else bad(src, f, "unknown key");
       }
     } else if (k == "sim_camera") {

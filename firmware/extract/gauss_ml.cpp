@@ -152,17 +152,31 @@ inline D vabs(D v) { return v < 0.0 ? -v : v; }
 template <typename D>
 inline D vmax(D a, D b) { return a < b ? b : a; }  // std::max's order
 
-// Cramer's rule for z1, z2 of the moment system (solve_moments), all lanes; `regular` = not singular.
+// Masks of double lanes as doubles whose bits are all ones / zero (kAll / D{}), made by `condition ? all : 0`
+// with the comparison used only there, and applied with bit operations (pick): GCC 12 lowers a comparison of 8
+// doubles whose 0 / -1 result is kept as a value (or used twice) lane by lane even with AVX-512; this way it
+// stays vector code. Same bits as the plain selects.
+template <typename D, typename DI>
+inline D pick(D m, D x, D y) {
+  const DI mi = std::bit_cast<DI>(m);
+  return std::bit_cast<D>((std::bit_cast<DI>(x) & mi) | (std::bit_cast<DI>(y) & ~mi));
+}
+template <typename D, typename DI>
+inline D both(D a, D b) { return std::bit_cast<D>(std::bit_cast<DI>(a) & std::bit_cast<DI>(b)); }
+
+// Cramer's rule for z1, z2 of the moment system (solve_moments), all lanes; `regular` = not singular (a mask).
 template <int W>
 inline void solve_lanes(const typename Lanes<W>::F (&acc)[8], typename Lanes<W>::D& z1, typename Lanes<W>::D& z2,
-                        typename Lanes<W>::DI& regular) {
+                        typename Lanes<W>::D& regular) {
   using D = typename Lanes<W>::D;
+  using DI = typename Lanes<W>::DI;
+  const D all = std::bit_cast<D>(DI{} - 1);
   D m[8];
   for (int q = 0; q < 8; ++q) m[q] = __builtin_convertvector(acc[q], D);
   const D c00 = m[2] * m[4] - m[3] * m[3], c01 = m[1] * m[4] - m[3] * m[2], c02 = m[1] * m[3] - m[2] * m[2];
   const D det = m[0] * c00 - m[1] * c01 + m[2] * c02;
-  regular = vabs(det) > 1e-12 * vmax(D{} + 1.0, m[0] * m[2] * m[4]);
-  const D inv = 1.0 / (regular ? det : 1.0);  // one division for both
+  regular = vabs(det) > 1e-12 * vmax(D{} + 1.0, m[0] * m[2] * m[4]) ? all : D{};
+  const D inv = 1.0 / pick<D, DI>(regular, det, D{} + 1.0);  // one division for both
   z1 = (m[0] * (m[6] * m[4] - m[3] * m[7]) - m[5] * c01 + m[2] * (m[1] * m[7] - m[6] * m[2])) * inv;
   z2 = (m[0] * (m[2] * m[7] - m[6] * m[3]) - m[1] * (m[1] * m[7] - m[6] * m[2]) + m[5] * c02) * inv;
 }
@@ -176,6 +190,9 @@ template <int W>
   using DI = typename Lanes<W>::DI;
   constexpr int C = kBatchHalf;
   const auto one = [](I m) { return std::bit_cast<F>(m & kOne); };
+  const D all = std::bit_cast<D>(DI{} - 1);
+  const auto pk = [](D m, D x, D y) { return pick<D, DI>(m, x, y); };
+  const auto both2 = [](D a, D b) { return both<D, DI>(a, b); };
   const D contrast = load<D>(b.contrast + g);
   const F fl = __builtin_convertvector(vmax(0.1 * contrast, D{} + 1e-3), F);
   const F cl = __builtin_convertvector(load<D>(b.clip + g), F);
@@ -213,33 +230,35 @@ template <int W>
       a[7] += ly * x2;
     }
   }
-  D bb, cc;
-  DI regular;
+  D bb, cc, regular;
   solve_lanes<W>(a, bb, cc, regular);
   const D m0 = __builtin_convertvector(a[0], D), m1 = __builtin_convertvector(a[1], D),
           m2 = __builtin_convertvector(a[2], D), r0 = __builtin_convertvector(a[5], D);
-  DI good = (m0 >= 3.0) & regular & (cc < 0.0);
-  const D bs = good ? bb : 0.0, cs = good ? cc : -1.0;  // failed lanes: a harmless model, exp(0)
+  D good = both2(both2(m0 >= 3.0 ? all : D{}, regular), cc < 0.0 ? all : D{});
+  const D bs = pk(good, bb, D{}), cs = pk(good, cc, D{} - 1.0);  // failed lanes: a harmless model, exp(0)
   const D ic = 1.0 / cs;  // one division for u0, sigma^2 and ln_peak
   const D u0 = -0.5 * bs * ic;
-  good &= vabs(u0) <= 2.0;
+  good = both2(good, vabs(u0) <= 2.0 ? all : D{});
   const D ai = (r0 - bs * m1 - cs * m2) / vmax(m0, D{} + 1.0);
   D sd = -0.5 * ic;
   for (int j = 0; j < W; ++j) sd[j] = __builtin_sqrt(sd[j]);  // > 0; no errno (-fno-math-errno): vsqrtpd
   const D ln_peak = ai - 0.25 * bs * bs * ic;
-  good &= (sd >= 0.25) & (ln_peak <= 30.0) & (ln_peak >= -10.0);
+  good = both2(good, sd >= 0.25 ? all : D{});
+  good = both2(good, ln_peak <= 30.0 ? all : D{});
+  good = both2(good, ln_peak >= -10.0 ? all : D{});
   // Window |x - u| <= 3 sigma inside the lane's samples (clamped first: the int conversions stay defined).
   D tlo = u0 - 3.0 * sd, thi = u0 + 3.0 * sd;
   tlo = tlo < -1.0 * C ? -1.0 * C : tlo > 1.0 * C ? 1.0 * C : tlo;
   thi = thi < -1.0 * C ? -1.0 * C : thi > 1.0 * C ? 1.0 * C : thi;
   I flo = __builtin_convertvector(tlo, I), chi = __builtin_convertvector(thi, I);
-  flo += __builtin_convertvector(tlo < __builtin_convertvector(flo, D), I);  // floor: -1 where truncation went up
-  chi -= __builtin_convertvector(thi > __builtin_convertvector(chi, D), I);  // ceil
-  const I ok = __builtin_convertvector(good, I);
+  // floor: -1 where truncation went up; ceil: +1
+  flo += __builtin_convertvector(std::bit_cast<DI>(tlo < __builtin_convertvector(flo, D) ? all : D{}), I);
+  chi -= __builtin_convertvector(std::bit_cast<DI>(thi > __builtin_convertvector(chi, D) ? all : D{}), I);
+  const I ok = __builtin_convertvector(std::bit_cast<DI>(good), I);
   const I ka = ok ? (xa < flo ? flo : xa) : 1;
   const I kb = ok ? (xb < chi ? xb : chi) : 0;
-  const F af = __builtin_convertvector(good ? ai : 0.0, F), bf = __builtin_convertvector(bs, F),
-          cf = __builtin_convertvector(good ? cs : 0.0, F);
+  const F af = __builtin_convertvector(pk(good, ai, D{}), F), bf = __builtin_convertvector(bs, F),
+          cf = __builtin_convertvector(pk(good, cs, D{}), F);
   // 2. One Gauss-Newton step in the intensity domain, weights 1 / var(model) (see gauss_ml_centre), over the
   // union of the lanes' windows, masked outside each lane's. The model S(x) = exp(a + b x + c x^2) by
   // recurrence outward from x = 0: S(x + 1) = S(x) R(x), R(x + 1) = R(x) exp(2c) (and the same leftward),
@@ -293,9 +312,10 @@ template <int W>
   D db, dc;
   solve_lanes<W>(gs, db, dc, regular);
   const D b1 = bs + db, c1 = cs + dc;
-  const DI curved = c1 < 0.0;
-  const D u1 = -b1 / (2.0 * (curved ? c1 : -1.0));
-  const D centre = (regular & curved & (vabs(u1 - u0) <= 1.0)) ? u1 : u0;
+  const D curved = c1 < 0.0 ? all : D{};
+  const D u1 = -b1 / (2.0 * pk(curved, c1, D{} - 1.0));
+  const D take = both2(both2(regular, curved), vabs(u1 - u0) <= 1.0 ? all : D{});
+  const D centre = pk(take, u1, u0);
   __builtin_memcpy(b.centre + g, &centre, sizeof centre);
   const I ok01 = ok & 1;
   __builtin_memcpy(b.ok + g, &ok01, sizeof ok01);

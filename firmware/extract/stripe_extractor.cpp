@@ -8,6 +8,7 @@
 #include <type_traits>
 
 #include "common/error.hpp"
+#include "firmware/extract/along_stripe.hpp"
 #include "firmware/extract/gauss_ml.hpp"
 #include "firmware/extract/row_scan.hpp"
 
@@ -418,6 +419,10 @@ ExtractCounts extract_frame(const FrameView& f, const ExtractParams& params, std
     case PixelFormat::Mono8: extract_rows<std::uint8_t, 1>(f, 255.0, params, out, c); break;
     case PixelFormat::Yuyv: extract_rows<std::uint8_t, 2>(f, 255.0, params, out, c); break;
     case PixelFormat::Mono16: extract_rows<std::uint16_t, 1>(f, 65535.0, params, out, c); break;
+  }
+  if (params.along_stripe >= 3) {
+    const std::span<msg::StripePoint> pts = out.first(std::min<std::size_t>(c.points, out.size()));
+    refine_along_stripe(pts, params.along_stripe, along_stripe_sigma(pts));
   }
   return c;
 }

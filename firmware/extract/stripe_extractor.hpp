@@ -50,6 +50,10 @@ struct ExtractParams {
   double read_noise = 1.5;
   double shot_noise = 0.35;
   double speckle = 0.12;
+  // Along-stripe refinement (along_stripe.hpp): each row's centre from a robust line fit over this many
+  // neighbouring rows (odd, 3..15) of the same straight stretch of stripe, in extract_frame; 0 or 1 = off,
+  // the per-row centres (what extract_row gives).
+  std::uint32_t along_stripe = 7;
 };
 
 struct ExtractCounts {
@@ -70,7 +74,8 @@ struct RowPeak {
 template <typename T>
 RowPeak extract_row(const T* row, std::uint32_t n, std::uint32_t step, double full_scale, const ExtractParams& p);
 
-// Extracts every row of the frame into `out` (at most out.size() points, rows in order). Returns the counts.
+// Extracts every row of the frame into `out` (at most out.size() points, rows in order), then refines the
+// centres along the stripe when params.along_stripe >= 3. Returns the counts.
 ExtractCounts extract_frame(const FrameView& frame, const ExtractParams& params, std::span<msg::StripePoint> out);
 
 }  // namespace fs::fw

@@ -118,6 +118,21 @@ BENCHMARK(BM_GaussMlBatch)->Arg(0)->Arg(1)->Arg(2);
 
 BENCHMARK(BM_Extract)->Arg(0)->Arg(1)->Arg(2)->Arg(3)->Arg(4);
 
+// The default method with the along-stripe refinement over 0 (off), 5 or 7 rows (ExtractParams::along_stripe).
+void BM_ExtractAlongStripe(benchmark::State& state) {
+  Frame& f = frame();
+  fs::fw::ExtractParams p;
+  p.along_stripe = static_cast<std::uint32_t>(state.range(0));
+  std::vector<fs::msg::StripePoint> out(f.view.height);
+  for (auto _ : state) {
+    fs::fw::extract_frame(f.view, p, out);
+    benchmark::DoNotOptimize(out.data());
+  }
+  state.SetBytesProcessed(static_cast<std::int64_t>(state.iterations() * f.pixels.size()));
+  state.SetLabel(std::string(fs::fw::to_string(p.method)) + ", along_stripe " + std::to_string(p.along_stripe));
+}
+BENCHMARK(BM_ExtractAlongStripe)->Arg(0)->Arg(5)->Arg(7);
+
 }  // namespace
 
 BENCHMARK_MAIN();

@@ -138,6 +138,22 @@ TEST(DeviceCheck, LaserConfigKeyAndCanTimeoutKeys) {
   EXPECT_EQ(c.loop.extract.shot_noise, 0.5);
   EXPECT_EQ(c.loop.extract.speckle, 0.2);
   EXPECT_THROW(fw::apply_config_json(c, R"({"extract": {"speckle": -1}})", "board.json"), Error);
+  // The along-stripe refinement: on by default (7 rows), 0 / 1 = off, odd 3..15.
+  EXPECT_EQ(c.loop.extract.along_stripe, 7u);
+  fw::apply_config_json(c, R"({"extract": {"along_stripe": 5}})", "board.json");
+  EXPECT_EQ(c.loop.extract.along_stripe, 5u);
+  fw::apply_config_json(c, R"({"extract": {"along_stripe": 0}})", "board.json");
+  EXPECT_EQ(c.loop.extract.along_stripe, 0u);
+  for (const char* bad : {R"({"extract": {"along_stripe": 4}})", R"({"extract": {"along_stripe": 17}})",
+                          R"({"extract": {"along_stripe": 2.5}})", R"({"extract": {"along_stripe": "on"}})"}) {
+    try {
+      fw::apply_config_json(c, bad, "board.json");
+      ADD_FAILURE() << bad << " must be refused";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("board.json: extract.along_stripe: "), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_EQ(c.loop.extract.along_stripe, 0u);  // unchanged by the refused values
   const fw::CanSpec s = fw::parse_can_spec("can:vcan0:node=2,sdo_ms=200,state_ms=5000");
   EXPECT_EQ(s.sdo_timeout_ms, 200u);
   EXPECT_EQ(s.state_timeout_ms, 5000u);

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "firmware/extract/along_stripe.hpp"
 #include "firmware/extract/gauss_ml.hpp"
 #include "firmware/extract/stripe_extractor.hpp"
 #include "hw-sim/scene/scene.hpp"
@@ -133,6 +134,7 @@ TEST(ExtractScene, FrameGivesTheRowByRowResults) {
     for (auto m : {fw::SubpixelMethod::GaussMl, fw::SubpixelMethod::CentreOfGravity, fw::SubpixelMethod::GaussFit}) {
       fw::ExtractParams p;
       p.method = m;
+      p.along_stripe = 0;  // the per-row centres (the refinement across rows: the next test)
       for (int format = 0; format < 3; ++format) {
         const fw::FrameView f =
             format == 0   ? fw::FrameView{img.data(), w, h, w, fw::PixelFormat::Mono8, 0, 0, 0}
@@ -164,6 +166,43 @@ TEST(ExtractScene, FrameGivesTheRowByRowResults) {
     }
   }
   EXPECT_GT(compared, 3 * 3 * 3 * 500);
+}
+
+// With the along-stripe refinement (the default), extract_frame = the row-by-row results refined by
+// refine_along_stripe with the frame's along_stripe_sigma, bit for bit.
+TEST(ExtractScene, FrameIsTheRowsRefinedAlongTheStripe) {
+  const sim::Scene scene = sim::load_scene(source_dir() / "hw-sim/scenes/cube.json");
+  sim::StripeRenderer r(scene);
+  const auto& cam = scene.calibration.camera;
+  const std::uint32_t w = cam.width, h = cam.height;
+  std::vector<std::uint8_t> img(static_cast<std::size_t>(w) * h);
+  std::vector<msg::StripePoint> out(h), rows;
+  const fw::ExtractParams p;
+  ASSERT_EQ(p.along_stripe, 7u);
+  for (double step : {30.0, 250.0, 470.0}) {
+    r.render_step(step, 3, sim::FrameBuffer{img.data(), w, h, w, sim::FrameFormat::Mono8});
+    const fw::ExtractCounts c = fw::extract_frame(fw::FrameView{img.data(), w, h, w, fw::PixelFormat::Mono8, 0, 0, 0}, p, out);
+    rows.clear();
+    for (std::uint32_t v = 0; v < h; ++v) {
+      const fw::RowPeak rp = fw::extract_row<std::uint8_t>(img.data() + std::size_t{v} * w, w, 1, 255.0, p);
+      if (rp.status != fw::RowStatus::Ok) continue;
+      rows.push_back(msg::StripePoint{static_cast<std::uint16_t>(v), static_cast<float>(rp.col),
+                                      static_cast<std::uint16_t>(rp.peak), static_cast<float>(rp.width)});
+    }
+    ASSERT_EQ(rows.size(), c.points);
+    const double sigma = fw::along_stripe_sigma(rows);
+    EXPECT_GT(sigma, 0.03);  // the per-row noise of the default renderer noise (~0.075 px)
+    EXPECT_LT(sigma, 0.15);
+    fw::refine_along_stripe(rows, p.along_stripe, sigma);
+    int moved = 0;
+    for (std::size_t k = 0; k < rows.size(); ++k) {
+      ASSERT_EQ(out[k].row, rows[k].row);
+      ASSERT_EQ(out[k].col, rows[k].col) << "row " << rows[k].row;
+      moved += out[k].col != static_cast<float>(
+                                 fw::extract_row<std::uint8_t>(img.data() + std::size_t{rows[k].row} * w, w, 1, 255.0, p).col);
+    }
+    EXPECT_GT(moved, static_cast<int>(rows.size()) * 9 / 10);  // nearly every row is refined
+  }
 }
 
 }  // namespace

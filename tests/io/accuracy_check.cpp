@@ -17,12 +17,21 @@ TEST(Accuracy, EndToEndDefaultNoiseOnDefaultScene) {
   EXPECT_GT(r.points, 5000u);
   EXPECT_LE(r.rms_mm, 0.1);
   EXPECT_LT(double(r.gross), 0.01 * double(r.points)) << "edge outliers should be rare";
-  // Without stripe smoothing the extraction noise shows fully (about twice the error).
+  // Without any smoothing along the stripe (the firmware's per-row centres, no host smoothing) the extraction
+  // noise shows fully (about twice the error); either smoothing alone takes most of it.
   host::TriangulationOptions raw;
   raw.smooth_half_window = 0;
-  const auto r0 = end_to_end_accuracy(scene, 1.0, 25, 11, raw);
-  std::printf("end-to-end default noise, no smoothing: rms %.4f mm\n", r0.rms_mm);
+  fw::ExtractParams per_row;
+  per_row.along_stripe = 0;
+  const auto r0 = end_to_end_accuracy(scene, 1.0, 25, 11, raw, 2.0, per_row);
+  const auto rh = end_to_end_accuracy(scene, 1.0, 25, 11, {}, 2.0, per_row);
+  const auto rf = end_to_end_accuracy(scene, 1.0, 25, 11, raw);
+  std::printf("end-to-end default noise: no smoothing rms %.4f mm, host smoothing only %.4f, firmware along-stripe "
+              "refinement only %.4f, both (the defaults) %.4f\n", r0.rms_mm, rh.rms_mm, rf.rms_mm, r.rms_mm);
   EXPECT_GT(r0.rms_mm, 1.4 * r.rms_mm);
+  EXPECT_GT(r0.rms_mm, 1.4 * rh.rms_mm);
+  EXPECT_GT(r0.rms_mm, 1.4 * rf.rms_mm);
+  EXPECT_LE(r.rms_mm, 1.02 * rh.rms_mm);  // the firmware's refinement does not hurt the host's smoothed result
 }
 
 TEST(Accuracy, ExactColumnsGiveExactPoints) {

@@ -54,9 +54,9 @@ inline AccuracyResult summarize(std::vector<double>& err, double gross_mm) {
 
 inline AccuracyResult end_to_end_accuracy(const sim::Scene& scene, double noise_scale, std::uint32_t step_stride,
                                           std::uint64_t seed, const host::TriangulationOptions& topt = {},
-                                          double gross_mm = 2.0) {
+                                          double gross_mm = 2.0, const fw::ExtractParams& extract = {}) {
   const auto& cal = scene.calibration;
-  RenderExtract rx(scene, noise_scale);
+  RenderExtract rx(scene, noise_scale, extract);
   host::Triangulator tri(cal, topt);
   host::OrganizedCloud cloud;
   tri.begin(cloud);

@@ -14,8 +14,9 @@ namespace fs::test {
 
 class RenderExtract {
  public:
-  RenderExtract(const sim::Scene& scene, double noise_scale)
-      : renderer_(scene, options(noise_scale)),
+  RenderExtract(const sim::Scene& scene, double noise_scale, const fw::ExtractParams& params = {})
+      : params_(params),
+        renderer_(scene, options(noise_scale)),
         image_(std::size_t(scene.calibration.camera.width) * scene.calibration.camera.height),
         points_(scene.calibration.camera.height) {
     const auto& cam = scene.calibration.camera;
@@ -27,10 +28,11 @@ class RenderExtract {
     fv_.format = fw::PixelFormat::Mono8;
   }
 
-  // Renders galvo step `step` with the noise seed and extracts it (default extraction parameters).
+  // Renders galvo step `step` with the noise seed and extracts it (the constructor's extraction parameters,
+  // default: the firmware's).
   fw::ExtractCounts step(std::uint32_t step, std::uint64_t seed) {
     renderer_.render_step(step, seed, fb_);
-    return fw::extract_frame(fv_, fw::ExtractParams{}, points_);
+    return fw::extract_frame(fv_, params_, points_);
   }
   // The stripe points of the last step (counts.points of them are valid).
   std::span<const msg::StripePoint> points(const fw::ExtractCounts& counts) const {
@@ -39,6 +41,7 @@ class RenderExtract {
   const sim::StripeRenderer& renderer() const { return renderer_; }
 
  private:
+  fw::ExtractParams params_;
   static sim::RenderOptions options(double noise_scale) {
     sim::RenderOptions ro;
     ro.noise_scale = noise_scale;
