@@ -31,7 +31,23 @@ ModelGeometry::ModelGeometry(const Model& model)
       }
     }
     f.loop_start.push_back(static_cast<std::uint32_t>(f.pts.size()));
+    if (f.loop_start.size() == 2 && f.pts.size() >= 3) {
+      f.convex = true;
+      const std::size_t k = f.pts.size();
+      for (std::size_t i = 0; i < k && f.convex; ++i) {
+        const Eigen::Vector2d e0 = f.pts[(i + 1) % k] - f.pts[i];
+        const Eigen::Vector2d e1 = f.pts[(i + 2) % k] - f.pts[(i + 1) % k];
+        f.convex = e0.x() * e1.y() - e0.y() * e1.x() > 0.0;   // every turn to the left
+      }
+      if (f.convex)
+        for (std::size_t i = 0; i < k; ++i) {
+          const Eigen::Vector2d e = f.pts[(i + 1) % k] - f.pts[i];
+          const Eigen::Vector2d in(-e.y(), e.x());
+          f.edges.emplace_back(in.x(), in.y(), in.dot(f.pts[i]));
+        }
+    }
     faces_.push_back(std::move(f));
+    all_faces_.push_back(static_cast<std::uint32_t>(all_faces_.size()));
   }
   // Convex: every vertex on the inner side of every face plane. A ray then enters through exactly one front face,
   // so cast() may stop at the first front face that contains its hit.
@@ -44,6 +60,11 @@ ModelGeometry::ModelGeometry(const Model& model)
 
 bool ModelGeometry::inside(const Face& f, const Eigen::Vector2d& q) const {
   if (q.x() < f.lo.x() || q.y() < f.lo.y() || q.x() > f.hi.x() || q.y() > f.hi.y()) return false;
+  if (f.convex) {
+    for (const Eigen::Vector3d& e : f.edges)
+      if (e.x() * q.x() + e.y() * q.y() < e.z()) return false;
+    return true;
+  }
   bool in = false;   // even-odd rule over all loops (holes are their own loops)
   for (std::size_t l = 0; l + 1 < f.loop_start.size(); ++l) {
     const std::uint32_t b = f.loop_start[l], e = f.loop_start[l + 1];
@@ -58,14 +79,20 @@ bool ModelGeometry::inside(const Face& f, const Eigen::Vector2d& q) const {
   return in;
 }
 
-int ModelGeometry::cast(const Vec3& origin, const Vec3& dir, double& distance) const {
-  // Bounding sphere first.
+void ModelGeometry::front_faces(const Vec3& origin, std::vector<std::uint32_t>& out) const {
+  out.clear();
+  for (std::size_t i = 0; i < faces_.size(); ++i)
+    if (faces_[i].n.dot(origin) > faces_[i].offset) out.push_back(static_cast<std::uint32_t>(i));
+}
+
+int ModelGeometry::cast(const Vec3& origin, const Vec3& dir, double& distance,
+                        std::span<const std::uint32_t> faces) const {
   const Vec3 oc = center_ - origin;
   const double along = oc.dot(dir);
   if ((oc - along * dir).squaredNorm() > radius_ * radius_ * 1.0001 + 1e-9) return -1;
   int best = -1;
   double best_s = std::numeric_limits<double>::infinity();
-  for (std::size_t i = 0; i < faces_.size(); ++i) {
+  for (const std::uint32_t i : faces) {
     const Face& f = faces_[i];
     const double den = f.n.dot(dir);
     if (den >= -1e-9) continue;   // back-facing or grazing
@@ -79,6 +106,10 @@ int ModelGeometry::cast(const Vec3& origin, const Vec3& dir, double& distance) c
   }
   distance = best_s;
   return best;
+}
+
+int ModelGeometry::cast(const Vec3& origin, const Vec3& dir, double& distance) const {
+  return cast(origin, dir, distance, all_faces_);
 }
 
 void SampleSet::reserve(std::size_t max_cells) {
@@ -128,6 +159,7 @@ VerifyResult Verifier::evaluate(const SampleSet& samples, const ModelGeometry& g
   const Mat3 Rt = R.transpose();
   const Vec3& view = samples.viewpoint();
   const Vec3 origin_m = Rt * (view - t);
+  g.front_faces(origin_m, front_);
   const double tol = params_.inlier_mm;
   // The object's bounding sphere as seen from the viewpoint.
   const Vec3 cs = R * g.center() + t;
@@ -146,7 +178,7 @@ VerifyResult Verifier::evaluate(const SampleSet& samples, const ModelGeometry& g
       if (range <= 1e-9) continue;
       d /= range;
       double s = 0.0;
-      const int face = g.cast(origin_m, d, s);
+      const int face = g.cast(origin_m, d, s, front_);
       if (face < 0) continue;
       ++r.hits;
       if (range > s + tol) {

@@ -9,6 +9,7 @@
 // confidence = inliers / (inliers + violations + occluded_weight * occluded), scaled down when the inliers are
 // too few to carry the claim.
 #include <cstdint>
+#include <span>
 #include <vector>
 
 #include "common/calibration.hpp"
@@ -44,6 +45,10 @@ class ModelGeometry {
   // Ray (model frame) -> nearest front-facing face hit: distance along the unit direction and face index;
   // returns -1 when it misses.
   int cast(const Vec3& origin, const Vec3& dir, double& distance) const;
+  // The same for rays from one origin, over the faces front_faces(origin) listed (those whose plane has the
+  // origin on its outer side: no other face can be hit from the front).
+  int cast(const Vec3& origin, const Vec3& dir, double& distance, std::span<const std::uint32_t> faces) const;
+  void front_faces(const Vec3& origin, std::vector<std::uint32_t>& out) const;
   const Model& model() const { return *model_; }
   double radius() const { return radius_; }
   const Vec3& center() const { return center_; }
@@ -56,10 +61,14 @@ class ModelGeometry {
     std::vector<Eigen::Vector2d> pts;          // all loops' vertices, concatenated
     std::vector<std::uint32_t> loop_start;     // start index of each loop in pts (+ end sentinel)
     Eigen::Vector2d lo, hi;                    // 2D bounding box
+    // One convex counter-clockwise loop: inside = every edge's inward normal . q >= its offset (no division).
+    bool convex = false;
+    std::vector<Eigen::Vector3d> edges;        // (inward normal x, y, offset) per edge
   };
   bool inside(const Face& f, const Eigen::Vector2d& q) const;
   const Model* model_;
   std::vector<Face> faces_;
+  std::vector<std::uint32_t> all_faces_;   // 0 .. faces - 1
   Vec3 center_;
   double radius_;
   bool convex_ = false;
@@ -94,6 +103,7 @@ class Verifier {
   explicit Verifier(const VerifyParams& params = {}) : params_(params) {}
   // Sizes the internal buffers for up to `samples` points (a warm verify() then never allocates).
   void reserve(std::size_t samples) {
+    front_.reserve(1024);
     inlier_cells_.reserve(samples);
     inlier_sample_.reserve(samples);
     inlier_face_.reserve(samples);
@@ -110,6 +120,7 @@ class Verifier {
   std::vector<std::uint32_t> inlier_cells_;
   std::vector<std::uint32_t> inlier_sample_;
   std::vector<std::int32_t> inlier_face_;
+  std::vector<std::uint32_t> front_;   // front_faces() of the current pose's viewpoint
 };
 
 }  // namespace fs::host::rec

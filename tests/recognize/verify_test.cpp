@@ -78,6 +78,29 @@ TEST(ModelGeometry, NonConvexUShapeGivesTheNearestOfTwoFrontFaces) {
   double s = 0.0;
   ASSERT_GE(g.cast(Vec3(25, 0, 100), Vec3(0, 0, -1), s), 0);
   EXPECT_NEAR(s, 90.0, 1e-9);
+  // The U-shaped end faces are non-convex polygons: a ray along -y through the gap misses them (and the solid),
+  // one through a prong or the base hits the end face at y = +10.
+  EXPECT_EQ(g.cast(Vec3(25, 100, 20), Vec3(0, -1, 0), s), -1);
+  for (const Vec3& at : {Vec3(5, 100, 20), Vec3(45, 100, 25), Vec3(25, 100, 5)}) {
+    ASSERT_GE(g.cast(at, Vec3(0, -1, 0), s), 0) << at.transpose();
+    EXPECT_NEAR(s, 90.0, 1e-9);
+  }
+  // The front-face list from one origin gives the same hits as all faces.
+  const auto& geo = g;
+  std::vector<std::uint32_t> front;
+  const Vec3 origin(80, 60, 70);
+  geo.front_faces(origin, front);
+  EXPECT_LT(front.size(), model.faces.size());
+  for (int k = 0; k < 200; ++k) {
+    const Vec3 target(0.25 * k, 10.0 * std::sin(k), 15.0 + 10.0 * std::cos(0.7 * k));
+    const Vec3 dir = (target - origin).normalized();
+    double s_all = 0.0, s_front = 0.0;
+    const int f_all = geo.cast(origin, dir, s_all);
+    EXPECT_EQ(geo.cast(origin, dir, s_front, front), f_all);
+    if (f_all >= 0) {
+      EXPECT_DOUBLE_EQ(s_front, s_all);
+    }
+  }
 }
 
 }  // namespace
