@@ -436,8 +436,8 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
   HypothesisContext hc{library_, scene_, im.scene_index, cloud.viewpoint, params_};
   // The measured points verification looks at (built once per scan).
   auto t_samples = Clock::now();
-  im.coarse.build(cloud, 2 * params_.verify.sample_step);
-  im.fine.build(cloud, params_.verify.sample_step);
+  im.coarse.build(cloud, 2 * params_.verify.sample_step, 8, 2.0 * params_.verify.sample_spacing_mm);
+  im.fine.build(cloud, params_.verify.sample_step, 8, params_.verify.sample_spacing_mm);
   im.labels = &seg_.labels;
   auto count_regions = [&](const SampleSet& set, std::vector<std::uint32_t>& counts) {
     counts.assign(seg_.regions.size(), 0);

@@ -118,21 +118,55 @@ void SampleSet::reserve(std::size_t max_cells) {
   blocks_.reserve(max_cells / 16 + 16);
 }
 
-void SampleSet::build(const OrganizedCloud& cloud, int sample_step, int block) {
+Eigen::Vector2d grid_spacing_mm(const OrganizedCloud& cloud) {
+  // Mean distance of depth-continuous (< 5 mm) grid neighbours along a row (x) and a column (y), over a subsample.
+  Eigen::Vector2d sum = Eigen::Vector2d::Zero();
+  Eigen::Vector2i n = Eigen::Vector2i::Zero();
+  if (!cloud.organized || cloud.width < 2 || cloud.height < 2) return Eigen::Vector2d::Zero();
+  const std::uint32_t rstep = std::max<std::uint32_t>(1, cloud.height / 64);
+  const std::uint32_t cstep = std::max<std::uint32_t>(1, cloud.width / 64);
+  for (std::uint32_t r = 0; r + 1 < cloud.height; r += rstep)
+    for (std::uint32_t c = 0; c + 1 < cloud.width; c += cstep) {
+      const Eigen::Vector3f& p = cloud.at(r, c);
+      if (!OrganizedCloud::valid(p)) continue;
+      const Eigen::Vector3f& right = cloud.at(r, c + 1);
+      const Eigen::Vector3f& down = cloud.at(r + 1, c);
+      if (OrganizedCloud::valid(right) && (right - p).norm() < 5.0f) {
+        sum.x() += (right - p).norm();
+        ++n.x();
+      }
+      if (OrganizedCloud::valid(down) && (down - p).norm() < 5.0f) {
+        sum.y() += (down - p).norm();
+        ++n.y();
+      }
+    }
+  return {n.x() > 0 ? sum.x() / n.x() : 0.0, n.y() > 0 ? sum.y() / n.y() : 0.0};
+}
+
+void SampleSet::build(const OrganizedCloud& cloud, int sample_step, int block, double spacing_mm) {
   points_.clear();
   cells_.clear();
   blocks_.clear();
   viewpoint_ = cloud.viewpoint;
   const Eigen::Vector3f v = cloud.viewpoint.cast<float>();
-  const auto step = static_cast<std::uint32_t>(std::max(1, sample_step));
-  const std::uint32_t span = step * static_cast<std::uint32_t>(std::max(1, block));
-  for (std::uint32_t r0 = 0; r0 < cloud.height; r0 += span) {
-    for (std::uint32_t c0 = 0; c0 < cloud.width; c0 += span) {
+  std::uint32_t cstep = static_cast<std::uint32_t>(std::max(1, sample_step)), rstep = cstep;
+  if (spacing_mm > 0.0) {
+    // No closer than spacing_mm (and no denser than every sample_step-th cell) in either direction.
+    const Eigen::Vector2d g = grid_spacing_mm(cloud);
+    if (g.x() > 0.0) cstep = std::max(cstep, static_cast<std::uint32_t>(std::lround(spacing_mm / g.x())));
+    if (g.y() > 0.0) rstep = std::max(rstep, static_cast<std::uint32_t>(std::lround(spacing_mm / g.y())));
+  }
+  col_step_ = cstep;
+  row_step_ = rstep;
+  const auto ublock = static_cast<std::uint32_t>(std::max(1, block));
+  const std::uint32_t cspan = cstep * ublock, rspan = rstep * ublock;
+  for (std::uint32_t r0 = 0; r0 < cloud.height; r0 += rspan) {
+    for (std::uint32_t c0 = 0; c0 < cloud.width; c0 += cspan) {
       Block b;
       b.begin = static_cast<std::uint32_t>(points_.size());
       Eigen::Vector3f sum = Eigen::Vector3f::Zero();
-      for (std::uint32_t r = r0; r < std::min(cloud.height, r0 + span); r += step)
-        for (std::uint32_t c = c0; c < std::min(cloud.width, c0 + span); c += step) {
+      for (std::uint32_t r = r0; r < std::min(cloud.height, r0 + rspan); r += rstep)
+        for (std::uint32_t c = c0; c < std::min(cloud.width, c0 + cspan); c += cstep) {
           const std::size_t i = cloud.index(r, c);
           const Eigen::Vector3f& p = cloud.points[i];
           if (!OrganizedCloud::valid(p)) continue;

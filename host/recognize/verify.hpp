@@ -20,7 +20,8 @@ namespace fs::host::rec {
 
 struct VerifyParams {
   double inlier_mm = 2.0;          // range tolerance of an inlier (also the violation margin)
-  int sample_step = 2;             // use every n-th row and column
+  int sample_step = 2;             // use every n-th row and column (at least)
+  double sample_spacing_mm = 1.5;  // > 0: fine samples about this far apart on the surface (coarse: twice)
   int icp_iterations = 6;          // 0 = no refinement
   double icp_max_dist_mm = 4.0;    // point-to-plane distance for ICP correspondences
   double occluded_weight = 0.25;
@@ -80,7 +81,11 @@ class ModelGeometry {
 class SampleSet {
  public:
   void reserve(std::size_t max_cells);
-  void build(const OrganizedCloud& cloud, int sample_step, int block = 8);
+  // spacing_mm > 0: the steps along rows and columns grow (from sample_step) until neighbouring samples are about
+  // that far apart on the surface (grid_spacing_mm), so the work does not grow with the scan's resolution.
+  void build(const OrganizedCloud& cloud, int sample_step, int block = 8, double spacing_mm = 0.0);
+  std::uint32_t col_step() const { return col_step_; }
+  std::uint32_t row_step() const { return row_step_; }
   struct Block {
     std::uint32_t begin = 0, end = 0;   // range in points()
     Eigen::Vector3f dir = Eigen::Vector3f::UnitZ();   // mean viewing direction (unit)
@@ -96,7 +101,12 @@ class SampleSet {
   std::vector<std::uint32_t> cells_;
   std::vector<Block> blocks_;
   Vec3 viewpoint_ = Vec3::Zero();
+  std::uint32_t col_step_ = 1, row_step_ = 1;
 };
+
+// Mean distance (mm) between depth-continuous neighbours along a grid row (x) and column (y) of an organized
+// cloud, from a subsample; 0 where unknown (unorganized cloud, no such neighbours).
+Eigen::Vector2d grid_spacing_mm(const OrganizedCloud& cloud);
 
 class Verifier {
  public:

@@ -4,7 +4,7 @@
 //
 //   bench_recognition [--scenes N] [--seed S] [--categories single,separated,occluded,empty] [--steps 500]
 //                     [--noise 0.05] [--threads 1] [--alloc-every 1] [--verbose] [--candidates] [--only I] [--preset NAME] [--min-level N] [--solutions N] [--max-states N] [--area-ratio R] [--omega DEG] [--max-solutions N] [--no-rigidity-pairs] [--scene-stats] [--dump-graph] [--max-verified N] [--verify-per-face N]
-//                     [--seg-dist MM] [--seg-noise-factor K] [--seg-merge-angle DEG] [--refine-per-face N] [--max-refined N] [--rounds N] [--inlier-weight W]
+//                     [--sample-mm MM] [--seg-dist MM] [--seg-noise-factor K] [--seg-merge-angle DEG] [--refine-per-face N] [--max-refined N] [--rounds N] [--inlier-weight W]
 //
 // --alloc-every K: the allocation count is taken in every K-th round of the categories (all categories).
 //
@@ -83,6 +83,7 @@ struct Args {
   double inlier_weight = -1;   // RecognizeParams::inlier_weight (< 0 = default)
   int rounds = 0;            // rounds of matching + verification (0 = default)
   int max_refined = 0;       // 0 = default
+  double sample_mm = -1;    // VerifyParams::sample_spacing_mm (< 0 = default)
   double seg_dist = -1;      // segmentation dist_abs_mm (< 0 = the laser default)
   double seg_noise_factor = -1;   // segmentation dist_noise_factor (< 0 = the laser default)
   double seg_merge_angle = -1;  // segmentation merge_angle_deg (< 0 = the laser default)
@@ -121,6 +122,7 @@ Args parse_args(int argc, char** argv) {
     else if (k == "--rounds") a.rounds = std::stoi(value());
     else if (k == "--refine-per-face") a.refine_per_face = std::stoi(value());
     else if (k == "--max-refined") a.max_refined = std::stoi(value());
+    else if (k == "--sample-mm") a.sample_mm = std::stod(value());
     else if (k == "--seg-dist") a.seg_dist = std::stod(value());
     else if (k == "--seg-noise-factor") a.seg_noise_factor = std::stod(value());
     else if (k == "--seg-merge-angle") a.seg_merge_angle = std::stod(value());
@@ -168,6 +170,7 @@ int run(const Args& args) {
   if (args.rounds > 0) params.rounds = args.rounds;
   if (args.refine_per_face > 0) params.refine_per_face = args.refine_per_face;
   if (args.max_refined > 0) params.max_refined = args.max_refined;
+  if (args.sample_mm >= 0) params.verify.sample_spacing_mm = args.sample_mm;
   if (args.seg_dist >= 0) params.segment.dist_abs_mm = args.seg_dist;
   if (args.seg_noise_factor >= 0) params.segment.dist_noise_factor = args.seg_noise_factor;
   if (args.seg_merge_angle >= 0) params.segment.merge_angle_deg = args.seg_merge_angle;

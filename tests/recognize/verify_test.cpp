@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "common/mesh.hpp"
+#include "host/io/organized_cloud.hpp"
 #include "host/library/model.hpp"
 #include "host/recognize/verify.hpp"
 #include "support/test_paths.hpp"
@@ -101,6 +102,34 @@ TEST(ModelGeometry, NonConvexUShapeGivesTheNearestOfTwoFrontFaces) {
       EXPECT_DOUBLE_EQ(s_front, s_all);
     }
   }
+}
+
+TEST(SampleSet, StepsFollowTheGridSpacingInMillimetres) {
+  // A flat organized grid 0.5 mm apart along the rows and 0.25 mm along the columns, seen from 500 mm above.
+  fs::host::OrganizedCloud cloud;
+  cloud.reset(200, 400);
+  for (std::uint32_t r = 0; r < cloud.height; ++r)
+    for (std::uint32_t c = 0; c < cloud.width; ++c) cloud.at(r, c) = Eigen::Vector3f(0.5f * c, 0.25f * r, 0.0f);
+  cloud.viewpoint = Vec3(50, 50, 500);
+  const Eigen::Vector2d g = fs::host::rec::grid_spacing_mm(cloud);
+  EXPECT_NEAR(g.x(), 0.5, 1e-5);
+  EXPECT_NEAR(g.y(), 0.25, 1e-5);
+  fs::host::rec::SampleSet set;
+  set.build(cloud, 2, 8, 1.5);
+  EXPECT_EQ(set.col_step(), 3u);
+  EXPECT_EQ(set.row_step(), 6u);
+  EXPECT_EQ(set.points().size(), std::size_t((200 + 2) / 3) * std::size_t((400 + 5) / 6));
+  set.build(cloud, 2, 8, 0.0);   // off: every 2nd row and column
+  EXPECT_EQ(set.col_step(), 2u);
+  EXPECT_EQ(set.row_step(), 2u);
+  EXPECT_EQ(set.points().size(), std::size_t(100 * 200));
+  set.build(cloud, 4, 8, 0.5);   // never denser than sample_step
+  EXPECT_EQ(set.col_step(), 4u);
+  EXPECT_EQ(set.row_step(), 4u);
+  cloud.organized = false;       // no grid neighbourhood: sample_step only
+  EXPECT_EQ(fs::host::rec::grid_spacing_mm(cloud), Eigen::Vector2d::Zero());
+  set.build(cloud, 2, 8, 1.5);
+  EXPECT_EQ(set.col_step(), 2u);
 }
 
 }  // namespace
