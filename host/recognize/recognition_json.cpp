@@ -35,6 +35,13 @@ nlohmann::json to_json(const Recognition& r, const Library& library) {
     if (h.free_dims > 0) {
       o["translation_underdetermined"] = {{"dims", h.free_dims}, {"direction", {h.free_dir.x(), h.free_dir.y(), h.free_dir.z()}}};
     }
+    if (h.alternatives > 0) {
+      nlohmann::json alts = nlohmann::json::array();
+      for (int k = 0; k < h.alternatives; ++k)
+        alts.push_back({{"model", library.models[static_cast<std::size_t>(h.alternative_model[static_cast<std::size_t>(k)])].name},
+                        {"confidence", h.alternative_confidence[static_cast<std::size_t>(k)]}});
+      o["alternatives"] = alts;
+    }
     o["verification"] = {{"inliers", h.verify.inliers},   {"violations", h.verify.violations},
                          {"occluded", h.verify.occluded}, {"hits", h.verify.hits},
                          {"coverage", h.verify.coverage}, {"explained", h.verify.explained}, {"rms_mm", h.verify.rms_mm},

@@ -315,6 +315,29 @@ void select_covering(Recognizer::Impl& im, int per_face, std::size_t limit, Ok o
   im.order.assign(im.picked.begin(), im.picked.end());
 }
 
+// The refined hypotheses of other models that explain the accepted hypothesis h (index `self`) as well: on at least
+// half of its scene faces, confidence within alternative_confidence, inliers >= alternative_inliers x its own.
+void find_alternatives(const Recognizer::Impl& im, std::size_t self, const RecognizeParams& params, Hypothesis& h) {
+  h.alternatives = 0;
+  for (std::size_t j : im.order) {
+    if (h.alternatives >= Hypothesis::kMaxAlternatives) break;
+    const Hypothesis& o = im.hyps[j];
+    if (j == self || o.model == h.model || o.verify.confidence < h.verify.confidence - params.alternative_confidence ||
+        static_cast<double>(o.verify.inliers) < params.alternative_inliers * static_cast<double>(h.verify.inliers))
+      continue;
+    std::size_t shared = 0;
+    for (const FaceMatch& m : h.matches)
+      for (const FaceMatch& om : o.matches) shared += om.scene == m.scene ? 1 : 0;
+    if (2 * shared < h.matches.size()) continue;
+    bool listed = false;
+    for (int k = 0; k < h.alternatives; ++k) listed = listed || h.alternative_model[static_cast<std::size_t>(k)] == o.model;
+    if (listed) continue;
+    h.alternative_model[static_cast<std::size_t>(h.alternatives)] = o.model;
+    h.alternative_confidence[static_cast<std::size_t>(h.alternatives)] = o.verify.confidence;
+    ++h.alternatives;
+  }
+}
+
 }  // namespace
 
 Recognizer::Recognizer(const Library& library, const RecognizeParams& params, std::size_t max_cells)
@@ -699,6 +722,7 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
       int instance = 0;
       for (const Hypothesis& o : out.objects) instance += o.model == h.model ? 1 : 0;
       h.instance = instance;
+      find_alternatives(im, i, params_, h);
       canonical_pose(library_.models[static_cast<std::size_t>(h.model)], h.R, h.t);
       out.objects.emplace_back();
       std::swap(out.objects.back(), im.spare_objects[out.objects.size() - 1]);

@@ -6,6 +6,7 @@
 //
 // Memory: a Recognizer sizes its buffers at construction (largest grid, region budget, state budget) and
 // reuses them; a warm recognize() performs no heap allocation (see tests/recognize).
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -71,6 +72,11 @@ struct RecognizeParams {
   double confidence_weight = 0.2;     // ordering key = cost + weight * (1 - confidence)
   double inlier_weight = 0.01;        //   - inlier_weight * inliers / (most inliers of the round's hypotheses)
   double max_shared_inliers = 0.3;    // two objects may not explain more than this share of the same points
+  // An accepted object lists as alternatives the other models' verified hypotheses on at least half of its scene
+  // faces whose confidence is within alternative_confidence and whose inliers are at least alternative_inliers x
+  // its own.
+  double alternative_confidence = 0.02;
+  double alternative_inliers = 0.97;
   int max_objects = 16;
   int max_verified = 96;              // hypotheses checked against the cloud (highest prescore first)
   double prescore_area_slack = 1.1;   // a scene face may be this much larger than its model face (segmentation)
@@ -124,6 +130,12 @@ struct Hypothesis {
   double prescore = 0.0;              // geometric plausibility before verification (see hypotheses.hpp)
   int instance = 0;                   // 0 = first instance of its model, 1 = second, ...
   bool merged = false;                // a compatible solution was merged into it
+  // Other models that fit this view as well (same scene faces, confidence and inliers within
+  // RecognizeParams::alternative_*): the parts where they differ are out of view. Accepted objects only.
+  static constexpr int kMaxAlternatives = 4;
+  std::array<int, kMaxAlternatives> alternative_model{};
+  std::array<double, kMaxAlternatives> alternative_confidence{};
+  int alternatives = 0;
   std::vector<std::uint32_t> inlier_cells;
 };
 

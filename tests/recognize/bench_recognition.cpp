@@ -52,6 +52,8 @@ double quantile(std::vector<double> v, double q) {
 
 struct CategoryStats {
   int scenes = 0, objects = 0, found = 0, identity_ok = 0, reported = 0, extra = 0, scenes_with_fp = 0;
+  int truth_is_alternative = 0;   // confusions whose reported object lists the true model as an alternative
+  int objects_with_alternatives = 0;
   std::vector<double> rot_err, trans_err, cpu, wall, allocs, seg_ms, match_ms, verify_ms;
 };
 
@@ -270,6 +272,7 @@ int run(const Args& args) {
 
     std::vector<bool> used(found_objects.size(), false);
     s.reported += static_cast<int>(found_objects.size());
+    for (const auto& h : found_objects) s.objects_with_alternatives += h.alternatives > 0 ? 1 : 0;
     for (std::size_t oi = 0; oi < rs.scene.objects.size(); ++oi) {
       if (rs.catalog_index[oi] < 0) continue;  // the distractor box
       const auto& obj = rs.scene.objects[oi];
@@ -305,8 +308,14 @@ int run(const Args& args) {
         }
         if (nearest >= 0) {
           const auto& h = found_objects[static_cast<std::size_t>(nearest)];
-          if (h.model != rs.catalog_index[oi])
+          if (h.model != rs.catalog_index[oi]) {
             ++confused_with[truth.name + " -> " + library.models[static_cast<std::size_t>(h.model)].name];
+            for (int k = 0; k < h.alternatives; ++k)
+              if (h.alternative_model[static_cast<std::size_t>(k)] == rs.catalog_index[oi]) {
+                ++s.truth_is_alternative;
+                got += " (true model listed as an alternative)";
+              }
+          }
         }
         if (args.verbose)
           std::printf("MISS seed %llu %s: %s (face %d on table, %d faces) -> nearest %s; note: %s\n",
@@ -359,6 +368,12 @@ int run(const Args& args) {
     for (const auto& [name, n] : confused_with) std::printf(" %s:%d", name.c_str(), n);
     std::printf("\n");
   }
+  std::printf("alternatives (reported objects that list another model fitting as well; confusions whose true model "
+              "is listed):");
+  for (const auto& [cat, s] : stats)
+    std::printf(" %s %d of %d objects, %d confusions;", fs::sim::to_string(cat), s.objects_with_alternatives,
+                s.reported, s.truth_is_alternative);
+  std::printf("\n");
   return 0;
 }
 

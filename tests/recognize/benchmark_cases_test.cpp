@@ -12,6 +12,8 @@
 
 #include "host/library/library.hpp"
 #include "host/library/model.hpp"
+#include <nlohmann/json.hpp>
+
 #include "host/recognize/recognizer.hpp"
 #include "hw-sim/scene/ground_truth_grid.hpp"
 #include "hw-sim/scene/random_scene.hpp"
@@ -90,6 +92,44 @@ TEST(RecognizeBenchmarkCases, TheHypothesisExplainingMorePointsWinsATie) {
   EXPECT_EQ(recognized_at(fs::sim::SceneCategory::single, 500, 89, 0, params), "parabiaugmented-hexagonal-prism");
   params.inlier_weight = 0.0;
   EXPECT_EQ(recognized_at(fs::sim::SceneCategory::single, 500, 89, 0, params), "hexagonal-prism");
+}
+
+// Seed 166 (separated, 500 steps): the metabiaugmented truncated dodecahedron shows only what the augmented one
+// has too (same confidence 1.000, same 3036 inliers): whichever is reported must list the other as an
+// alternative, and the JSON carries it.
+TEST(RecognizeBenchmarkCases, LookAlikesAreListedAsAlternatives) {
+  const Bench& b = bench();
+  const auto rs = fs::sim::make_random_scene(b.catalog, {.category = fs::sim::SceneCategory::separated, .steps = 500},
+                                             166);
+  const std::size_t i = index_of(rs, "metabiaugmented-truncated-dodecahedron");
+  ASSERT_LT(i, rs.catalog_index.size()) << "the benchmark scene changed";
+  fs::host::OrganizedCloud cloud;
+  fs::sim::make_ground_truth_grid(rs.scene, {.depth_noise_mm = 0.05, .seed = 166}).export_to(cloud, false);
+  RecognizeParams params;
+  params.threads = 2;
+  Recognizer rec(b.library, params, cloud.points.size());
+  const fs::Plane table = rs.scene.calibration.table;
+  const auto& r = rec.recognize(cloud, &table);
+  const auto& truth = b.library.models[static_cast<std::size_t>(rs.catalog_index[i])];
+  const fs::Vec3 centre = rs.scene.objects[i].rotation * truth.center + rs.scene.objects[i].translation;
+  const nlohmann::json j = fs::host::rec::to_json(r, b.library);
+  bool seen = false;
+  for (std::size_t k = 0; k < r.objects.size(); ++k) {
+    const auto& h = r.objects[k];
+    const auto& m = b.library.models[static_cast<std::size_t>(h.model)];
+    if ((h.R * m.center + h.t - centre).norm() > 10.0) continue;
+    seen = true;
+    const std::string other = m.name == truth.name ? "augmented-truncated-dodecahedron" : truth.name;
+    ASSERT_TRUE(j["objects"][k].contains("alternatives")) << j["objects"][k].dump();
+    bool listed = false;
+    for (const auto& a : j["objects"][k]["alternatives"]) listed = listed || a["model"] == other;
+    EXPECT_TRUE(listed) << m.name << " does not list " << other << ": " << j["objects"][k]["alternatives"].dump();
+  }
+  EXPECT_TRUE(seen);
+  // Objects without a look-alike in view list none: the scene's other objects.
+  int without = 0;
+  for (const auto& o : j["objects"]) without += o.contains("alternatives") ? 0 : 1;
+  EXPECT_GE(without, 1);
 }
 
 }  // namespace
