@@ -112,18 +112,19 @@ void stage_scan(RowState<T>& st, const T* row, std::uint32_t n, double full_scal
   st.active = !(st.peak - st.bg < p.min_contrast * scale);
 }
 
+template <typename T, std::uint32_t Step>
+void support_end(RowState<T>& st, std::int64_t lo, std::int64_t hi, std::int64_t support_sum, double full_scale,
+                 const ExtractParams& p);
+
 // Stage 2: arg-max, support, background without the support, saturation.
 template <typename T, std::uint32_t Step>
 void stage_support(RowState<T>& st, double full_scale, const ExtractParams& p) {
   const T* row = st.row;
   const std::uint32_t n = st.n;
-  const double scale = full_scale / 255.0;
   const double peak = st.peak;
-  double bg = st.bg;
+  const double bg = st.bg;
   const std::uint32_t imax = first_argmax<T, Step>(row, st.scan, st.mx);
   st.imax = imax;
-  const std::uint64_t sum = st.scan.sum;
-  st.active = false;
 
   // Support of the peak: contiguous samples above bg + 20 % of the contrast, at most max_half_width away.
   // Integer samples: v > low  <=>  v > floor(low).
@@ -135,6 +136,21 @@ void stage_support(RowState<T>& st, double full_scale, const ExtractParams& p) {
   std::int64_t support_sum = iat(imax);  // summed on the way (no second loop over the support)
   for (std::int64_t v; lo > 0 && imax - lo < hw && (v = iat(lo - 1)) > low_i; --lo) support_sum += v;
   for (std::int64_t v; hi + 1 < n && hi - imax < hw && (v = iat(hi + 1)) > low_i; ++hi) support_sum += v;
+  support_end<T, Step>(st, lo, hi, support_sum, full_scale, p);
+}
+
+// The rest of stage 2 once the support [lo, hi] and its sum are known (shared with the lane path).
+template <typename T, std::uint32_t Step>
+void support_end(RowState<T>& st, std::int64_t lo, std::int64_t hi, std::int64_t support_sum, double full_scale,
+                 const ExtractParams& p) {
+  const T* row = st.row;
+  const std::uint32_t n = st.n;
+  const double scale = full_scale / 255.0;
+  const double peak = st.peak;
+  double bg = st.bg;
+  const std::uint32_t imax = st.imax;
+  const std::uint64_t sum = st.scan.sum;
+  st.active = false;
 
   // Background without the stripe's own energy.
   const std::int64_t rest = static_cast<std::int64_t>(n) - (hi - lo + 1);
@@ -159,38 +175,67 @@ void stage_support(RowState<T>& st, double full_scale, const ExtractParams& p) {
   st.active = true;
 }
 
+template <typename T, std::uint32_t Step>
+bool ambiguous(RowState<T>& st, const ExtractParams& p);
+template <typename T, std::uint32_t Step>
+void centre_end(RowState<T>& st, double full_scale, const ExtractParams& p, detail::GaussMlBatch& batch, int lane,
+                std::int64_t left_end, std::int64_t right_end, std::int64_t top_end);
+
 // Stage 3: the double-peak test, FWHM, and the sub-pixel centre (GaussMl: the row's window into lane `lane` of
 // the batch, finished by finish_row once the batch is fitted).
 template <typename T, std::uint32_t Step>
 void stage_centre(RowState<T>& st, double full_scale, const ExtractParams& p, detail::GaussMlBatch& batch, int lane) {
   const T* row = st.row;
-  const std::uint32_t n = st.n;
-  const double scale = full_scale / 255.0;
   const double bg = st.bg, contrast = st.contrast;
   const T mx = st.mx;
   const std::uint32_t imax = st.imax;
   const std::int64_t lo = st.lo, hi = st.hi;
-  const std::int64_t hw = p.max_half_width;
   const auto iat = [&](std::int64_t i) { return static_cast<std::int64_t>(row[static_cast<std::size_t>(i) * Step]); };
-  RowPeak& r = st.r;
   st.active = false;
-
-  // Second peak outside the support (and the flank sample next to it on each side).
-  const double second_limit = bg + p.ambiguous_ratio * contrast;
-  const double second = static_cast<double>(detail::max_outside<T, Step>(row, st.scan, lo - 1, hi + 1));
-  if (second > second_limit || (hi - lo) >= 2 * hw) {
-    r.status = RowStatus::Ambiguous;
-    return;
-  }
+  if (ambiguous<T, Step>(st, p)) return;
 
   // Full width at half maximum by linear interpolation on both flanks (integer walks: v > half <=> v > floor).
   const double half = bg + 0.5 * contrast;
   const std::int64_t half_i = static_cast<std::int64_t>(half);  // half >= 0: truncation = floor
+  std::int64_t i = imax, j = imax;
+  while (i > lo && iat(i - 1) > half_i) --i;
+  while (j < hi && iat(j + 1) > half_i) ++j;
+  // A flat top of several equal samples: start from its middle.
+  std::int64_t top_end = imax;
+  while (top_end + 1 <= hi && iat(top_end + 1) >= static_cast<std::int64_t>(mx)) ++top_end;
+  centre_end<T, Step>(st, full_scale, p, batch, lane, i, j, top_end);
+}
+
+// Stage 3's double-peak test: a second peak outside the support (and the flank sample next to it on each
+// side), or a support too wide, makes the row Ambiguous.
+template <typename T, std::uint32_t Step>
+bool ambiguous(RowState<T>& st, const ExtractParams& p) {
+  const std::int64_t lo = st.lo, hi = st.hi;
+  const double second_limit = st.bg + p.ambiguous_ratio * st.contrast;
+  const double second = static_cast<double>(detail::max_outside<T, Step>(st.row, st.scan, lo - 1, hi + 1));
+  if (second > second_limit || (hi - lo) >= 2 * static_cast<std::int64_t>(p.max_half_width)) {
+    st.r.status = RowStatus::Ambiguous;
+    return true;
+  }
+  return false;
+}
+
+// The rest of stage 3 once the half-maximum walks ended at i (left) and j (right) and the flat top at top_end
+// (shared with the lane path).
+template <typename T, std::uint32_t Step>
+void centre_end(RowState<T>& st, double full_scale, const ExtractParams& p, detail::GaussMlBatch& batch, int lane,
+                std::int64_t left_end, std::int64_t right_end, std::int64_t top_end) {
+  const T* row = st.row;
+  const std::uint32_t n = st.n;
+  const double scale = full_scale / 255.0;
+  const double bg = st.bg, contrast = st.contrast;
+  const std::uint32_t imax = st.imax;
+  const std::int64_t lo = st.lo, hi = st.hi;
+  RowPeak& r = st.r;
+  const double half = bg + 0.5 * contrast;
   double left = static_cast<double>(imax), right = static_cast<double>(imax);
   {
-    std::int64_t i = imax, j = imax;
-    while (i > lo && iat(i - 1) > half_i) --i;
-    while (j < hi && iat(j + 1) > half_i) ++j;
+    const std::int64_t i = left_end, j = right_end;
     const double a = at(row, Step, i - (i > 0 ? 1 : 0)), b = at(row, Step, i);
     left = (i > 0 && b != a) ? static_cast<double>(i) - (b - half) / (b - a) : static_cast<double>(i);
     const double c = at(row, Step, j), d = at(row, Step, j + (j + 1 < n ? 1 : 0));
@@ -203,9 +248,6 @@ void stage_centre(RowState<T>& st, double full_scale, const ExtractParams& p, de
     return std::max(0.0, at(row, Step, i) - bg);
   };
   double col = static_cast<double>(imax);
-  // A flat top of several equal samples: start from its middle.
-  std::int64_t top_end = imax;
-  while (top_end + 1 <= hi && iat(top_end + 1) >= static_cast<std::int64_t>(mx)) ++top_end;
   const std::int64_t ic = (imax + top_end) / 2;
   switch (p.method) {
     case SubpixelMethod::CentreOfGravity: {
