@@ -10,6 +10,7 @@
 #include "common/error.hpp"
 #include "firmware/extract/along_stripe.hpp"
 #include "firmware/extract/gauss_ml.hpp"
+#include "firmware/extract/row_lanes.hpp"
 #include "firmware/extract/row_scan.hpp"
 
 namespace fs::fw {
@@ -361,6 +362,68 @@ void centre_end(RowState<T>& st, double full_scale, const ExtractParams& p, deta
   r.status = RowStatus::Ok;
 }
 
+// Stages 2 and 3 for a block of 8-bit rows with the walks in SIMD lanes (row_lanes.hpp), one row per lane: the
+// same decisions and results as stage_support + stage_centre row by row (the walks give the same counts, the
+// rest is the same code). Needs max_half_width <= kMaxLaneWalk (else extract_rows takes the per-row stages).
+template <std::uint32_t Step>
+void stage_lanes(RowState<std::uint8_t>* st, int rows, double full_scale, const ExtractParams& p,
+                 detail::GaussMlBatch& batch, detail::LaneWindow& win) {
+  using detail::LaneI16;
+  using detail::kWinHalf;
+  static_assert(detail::kLaneRows == detail::kBatch);
+  constexpr std::int16_t kNever = 32767;  // a threshold no 8-bit sample exceeds: the lane walks nowhere
+  alignas(16) std::int16_t low[detail::kLaneRows], top[detail::kLaneRows];
+  for (int l = 0; l < detail::kLaneRows; ++l) {
+    low[l] = top[l] = kNever;
+    if (l >= rows || !st[l].active) continue;
+    RowState<std::uint8_t>& s = st[l];
+    s.imax = first_argmax<std::uint8_t, Step>(s.row, s.scan, s.mx);
+    detail::lane_window_fill<Step>(win, l, s.row, s.n, s.imax);
+    low[l] = static_cast<std::int16_t>(s.bg + 0.2 * (s.peak - s.bg));  // >= 0: truncation = floor
+    top[l] = s.mx;
+  }
+  detail::lane_window_transpose(win);
+  LaneI16 lowv, topv;
+  std::memcpy(&lowv, low, sizeof lowv);
+  std::memcpy(&topv, top, sizeof topv);
+  const int hw = static_cast<int>(p.max_half_width);
+  const detail::LaneSupport sup = detail::lane_support_walks(win, lowv, topv, hw);
+
+  alignas(16) std::int16_t half[detail::kLaneRows], lmax[detail::kLaneRows], rmax[detail::kLaneRows];
+  int walk = 0;
+  bool any = false;
+  for (int l = 0; l < detail::kLaneRows; ++l) {
+    half[l] = kNever;
+    lmax[l] = rmax[l] = 0;
+    if (l >= rows || !st[l].active) continue;
+    RowState<std::uint8_t>& s = st[l];
+    const std::int64_t im = s.imax;
+    const std::int64_t lo = im - sup.left[l], hi = im + sup.right[l];
+    support_end<std::uint8_t, Step>(s, lo, hi, win.raw[l][kWinHalf] + sup.sum[l], full_scale, p);
+    if (!s.active) continue;
+    s.active = false;
+    if (ambiguous<std::uint8_t, Step>(s, p)) continue;
+    s.active = any = true;
+    half[l] = static_cast<std::int16_t>(s.bg + 0.5 * s.contrast);  // >= 0: truncation = floor
+    lmax[l] = sup.left[l];
+    rmax[l] = sup.right[l];
+    walk = std::max<int>(walk, std::max(lmax[l], rmax[l]));
+  }
+  if (!any) return;
+  LaneI16 halfv, lmaxv, rmaxv, left, right;
+  std::memcpy(&halfv, half, sizeof halfv);
+  std::memcpy(&lmaxv, lmax, sizeof lmaxv);
+  std::memcpy(&rmaxv, rmax, sizeof rmaxv);
+  detail::lane_half_walks(win, halfv, lmaxv, rmaxv, walk, left, right);
+  for (int l = 0; l < rows; ++l) {
+    RowState<std::uint8_t>& s = st[l];
+    if (!s.active) continue;
+    s.active = false;
+    const std::int64_t im = s.imax;
+    centre_end<std::uint8_t, Step>(s, full_scale, p, batch, l, im - left[l], im + right[l], im + sup.top[l]);
+  }
+}
+
 // Completes a row analyse_row deferred, once its batch has been fitted.
 template <typename T, std::uint32_t Step>
 void finish_row(const T* row, const Deferred& d, const detail::GaussMlBatch& batch, int lane, RowPeak& r) {
@@ -370,12 +433,22 @@ void finish_row(const T* row, const Deferred& d, const detail::GaussMlBatch& bat
   r.col = std::clamp(col, static_cast<double>(d.lo) - 0.5, static_cast<double>(d.hi) + 0.5);
 }
 
+// 8-bit rows take the lane path (stage_lanes) unless the walks could leave its window.
+inline bool lane_path(const ExtractParams& p) { return p.max_half_width <= static_cast<std::uint32_t>(detail::kMaxLaneWalk); }
+
 // One row alone (extract_row): the stages back to back, a batch of one.
 template <typename T, std::uint32_t Step>
-RowPeak extract_row_impl(const T* row, std::uint32_t n, double full_scale, const ExtractParams& p) {
+RowPeak extract_row_impl(const T* row, std::uint32_t n, double full_scale, const ExtractParams& p,
+                         bool lanes = true) {
   RowState<T> st;
   detail::GaussMlBatch batch;
   stage_scan<T, Step>(st, row, n, full_scale, p);
+  if constexpr (sizeof(T) == 1) {
+    if (lanes && lane_path(p)) {
+      detail::LaneWindow win{};
+      if (st.active) stage_lanes<Step>(&st, 1, full_scale, p, batch, win);
+    }
+  }
   if (st.active) stage_support<T, Step>(st, full_scale, p);
   if (st.active) stage_centre<T, Step>(st, full_scale, p, batch, 0);
   if (st.deferred) {
@@ -392,6 +465,12 @@ RowPeak extract_row<std::uint8_t>(const std::uint8_t* row, std::uint32_t n, std:
                                   const ExtractParams& p) {
   return step == 2 ? extract_row_impl<std::uint8_t, 2>(row, n, full_scale, p)
                    : extract_row_impl<std::uint8_t, 1>(row, n, full_scale, p);
+}
+
+RowPeak detail::extract_row_per_row_walks(const std::uint8_t* row, std::uint32_t n, std::uint32_t step,
+                                          double full_scale, const ExtractParams& p) {
+  return step == 2 ? extract_row_impl<std::uint8_t, 2>(row, n, full_scale, p, false)
+                   : extract_row_impl<std::uint8_t, 1>(row, n, full_scale, p, false);
 }
 
 template <>
@@ -412,12 +491,17 @@ void extract_rows(const FrameView& f, double full_scale, const ExtractParams& pa
   RowState<T> st[L];
   detail::GaussMlBatch batch;
   const detail::SensorNoise noise{params.read_noise, params.shot_noise, params.speckle};
+  detail::LaneWindow win{};
+  const bool lanes = lane_path(params);
   for (std::uint32_t y0 = 0; y0 < f.height; y0 += L) {
     const int rows = static_cast<int>(std::min<std::uint32_t>(L, f.height - y0));
     for (int i = 0; i < rows; ++i) {
       const auto* row =
           reinterpret_cast<const T*>(f.data + static_cast<std::size_t>(y0 + static_cast<std::uint32_t>(i)) * f.stride);
       stage_scan<T, Step>(st[i], row, f.width, full_scale, params);
+    }
+    if constexpr (sizeof(T) == 1) {
+      if (lanes) stage_lanes<Step>(st, rows, full_scale, params, batch, win);
     }
     for (int i = 0; i < rows; ++i)
       if (st[i].active) stage_support<T, Step>(st[i], full_scale, params);

@@ -74,6 +74,13 @@ struct RowPeak {
 template <typename T>
 RowPeak extract_row(const T* row, std::uint32_t n, std::uint32_t step, double full_scale, const ExtractParams& p);
 
+namespace detail {
+// extract_row for 8-bit rows with the per-row walks that Mono16 rows take, instead of the walks of a block's
+// rows in SIMD lanes (row_lanes.hpp) that 8-bit rows take: the reference that tests compare the lane path with.
+RowPeak extract_row_per_row_walks(const std::uint8_t* row, std::uint32_t n, std::uint32_t step, double full_scale,
+                                  const ExtractParams& p);
+}  // namespace detail
+
 // Extracts every row of the frame into `out` (at most out.size() points, rows in order), then refines the
 // centres along the stripe when params.along_stripe >= 3. Returns the counts.
 ExtractCounts extract_frame(const FrameView& frame, const ExtractParams& params, std::span<msg::StripePoint> out);
