@@ -116,6 +116,9 @@ void stage_scan(RowState<T>& st, const T* row, std::uint32_t n, double full_scal
 template <typename T, std::uint32_t Step>
 void support_end(RowState<T>& st, std::int64_t lo, std::int64_t hi, std::int64_t support_sum, double full_scale,
                  const ExtractParams& p);
+template <typename T, std::uint32_t Step>
+void support_decide(RowState<T>& st, std::int64_t lo, std::int64_t hi, double bg, double full_scale,
+                    const ExtractParams& p);
 
 // Stage 2: arg-max, support, background without the support, saturation.
 template <typename T, std::uint32_t Step>
@@ -144,18 +147,24 @@ void stage_support(RowState<T>& st, double full_scale, const ExtractParams& p) {
 template <typename T, std::uint32_t Step>
 void support_end(RowState<T>& st, std::int64_t lo, std::int64_t hi, std::int64_t support_sum, double full_scale,
                  const ExtractParams& p) {
+  // Background without the stripe's own energy.
+  double bg = st.bg;
+  const std::int64_t rest = static_cast<std::int64_t>(st.n) - (hi - lo + 1);
+  if (rest > 0)
+    bg = static_cast<double>(static_cast<std::int64_t>(st.scan.sum) - support_sum) / static_cast<double>(rest);
+  support_decide<T, Step>(st, lo, hi, bg, full_scale, p);
+}
+
+// Stage 2's decisions once the background without the support is known: contrast, saturation.
+template <typename T, std::uint32_t Step>
+void support_decide(RowState<T>& st, std::int64_t lo, std::int64_t hi, double bg, double full_scale,
+                    const ExtractParams& p) {
   const T* row = st.row;
   const std::uint32_t n = st.n;
   const double scale = full_scale / 255.0;
   const double peak = st.peak;
-  double bg = st.bg;
   const std::uint32_t imax = st.imax;
-  const std::uint64_t sum = st.scan.sum;
   st.active = false;
-
-  // Background without the stripe's own energy.
-  const std::int64_t rest = static_cast<std::int64_t>(n) - (hi - lo + 1);
-  if (rest > 0) bg = static_cast<double>(static_cast<std::int64_t>(sum) - support_sum) / static_cast<double>(rest);
   const double contrast = peak - bg;
   if (contrast < p.min_contrast * scale) return;
   st.r.peak = peak;
@@ -174,6 +183,40 @@ void support_end(RowState<T>& st, std::int64_t lo, std::int64_t hi, std::int64_t
   st.lo = lo;
   st.hi = hi;
   st.active = true;
+}
+
+// GaussMl's half window k: the samples ic +- (3 sigma + 3) with sigma from the FWHM, 4 <= k <= kMaxMlHalf.
+constexpr std::int64_t kMaxMlHalf = 64;
+inline std::int64_t ml_half_window(double width) {
+  const double kw = width * (3.0 / 2.3548);  // >= 0 and small: ceil by truncation
+  std::int64_t kc = static_cast<std::int64_t>(std::min(kw, 1e6));
+  kc += kw > static_cast<double>(kc) ? 1 : 0;
+  return std::clamp<std::int64_t>(kc + 3, 4, kMaxMlHalf);
+}
+
+// A GaussMl row's window [first, last] into lane `lane` of the batch (finished by finish_row). src: the row's
+// samples at ic - kBatchHalf .. ic + kBatchHalf - 1 when they are all in the row and contiguous, else null.
+template <typename T, std::uint32_t Step>
+void defer_to_batch(RowState<T>& st, detail::GaussMlBatch& batch, int lane, const T* src, std::int64_t ic,
+                    std::int64_t first, std::int64_t last, double inv, double clip) {
+  constexpr std::int64_t C = detail::kBatchHalf;
+  const double bg = st.bg;
+  if (src) {
+    // The whole lane, a fixed trip count in float (vectorized; samples outside [first, last] are masked by the
+    // fit).
+    const float bgf = static_cast<float>(bg), invf = static_cast<float>(inv);
+    for (std::int64_t x = 0; x < 2 * C; ++x) batch.y[x][lane] = (static_cast<float>(src[x]) - bgf) * invf;
+  } else {
+    for (std::int64_t i = first; i <= last; ++i)
+      batch.y[C + (i - ic)][lane] = static_cast<float>((at(st.row, Step, i) - bg) * inv);
+  }
+  batch.xa[lane] = static_cast<std::int32_t>(first - ic);
+  batch.xb[lane] = static_cast<std::int32_t>(last - ic);
+  batch.contrast[lane] = st.contrast * inv;
+  batch.clip[lane] = clip;
+  st.d = Deferred{st.lo, st.hi, ic, bg};
+  st.deferred = true;
+  st.r.status = RowStatus::Ok;
 }
 
 template <typename T, std::uint32_t Step>
@@ -301,37 +344,18 @@ void centre_end(RowState<T>& st, double full_scale, const ExtractParams& p, deta
     }
     case SubpixelMethod::GaussMl: {
       // Samples minus background in 8-bit DN over ic +- (3 sigma + 3), sigma from the FWHM.
-      constexpr std::int64_t kMaxK = 64;
-      const double kw = r.width * (3.0 / 2.3548);  // >= 0 and small: ceil by truncation
-      std::int64_t kc = static_cast<std::int64_t>(std::min(kw, 1e6));
-      kc += kw > static_cast<double>(kc) ? 1 : 0;
-      const std::int64_t k = std::clamp<std::int64_t>(kc + 3, 4, kMaxK);
+      const std::int64_t k = ml_half_window(r.width);
       const std::int64_t first = std::max<std::int64_t>(0, ic - k);
       const std::int64_t last = std::min<std::int64_t>(static_cast<std::int64_t>(n) - 1, ic + k);
       const double inv = 1.0 / scale;
       const double clip = (full_scale - bg) * inv;
       if (k < detail::kBatchHalf) {  // the batched fit (every stripe narrower than ~9 px FWHM)
-        constexpr std::int64_t C = detail::kBatchHalf;
-        if (Step == 1 && ic - C >= 0 && ic + C <= static_cast<std::int64_t>(n)) {
-          // The whole lane, a fixed trip count in float (vectorized; samples outside [first, last] are masked
-          // by the fit).
-          const float bgf = static_cast<float>(bg), invf = static_cast<float>(inv);
-          const T* src = row + (ic - C);
-          for (std::int64_t x = 0; x < 2 * C; ++x) batch.y[x][lane] = (static_cast<float>(src[x]) - bgf) * invf;
-        } else {
-          for (std::int64_t i = first; i <= last; ++i)
-            batch.y[C + (i - ic)][lane] = static_cast<float>((at(row, Step, i) - bg) * inv);
-        }
-        batch.xa[lane] = static_cast<std::int32_t>(first - ic);
-        batch.xb[lane] = static_cast<std::int32_t>(last - ic);
-        batch.contrast[lane] = contrast * inv;
-        batch.clip[lane] = clip;
-        st.d = Deferred{lo, hi, ic, bg};
-        st.deferred = true;
-        r.status = RowStatus::Ok;
+        const T* src = Step == 1 && ic - detail::kBatchHalf >= 0 && ic + detail::kBatchHalf <= static_cast<std::int64_t>(n)
+                           ? row + (ic - detail::kBatchHalf) : nullptr;
+        defer_to_batch<T, Step>(st, batch, lane, src, ic, first, last, inv, clip);
         return;
       }
-      std::array<float, 2 * kMaxK + 1 + detail::kChunk> y;
+      std::array<float, 2 * kMaxMlHalf + 1 + detail::kChunk> y;
       const std::int64_t count = last - first + 1;
       for (std::int64_t i = 0; i < count; ++i)
         y[static_cast<std::size_t>(i)] = static_cast<float>((at(row, Step, first + i) - bg) * inv);
@@ -389,17 +413,35 @@ void stage_lanes(RowState<std::uint8_t>* st, int rows, double full_scale, const 
   const int hw = static_cast<int>(p.max_half_width);
   const detail::LaneSupport sup = detail::lane_support_walks(win, lowv, topv, hw);
 
-  alignas(16) std::int16_t half[detail::kLaneRows], lmax[detail::kLaneRows], rmax[detail::kLaneRows];
+  // Background without the support, contrast, in double lanes (every lane: the idle ones on harmless values).
+  constexpr int L = detail::kLaneRows;
+  alignas(64) double total[L], rest[L], bg0[L], peak[L], bg[L], contrast[L];
+  for (int l = 0; l < L; ++l) {
+    const bool act = l < rows && st[l].active;
+    const std::int64_t width = sup.left[l] + sup.right[l] + 1;
+    total[l] = act ? static_cast<double>(static_cast<std::int64_t>(st[l].scan.sum) - win.raw[l][kWinHalf] - sup.sum[l]) : 0.0;
+    rest[l] = act ? static_cast<double>(static_cast<std::int64_t>(st[l].n) - width) : 1.0;
+    bg0[l] = act ? st[l].bg : 0.0;
+    peak[l] = act ? st[l].peak : 0.0;
+  }
+  for (int l = 0; l < L; ++l) {
+    const double b = total[l] / (rest[l] > 0.0 ? rest[l] : 1.0);
+    bg[l] = rest[l] > 0.0 ? b : bg0[l];
+    contrast[l] = peak[l] - bg[l];
+  }
+  const double min_contrast = p.min_contrast * (full_scale / 255.0);
+  alignas(16) std::int16_t half[L], lmax[L], rmax[L];
   int walk = 0;
   bool any = false;
-  for (int l = 0; l < detail::kLaneRows; ++l) {
+  for (int l = 0; l < L; ++l) {
     half[l] = kNever;
     lmax[l] = rmax[l] = 0;
     if (l >= rows || !st[l].active) continue;
     RowState<std::uint8_t>& s = st[l];
+    s.active = false;
+    if (contrast[l] < min_contrast) continue;  // the common exit before support_decide, without the call
     const std::int64_t im = s.imax;
-    const std::int64_t lo = im - sup.left[l], hi = im + sup.right[l];
-    support_end<std::uint8_t, Step>(s, lo, hi, win.raw[l][kWinHalf] + sup.sum[l], full_scale, p);
+    support_decide<std::uint8_t, Step>(s, im - sup.left[l], im + sup.right[l], bg[l], full_scale, p);
     if (!s.active) continue;
     s.active = false;
     if (ambiguous<std::uint8_t, Step>(s, p)) continue;
@@ -415,12 +457,52 @@ void stage_lanes(RowState<std::uint8_t>* st, int rows, double full_scale, const 
   std::memcpy(&lmaxv, lmax, sizeof lmaxv);
   std::memcpy(&rmaxv, rmax, sizeof rmaxv);
   detail::lane_half_walks(win, halfv, lmaxv, rmaxv, walk, left, right);
+
+  // The FWHM by interpolation on both flanks, in double lanes: centre_end's formulas, the samples at the walks'
+  // ends from the windows (0 outside the row, where the conditions i > 0, j + 1 < n exclude them anyway).
+  alignas(64) double a[L], b[L], c[L], d[L], hv[L], iv[L], jv[L], lx[L], rx[L], width[L];
+  alignas(64) std::int32_t ok_l[L], ok_r[L];
+  for (int l = 0; l < L; ++l) {
+    const bool act = l < rows && st[l].active;
+    const int li = kWinHalf - left[l], rj = kWinHalf + right[l];
+    const std::int64_t im = act ? st[l].imax : 0, n = act ? st[l].n : 0;
+    const std::int64_t i = im - left[l], j = im + right[l];
+    a[l] = win.raw[l][li - 1];
+    b[l] = win.raw[l][li];
+    c[l] = win.raw[l][rj];
+    d[l] = win.raw[l][rj + 1];
+    hv[l] = act ? st[l].bg + 0.5 * st[l].contrast : 0.0;
+    iv[l] = static_cast<double>(i);
+    jv[l] = static_cast<double>(j);
+    ok_l[l] = i > 0;
+    ok_r[l] = j + 1 < n;
+  }
+  for (int l = 0; l < L; ++l) {
+    const bool ul = ok_l[l] && b[l] != a[l], ur = ok_r[l] && c[l] != d[l];
+    const double ql = (b[l] - hv[l]) / (ul ? b[l] - a[l] : 1.0), qr = (c[l] - hv[l]) / (ur ? c[l] - d[l] : 1.0);
+    lx[l] = ul ? iv[l] - ql : iv[l];
+    rx[l] = ur ? jv[l] + qr : jv[l];
+    width[l] = rx[l] - lx[l];
+  }
+  const double inv = 1.0 / (full_scale / 255.0);  // centre_end's 1 / scale
   for (int l = 0; l < rows; ++l) {
     RowState<std::uint8_t>& s = st[l];
     if (!s.active) continue;
     s.active = false;
     const std::int64_t im = s.imax;
-    centre_end<std::uint8_t, Step>(s, full_scale, p, batch, l, im - left[l], im + right[l], im + sup.top[l]);
+    const std::int64_t ic = (im + im + sup.top[l]) / 2;
+    const std::int64_t k = ml_half_window(width[l]);
+    if (p.method != SubpixelMethod::GaussMl || k >= detail::kBatchHalf) {  // the per-row code
+      centre_end<std::uint8_t, Step>(s, full_scale, p, batch, l, im - left[l], im + right[l], im + sup.top[l]);
+      continue;
+    }
+    s.r.width = width[l];
+    const std::int64_t n = s.n;
+    const std::int64_t first = std::max<std::int64_t>(0, ic - k), last = std::min<std::int64_t>(n - 1, ic + k);
+    // The lane's samples from the window (the row's samples there) when they all lie in the row.
+    const std::uint8_t* src = Step == 1 && ic - detail::kBatchHalf >= 0 && ic + detail::kBatchHalf <= n
+                                  ? win.raw[l] + (kWinHalf + (ic - im) - detail::kBatchHalf) : nullptr;
+    defer_to_batch<std::uint8_t, Step>(s, batch, l, src, ic, first, last, inv, (full_scale - s.bg) * inv);
   }
 }
 
