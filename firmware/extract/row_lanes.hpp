@@ -71,6 +71,28 @@ inline LaneI16 widen_hi(LaneU8 a) {
   std::memcpy(&r, &z, sizeof r);
   return r;
 }
+// The low / high 4 int16 lanes (>= 0) zero-extended to int32.
+using LaneI32 = std::int32_t __attribute__((vector_size(16)));
+inline LaneI32 widen32_lo(LaneI16 a) {
+#if defined(__clang__)
+  const LaneI16 z = __builtin_shufflevector(a, LaneI16{}, 0, 8, 1, 9, 2, 10, 3, 11);
+#else
+  const LaneI16 z = __builtin_shuffle(a, LaneI16{}, LaneI16{0, 8, 1, 9, 2, 10, 3, 11});
+#endif
+  LaneI32 r;
+  std::memcpy(&r, &z, sizeof r);
+  return r;
+}
+inline LaneI32 widen32_hi(LaneI16 a) {
+#if defined(__clang__)
+  const LaneI16 z = __builtin_shufflevector(a, LaneI16{}, 4, 12, 5, 13, 6, 14, 7, 15);
+#else
+  const LaneI16 z = __builtin_shuffle(a, LaneI16{}, LaneI16{4, 12, 5, 13, 6, 14, 7, 15});
+#endif
+  LaneI32 r;
+  std::memcpy(&r, &z, sizeof r);
+  return r;
+}
 inline bool any(LaneI16 m) {
   std::uint64_t u[2];
   std::memcpy(u, &m, sizeof u);
@@ -135,6 +157,25 @@ inline void lane_half_walks(const LaneWindow& win, LaneI16 half, LaneI16 left_ma
     left -= aliveL;
     right -= aliveR;
     if (!lanes::any(aliveL | aliveR)) break;
+  }
+}
+
+// The batched fit's input for every lane from the window at imax - kHalf .. imax + kHalf - 1 (kHalf = the
+// fit's kBatchHalf): y[x][lane] = (float(sample) - bg[lane]) * inv, the one-row fill's float arithmetic, in
+// 4-float vectors (lanes whose fit window starts elsewhere are overwritten by the caller).
+template <int kHalf>
+inline void lane_fill_batch(const LaneWindow& win, const float* bg, float inv, float (*y)[kLaneRows]) {
+  using F32 = float __attribute__((vector_size(16)));
+  F32 b0, b1;
+  std::memcpy(&b0, bg, sizeof b0);
+  std::memcpy(&b1, bg + 4, sizeof b1);
+  const F32 iv = F32{} + inv;
+  for (int x = 0; x < 2 * kHalf; ++x) {
+    const LaneI16 v = win.w[kWinHalf - kHalf + x];
+    const F32 f0 = (__builtin_convertvector(lanes::widen32_lo(v), F32) - b0) * iv;
+    const F32 f1 = (__builtin_convertvector(lanes::widen32_hi(v), F32) - b1) * iv;
+    std::memcpy(y[x], &f0, sizeof f0);
+    std::memcpy(y[x] + 4, &f1, sizeof f1);
   }
 }
 

@@ -207,13 +207,16 @@ inline std::int64_t ml_half_window(double width) {
 }
 
 // A GaussMl row's window [first, last] into lane `lane` of the batch (finished by finish_row). src: the row's
-// samples at ic - kBatchHalf .. ic + kBatchHalf - 1 when they are all in the row and contiguous, else null.
+// samples at ic - kBatchHalf .. ic + kBatchHalf - 1 when they are all in the row and contiguous, else null;
+// fill = false: the lane's samples are in the batch already.
 template <typename T, std::uint32_t Step>
 void defer_to_batch(RowState<T>& st, detail::GaussMlBatch& batch, int lane, const T* src, std::int64_t ic,
-                    std::int64_t first, std::int64_t last, double inv, double clip) {
+                    std::int64_t first, std::int64_t last, double inv, double clip, bool fill = true) {
   constexpr std::int64_t C = detail::kBatchHalf;
   const double bg = st.bg;
-  if (src) {
+  if (!fill) {
+    // filled already (the lane path's lane_fill_batch, the same arithmetic)
+  } else if (src) {
     // The whole lane, a fixed trip count in float (vectorized; samples outside [first, last] are masked by the
     // fit).
     const float bgf = static_cast<float>(bg), invf = static_cast<float>(inv);
@@ -497,6 +500,10 @@ void stage_lanes(RowState<std::uint8_t>* st, int rows, double full_scale, const 
     width[l] = rx[l] - lx[l];
   }
   const double inv = 1.0 / (full_scale / 255.0);  // centre_end's 1 / scale
+  alignas(64) std::int64_t ic_l[L], first_l[L], last_l[L];
+  alignas(64) float bgf[L];
+  bool batched[L] = {}, from_window[L] = {}, any_window = false;
+  for (int l = 0; l < L; ++l) bgf[l] = 0.0f;
   for (int l = 0; l < rows; ++l) {
     RowState<std::uint8_t>& s = st[l];
     if (!s.active) continue;
@@ -510,11 +517,25 @@ void stage_lanes(RowState<std::uint8_t>* st, int rows, double full_scale, const 
     }
     s.r.width = width[l];
     const std::int64_t n = s.n;
-    const std::int64_t first = std::max<std::int64_t>(0, ic - k), last = std::min<std::int64_t>(n - 1, ic + k);
-    // The lane's samples from the window (the row's samples there) when they all lie in the row.
-    const std::uint8_t* src = Step == 1 && ic - detail::kBatchHalf >= 0 && ic + detail::kBatchHalf <= n
-                                  ? win.raw[l] + (kWinHalf + (ic - im) - detail::kBatchHalf) : nullptr;
-    defer_to_batch<std::uint8_t, Step>(s, batch, l, src, ic, first, last, inv, (full_scale - s.bg) * inv);
+    ic_l[l] = ic;
+    first_l[l] = std::max<std::int64_t>(0, ic - k);
+    last_l[l] = std::min<std::int64_t>(n - 1, ic + k);
+    batched[l] = true;
+    // The whole lane from the window when its samples all lie in the row: across the lanes at once (below)
+    // where the lane starts at imax - kBatchHalf (no flat top to the right: the common case).
+    from_window[l] = Step == 1 && ic - detail::kBatchHalf >= 0 && ic + detail::kBatchHalf <= n && ic == im;
+    bgf[l] = from_window[l] ? static_cast<float>(s.bg) : 0.0f;
+    any_window |= from_window[l];
+  }
+  if (any_window) detail::lane_fill_batch<detail::kBatchHalf>(win, bgf, static_cast<float>(inv), batch.y);
+  for (int l = 0; l < rows; ++l) {
+    if (!batched[l]) continue;
+    RowState<std::uint8_t>& s = st[l];
+    const std::int64_t ic = ic_l[l], im = s.imax, n = s.n;
+    const bool whole = Step == 1 && ic - detail::kBatchHalf >= 0 && ic + detail::kBatchHalf <= n;
+    const std::uint8_t* src = whole ? win.raw[l] + (kWinHalf + (ic - im) - detail::kBatchHalf) : nullptr;
+    defer_to_batch<std::uint8_t, Step>(s, batch, l, src, ic, first_l[l], last_l[l], inv, (full_scale - s.bg) * inv,
+                                       !from_window[l]);
   }
 }
 
