@@ -458,9 +458,7 @@ void stage_lanes(RowState<std::uint8_t>* st, int rows, double full_scale, const 
     const std::int64_t im = s.imax;
     support_decide<std::uint8_t, Step>(s, im - sup.left[l], im + sup.right[l], bg[l], full_scale, p);
     if (!s.active) continue;
-    s.active = false;
-    if (ambiguous<std::uint8_t, Step>(s, p)) continue;
-    s.active = any = true;
+    any = true;  // the double-peak test after the walks (below): the lane walks either way
     half[l] = static_cast<std::int16_t>(s.bg + 0.5 * s.contrast);  // >= 0: truncation = floor
     lmax[l] = sup.left[l];
     rmax[l] = sup.right[l];
@@ -508,6 +506,7 @@ void stage_lanes(RowState<std::uint8_t>* st, int rows, double full_scale, const 
     RowState<std::uint8_t>& s = st[l];
     if (!s.active) continue;
     s.active = false;
+    if (ambiguous<std::uint8_t, Step>(s, p)) continue;
     const std::int64_t im = s.imax;
     const std::int64_t ic = (im + im + sup.top[l]) / 2;
     const std::int64_t k = ml_half_window(width[l]);
