@@ -547,8 +547,11 @@ void finish_row(const T* row, const Deferred& d, const detail::GaussMlBatch& bat
   r.col = std::clamp(col, static_cast<double>(d.lo) - 0.5, static_cast<double>(d.hi) + 0.5);
 }
 
-// 8-bit rows take the lane path (stage_lanes) unless the walks could leave its window.
-inline bool lane_path(const ExtractParams& p) { return p.max_half_width <= static_cast<std::uint32_t>(detail::kMaxLaneWalk); }
+// 8-bit GaussMl rows take the lane path (stage_lanes) unless the walks could leave its window. The other methods
+// keep the per-row walks: measured 2-12 % faster for them (the lane path pays off through the batch's lane fill).
+inline bool lane_path(const ExtractParams& p) {
+  return p.method == SubpixelMethod::GaussMl && p.max_half_width <= static_cast<std::uint32_t>(detail::kMaxLaneWalk);
+}
 
 // One row alone (extract_row): the stages back to back, a batch of one.
 template <typename T, std::uint32_t Step>
