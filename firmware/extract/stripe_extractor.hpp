@@ -13,8 +13,10 @@
 // Speed: one vectorized pass per row (row_scan.hpp: lane maxima per 64-sample block + the row sum), then
 // scalar work only around the peak. extract_frame takes the rows in blocks of 8: each stage of the per-row
 // work runs over the block before the next (the rows' latency chains overlap), and the GaussMl centres of
-// the block are fitted together, one row per SIMD lane (gauss_ml.hpp, GaussMlBatch). extract_row runs the
-// same code for one row and gives the same bits. No heap allocation: the caller provides the output span.
+// the block are fitted together, one row per SIMD lane (gauss_ml.hpp, GaussMlBatch); for 8-bit GaussMl rows
+// the walks around the peaks and the arithmetic between them run one row per lane too (row_lanes.hpp).
+// extract_row runs the same code for one row and gives the same bits. No heap allocation: the caller provides
+// the output span.
 #include <cstdint>
 #include <span>
 
