@@ -403,7 +403,8 @@ void centre_end(RowState<T>& st, double full_scale, const ExtractParams& p, deta
 
 // Stages 2 and 3 for a block of 8-bit rows with the walks in SIMD lanes (row_lanes.hpp), one row per lane: the
 // same decisions and results as stage_support + stage_centre row by row (the walks give the same counts, the
-// rest is the same code). Needs max_half_width <= kMaxLaneWalk (else extract_rows takes the per-row stages).
+// rest is the same code). Needs max_half_width <= kMaxLaneWalk; extract_rows and extract_row take it for GaussMl
+// rows only (lane_path), but it gives every method's results (the others through centre_end).
 template <std::uint32_t Step>
 void stage_lanes(RowState<std::uint8_t>* st, int rows, double full_scale, const ExtractParams& p,
                  detail::GaussMlBatch& batch, detail::LaneWindow& win) {
