@@ -13,8 +13,10 @@
 // Speed: one vectorized pass per row (row_scan.hpp: lane maxima per 64-sample block + the row sum), then
 // scalar work only around the peak. extract_frame takes the rows in blocks of 8: each stage of the per-row
 // work runs over the block before the next (the rows' latency chains overlap), and the GaussMl centres of
-// the block are fitted together, one row per SIMD lane (gauss_ml.hpp, GaussMlBatch). extract_row runs the
-// same code for one row and gives the same bits. No heap allocation: the caller provides the output span.
+// the block are fitted together, one row per SIMD lane (gauss_ml.hpp, GaussMlBatch); for 8-bit GaussMl rows
+// the walks around the peaks and the arithmetic between them run one row per lane too (row_lanes.hpp).
+// extract_row runs the same code for one row and gives the same bits. No heap allocation: the caller provides
+// the output span.
 #include <cstdint>
 #include <span>
 
@@ -73,6 +75,13 @@ struct RowPeak {
 // Analyses one row of `n` samples of type T (uint8_t or uint16_t) spaced `step` samples apart.
 template <typename T>
 RowPeak extract_row(const T* row, std::uint32_t n, std::uint32_t step, double full_scale, const ExtractParams& p);
+
+namespace detail {
+// extract_row for 8-bit rows with the per-row walks that Mono16 rows take, instead of the walks of a block's
+// rows in SIMD lanes (row_lanes.hpp) that 8-bit rows take: the reference that tests compare the lane path with.
+RowPeak extract_row_per_row_walks(const std::uint8_t* row, std::uint32_t n, std::uint32_t step, double full_scale,
+                                  const ExtractParams& p);
+}  // namespace detail
 
 // Extracts every row of the frame into `out` (at most out.size() points, rows in order), then refines the
 // centres along the stripe when params.along_stripe >= 3. Returns the counts.
