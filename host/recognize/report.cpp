@@ -41,6 +41,14 @@ std::string result_table(const Recognition& r, const Library& library) {
     s += fmt::format("{:<3} {:<24} ({:7.1f}, {:7.1f}, {:7.1f})  {:<38} {:5.2f} {:7.4f} {:>2}/{:<2}\n", i++, name,
                      h.t.x(), h.t.y(), h.t.z(), axis_angle_text(h.R), h.verify.confidence, h.cost,
                      h.matches.size(), h.faces_visible);
+    if (h.alternatives > 0) {
+      s += "    fits this view as well:";
+      for (int k = 0; k < h.alternatives; ++k)
+        s += fmt::format("{} {} ({:.2f})", k ? "," : "",
+                         library.models[static_cast<std::size_t>(h.alternative_model[static_cast<std::size_t>(k)])].name,
+                         h.alternative_confidence[static_cast<std::size_t>(k)]);
+      s += "\n";
+    }
   }
   return s;
 }

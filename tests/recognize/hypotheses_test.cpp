@@ -5,10 +5,13 @@
 #include <Eigen/Geometry>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "common/mesh.hpp"
 #include "host/library/library.hpp"
 #include "host/library/model.hpp"
 #include "host/recognize/hypotheses.hpp"
+#include "host/recognize/recognizer.hpp"
 #include "host/recognize/report.hpp"
 #include "support/test_paths.hpp"
 
@@ -272,6 +275,29 @@ TEST(TopFaceHypotheses, TurnFromTheOutlineAndHeightFromTheTable) {
   higher.offset += 10.0;   // 10 mm higher than the box is tall: no model fits
   higher.centroid.z() += 10.0;
   EXPECT_EQ(fs::host::rec::top_face_hypotheses(lib, higher, table, pts, u, v, {}, out), 0);
+}
+
+TEST(Report, ResultTableNamesTheAlternativesOfAnObject) {
+  fs::host::Library library;
+  library.add(cube_model());
+  fs::host::Model other = cube_model();
+  other.name = "cube-b";
+  library.add(std::move(other));
+  fs::host::rec::Recognition r;
+  r.objects.emplace_back();
+  r.objects[0].model = 0;
+  r.objects[0].verify.confidence = 1.0;
+  const std::string plain = fs::host::rec::result_table(r, library);
+  EXPECT_EQ(plain.find("fits this view as well"), std::string::npos) << plain;
+  r.objects[0].alternatives = 1;
+  r.objects[0].alternative_model[0] = 1;
+  r.objects[0].alternative_confidence[0] = 0.99;
+  const std::string table = fs::host::rec::result_table(r, library);
+  EXPECT_NE(table.find("fits this view as well: cube-b (0.99)"), std::string::npos) << table;
+  const nlohmann::json j = fs::host::rec::to_json(r, library);
+  ASSERT_TRUE(j["objects"][0].contains("alternatives"));
+  EXPECT_EQ(j["objects"][0]["alternatives"][0]["model"], "cube-b");
+  EXPECT_DOUBLE_EQ(j["objects"][0]["alternatives"][0]["confidence"].get<double>(), 0.99);
 }
 
 }  // namespace
