@@ -58,41 +58,21 @@ inline LaneU8 lo16(LaneU8 a, LaneU8 b) { return shuffle<0, 1, 16, 17, 2, 3, 18, 
 inline LaneU8 hi16(LaneU8 a, LaneU8 b) { return shuffle<8, 9, 24, 25, 10, 11, 26, 27, 12, 13, 28, 29, 14, 15, 30, 31>(a, b); }
 inline LaneU8 lo32(LaneU8 a, LaneU8 b) { return shuffle<0, 1, 2, 3, 16, 17, 18, 19, 4, 5, 6, 7, 20, 21, 22, 23>(a, b); }
 inline LaneU8 hi32(LaneU8 a, LaneU8 b) { return shuffle<8, 9, 10, 11, 24, 25, 26, 27, 12, 13, 14, 15, 28, 29, 30, 31>(a, b); }
-// The low / high 8 bytes zero-extended to 8 int16 (little-endian lanes).
-inline LaneI16 widen_lo(LaneU8 a) {
-  const LaneU8 z = shuffle<0, 16, 1, 17, 2, 18, 3, 19, 4, 20, 5, 21, 6, 22, 7, 23>(a, LaneU8{});
-  LaneI16 r;
-  std::memcpy(&r, &z, sizeof r);
+// The same 16 bytes as another 16-byte vector type.
+template <class To, class From>
+inline To bits(From a) {
+  static_assert(sizeof(To) == sizeof(From));
+  To r;
+  std::memcpy(&r, &a, sizeof r);
   return r;
 }
-inline LaneI16 widen_hi(LaneU8 a) {
-  const LaneU8 z = shuffle<8, 24, 9, 25, 10, 26, 11, 27, 12, 28, 13, 29, 14, 30, 15, 31>(a, LaneU8{});
-  LaneI16 r;
-  std::memcpy(&r, &z, sizeof r);
-  return r;
-}
-// The low / high 4 int16 lanes (>= 0) zero-extended to int32.
+// The low / high 8 bytes zero-extended to 8 int16 (little-endian lanes): interleaved with zero bytes.
+inline LaneI16 widen_lo(LaneU8 a) { return bits<LaneI16>(lo8(a, LaneU8{})); }
+inline LaneI16 widen_hi(LaneU8 a) { return bits<LaneI16>(hi8(a, LaneU8{})); }
+// The low / high 4 int16 lanes (>= 0) zero-extended to int32: interleaved with zero int16.
 using LaneI32 = std::int32_t __attribute__((vector_size(16)));
-inline LaneI32 widen32_lo(LaneI16 a) {
-#if defined(__clang__)
-  const LaneI16 z = __builtin_shufflevector(a, LaneI16{}, 0, 8, 1, 9, 2, 10, 3, 11);
-#else
-  const LaneI16 z = __builtin_shuffle(a, LaneI16{}, LaneI16{0, 8, 1, 9, 2, 10, 3, 11});
-#endif
-  LaneI32 r;
-  std::memcpy(&r, &z, sizeof r);
-  return r;
-}
-inline LaneI32 widen32_hi(LaneI16 a) {
-#if defined(__clang__)
-  const LaneI16 z = __builtin_shufflevector(a, LaneI16{}, 4, 12, 5, 13, 6, 14, 7, 15);
-#else
-  const LaneI16 z = __builtin_shuffle(a, LaneI16{}, LaneI16{4, 12, 5, 13, 6, 14, 7, 15});
-#endif
-  LaneI32 r;
-  std::memcpy(&r, &z, sizeof r);
-  return r;
-}
+inline LaneI32 widen32_lo(LaneI16 a) { return bits<LaneI32>(lo16(bits<LaneU8>(a), LaneU8{})); }
+inline LaneI32 widen32_hi(LaneI16 a) { return bits<LaneI32>(hi16(bits<LaneU8>(a), LaneU8{})); }
 inline bool any(LaneI16 m) {
   std::uint64_t u[2];
   std::memcpy(u, &m, sizeof u);
