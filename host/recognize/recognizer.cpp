@@ -459,8 +459,10 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
   HypothesisContext hc{library_, scene_, im.scene_index, cloud.viewpoint, params_};
   // The measured points verification looks at (built once per scan).
   auto t_samples = Clock::now();
-  im.coarse.build(cloud, 2 * params_.verify.sample_step, 8, 2.0 * params_.verify.sample_spacing_mm);
-  im.fine.build(cloud, params_.verify.sample_step, 8, params_.verify.sample_spacing_mm);
+  const Eigen::Vector2d grid = grid_spacing_mm(cloud);
+  const VerifyParams& vp = params_.verify;
+  im.coarse.build(cloud, sample_steps(grid, 2 * vp.sample_step, 2.0 * vp.sample_spacing_mm));
+  im.fine.build(cloud, sample_steps(grid, vp.sample_step, vp.sample_spacing_mm));
   im.labels = &seg_.labels;
   auto count_regions = [&](const SampleSet& set, std::vector<std::uint32_t>& counts) {
     counts.assign(seg_.regions.size(), 0);

@@ -131,33 +131,38 @@ Eigen::Vector2d grid_spacing_mm(const OrganizedCloud& cloud) {
       if (!OrganizedCloud::valid(p)) continue;
       const Eigen::Vector3f& right = cloud.at(r, c + 1);
       const Eigen::Vector3f& down = cloud.at(r + 1, c);
-      if (OrganizedCloud::valid(right) && (right - p).norm() < 5.0f) {
-        sum.x() += (right - p).norm();
+      const float dr = OrganizedCloud::valid(right) ? (right - p).norm() : 5.0f;
+      const float dd = OrganizedCloud::valid(down) ? (down - p).norm() : 5.0f;
+      if (dr < 5.0f) {
+        sum.x() += dr;
         ++n.x();
       }
-      if (OrganizedCloud::valid(down) && (down - p).norm() < 5.0f) {
-        sum.y() += (down - p).norm();
+      if (dd < 5.0f) {
+        sum.y() += dd;
         ++n.y();
       }
     }
   return {n.x() > 0 ? sum.x() / n.x() : 0.0, n.y() > 0 ? sum.y() / n.y() : 0.0};
 }
 
-void SampleSet::build(const OrganizedCloud& cloud, int sample_step, int block, double spacing_mm) {
+SampleSteps sample_steps(const Eigen::Vector2d& grid, int sample_step, double spacing_mm) {
+  const auto least = static_cast<std::uint32_t>(std::max(1, sample_step));
+  SampleSteps st{least, least};
+  if (spacing_mm > 0.0) {
+    // No closer than spacing_mm (and no denser than every sample_step-th cell) in either direction.
+    if (grid.x() > 0.0) st.col = std::max(least, static_cast<std::uint32_t>(std::lround(spacing_mm / grid.x())));
+    if (grid.y() > 0.0) st.row = std::max(least, static_cast<std::uint32_t>(std::lround(spacing_mm / grid.y())));
+  }
+  return st;
+}
+
+void SampleSet::build(const OrganizedCloud& cloud, SampleSteps steps, int block) {
   points_.clear();
   cells_.clear();
   blocks_.clear();
   viewpoint_ = cloud.viewpoint;
   const Eigen::Vector3f v = cloud.viewpoint.cast<float>();
-  std::uint32_t cstep = static_cast<std::uint32_t>(std::max(1, sample_step)), rstep = cstep;
-  if (spacing_mm > 0.0) {
-    // No closer than spacing_mm (and no denser than every sample_step-th cell) in either direction.
-    const Eigen::Vector2d g = grid_spacing_mm(cloud);
-    if (g.x() > 0.0) cstep = std::max(cstep, static_cast<std::uint32_t>(std::lround(spacing_mm / g.x())));
-    if (g.y() > 0.0) rstep = std::max(rstep, static_cast<std::uint32_t>(std::lround(spacing_mm / g.y())));
-  }
-  col_step_ = cstep;
-  row_step_ = rstep;
+  const std::uint32_t cstep = std::max<std::uint32_t>(1, steps.col), rstep = std::max<std::uint32_t>(1, steps.row);
   const auto ublock = static_cast<std::uint32_t>(std::max(1, block));
   const std::uint32_t cspan = cstep * ublock, rspan = rstep * ublock;
   for (std::uint32_t r0 = 0; r0 < cloud.height; r0 += rspan) {

@@ -75,17 +75,25 @@ class ModelGeometry {
   bool convex_ = false;
 };
 
-// The measured points verification looks at: every sample_step-th valid cell, grouped in blocks of
+// Mean distance (mm) between depth-continuous neighbours along a grid row (x) and column (y) of an organized
+// cloud, from a subsample; 0 where unknown (unorganized cloud, no such neighbours).
+Eigen::Vector2d grid_spacing_mm(const OrganizedCloud& cloud);
+
+// Every col-th column and row-th row. spacing_mm > 0: the steps grow from sample_step until neighbouring samples
+// are about that far apart on the surface (grid = grid_spacing_mm), so the work does not grow with the scan's
+// resolution.
+struct SampleSteps {
+  std::uint32_t col = 1, row = 1;
+};
+SampleSteps sample_steps(const Eigen::Vector2d& grid, int sample_step, double spacing_mm);
+
+// The measured points verification looks at: the valid cells at the SampleSteps, grouped in blocks of
 // neighbouring samples with the cone of their viewing rays, so a hypothesis only visits the blocks whose rays
 // can meet its bounding sphere. Built once per scan; no allocation once warm.
 class SampleSet {
  public:
   void reserve(std::size_t max_cells);
-  // spacing_mm > 0: the steps along rows and columns grow (from sample_step) until neighbouring samples are about
-  // that far apart on the surface (grid_spacing_mm), so the work does not grow with the scan's resolution.
-  void build(const OrganizedCloud& cloud, int sample_step, int block = 8, double spacing_mm = 0.0);
-  std::uint32_t col_step() const { return col_step_; }
-  std::uint32_t row_step() const { return row_step_; }
+  void build(const OrganizedCloud& cloud, SampleSteps steps, int block = 8);
   struct Block {
     std::uint32_t begin = 0, end = 0;   // range in points()
     Eigen::Vector3f dir = Eigen::Vector3f::UnitZ();   // mean viewing direction (unit)
@@ -101,12 +109,7 @@ class SampleSet {
   std::vector<std::uint32_t> cells_;
   std::vector<Block> blocks_;
   Vec3 viewpoint_ = Vec3::Zero();
-  std::uint32_t col_step_ = 1, row_step_ = 1;
 };
-
-// Mean distance (mm) between depth-continuous neighbours along a grid row (x) and column (y) of an organized
-// cloud, from a subsample; 0 where unknown (unorganized cloud, no such neighbours).
-Eigen::Vector2d grid_spacing_mm(const OrganizedCloud& cloud);
 
 class Verifier {
  public:

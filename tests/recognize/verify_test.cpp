@@ -114,22 +114,24 @@ TEST(SampleSet, StepsFollowTheGridSpacingInMillimetres) {
   const Eigen::Vector2d g = fs::host::rec::grid_spacing_mm(cloud);
   EXPECT_NEAR(g.x(), 0.5, 1e-5);
   EXPECT_NEAR(g.y(), 0.25, 1e-5);
+  using fs::host::rec::sample_steps;
   fs::host::rec::SampleSet set;
-  set.build(cloud, 2, 8, 1.5);
-  EXPECT_EQ(set.col_step(), 3u);
-  EXPECT_EQ(set.row_step(), 6u);
+  const auto fine = sample_steps(g, 2, 1.5);
+  EXPECT_EQ(fine.col, 3u);
+  EXPECT_EQ(fine.row, 6u);
+  set.build(cloud, fine);
   EXPECT_EQ(set.points().size(), std::size_t((200 + 2) / 3) * std::size_t((400 + 5) / 6));
-  set.build(cloud, 2, 8, 0.0);   // off: every 2nd row and column
-  EXPECT_EQ(set.col_step(), 2u);
-  EXPECT_EQ(set.row_step(), 2u);
+  const auto every2 = sample_steps(g, 2, 0.0);   // off: every 2nd row and column
+  EXPECT_EQ(every2.col, 2u);
+  EXPECT_EQ(every2.row, 2u);
+  set.build(cloud, every2);
   EXPECT_EQ(set.points().size(), std::size_t(100 * 200));
-  set.build(cloud, 4, 8, 0.5);   // never denser than sample_step
-  EXPECT_EQ(set.col_step(), 4u);
-  EXPECT_EQ(set.row_step(), 4u);
-  cloud.organized = false;       // no grid neighbourhood: sample_step only
+  const auto dense = sample_steps(g, 4, 0.5);    // never denser than sample_step
+  EXPECT_EQ(dense.col, 4u);
+  EXPECT_EQ(dense.row, 4u);
+  cloud.organized = false;                        // no grid neighbourhood: sample_step only
   EXPECT_EQ(fs::host::rec::grid_spacing_mm(cloud), Eigen::Vector2d::Zero());
-  set.build(cloud, 2, 8, 1.5);
-  EXPECT_EQ(set.col_step(), 2u);
+  EXPECT_EQ(sample_steps(fs::host::rec::grid_spacing_mm(cloud), 2, 1.5).col, 2u);
 }
 
 }  // namespace
