@@ -101,12 +101,10 @@ void Segmenter::reserve(std::size_t n) {
 // The component of p[c-1] - 2 p[c] + p[c+1] across the local tangent p[c+1] - p[c-1]: 0 on a plane (the three
 // points lie on the line where the row meets the surface, whatever their spacing), noise of variance ~6 sigma^2
 // otherwise. The median over a subsample of depth-continuous triples ignores creases and edges.
-void Segmenter::estimate_noise(const OrganizedCloud& cloud) {
+double Segmenter::estimate_noise(const OrganizedCloud& cloud) {
   noise_samples_.clear();
   const std::uint32_t w = cloud.width, h = cloud.height;
-  dist_abs_ = params_.dist_abs_mm;
-  noise_mm_ = 0.0;
-  if (w < 3 || h == 0) return;
+  if (w < 3 || h == 0) return 0.0;
   const std::size_t per_row = w - 2;
   const std::uint32_t stride =
       std::max<std::uint32_t>(1, static_cast<std::uint32_t>((per_row * h + kNoiseSamples - 1) / kNoiseSamples));
@@ -125,12 +123,11 @@ void Segmenter::estimate_noise(const OrganizedCloud& cloud) {
       noise_samples_.push_back((d2 - (d2.dot(t) / tt) * t).norm());
     }
   }
-  if (noise_samples_.size() < 64) return;
+  if (noise_samples_.size() < 64) return 0.0;
   auto mid = noise_samples_.begin() + static_cast<std::ptrdiff_t>(noise_samples_.size() / 2);
   std::nth_element(noise_samples_.begin(), mid, noise_samples_.end());
   // |N(0, 6 s^2)| has median 0.6745 sqrt(6) s.
-  noise_mm_ = double(*mid) / (0.6745 * std::sqrt(6.0));
-  dist_abs_ = std::max(params_.dist_abs_mm, params_.dist_noise_factor * noise_mm_);
+  return double(*mid) / (0.6745 * std::sqrt(6.0));
 }
 
 void Segmenter::prepare(Segmentation& out) const {
@@ -165,8 +162,8 @@ void Segmenter::segment(const OrganizedCloud& cloud, Segmentation& out) {
     }
   }
   region_count_ = 0;
-  estimate_noise(cloud);
-  out.noise_mm = noise_mm_;
+  out.noise_mm = estimate_noise(cloud);
+  dist_abs_ = std::max(params_.dist_abs_mm, params_.dist_noise_factor * out.noise_mm);
   out.dist_mm = dist_abs_;
   compute_normals(cloud);
   grow_regions(cloud, out);

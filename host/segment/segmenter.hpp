@@ -55,8 +55,8 @@ class Segmenter {
     Eigen::Vector3f c = Eigen::Vector3f::Zero();
   };
 
-  // Robust depth-noise estimate (sigma, mm) from second differences along the grid rows; sets dist_abs_.
-  void estimate_noise(const OrganizedCloud& cloud);
+  // Robust depth-noise estimate (sigma, mm; 0 = too few samples) from second differences along the grid rows.
+  double estimate_noise(const OrganizedCloud& cloud);
   void compute_normals(const OrganizedCloud& cloud);
   void grow_regions(const OrganizedCloud& cloud, Segmentation& out);
   void refine_edges(const OrganizedCloud& cloud);
@@ -86,8 +86,7 @@ class Segmenter {
   Eigen::Vector3d viewpoint_ = Eigen::Vector3d::Zero();
   std::uint32_t width_ = 0, height_ = 0;
   static constexpr std::size_t kNoiseSamples = 32768;
-  double noise_mm_ = 0.0;   // estimate_noise() of the last scan
-  double dist_abs_ = 0.0;   // max(dist_abs_mm, dist_noise_factor * noise_mm_)
+  double dist_abs_ = 0.0;   // this scan's max(dist_abs_mm, dist_noise_factor * estimate_noise())
   std::vector<float> noise_samples_;
 
   // per cell (structure of arrays: the normal pass is vectorized); points with NaN = no data
