@@ -37,9 +37,8 @@ nlohmann::json to_json(const Recognition& r, const Library& library) {
     }
     if (h.alternatives > 0) {
       nlohmann::json alts = nlohmann::json::array();
-      for (int k = 0; k < h.alternatives; ++k)
-        alts.push_back({{"model", library.models[static_cast<std::size_t>(h.alternative_model[static_cast<std::size_t>(k)])].name},
-                        {"confidence", h.alternative_confidence[static_cast<std::size_t>(k)]}});
+      for (const Hypothesis::Alternative& a : h.listed_alternatives())
+        alts.push_back({{"model", library.models[static_cast<std::size_t>(a.model)].name}, {"confidence", a.confidence}});
       o["alternatives"] = alts;
     }
     o["verification"] = {{"inliers", h.verify.inliers},   {"violations", h.verify.violations},

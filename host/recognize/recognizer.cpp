@@ -330,11 +330,9 @@ void find_alternatives(const Recognizer::Impl& im, std::size_t self, const Recog
       for (const FaceMatch& om : o.matches) shared += om.scene == m.scene ? 1 : 0;
     if (2 * shared < h.matches.size()) continue;
     bool listed = false;
-    for (int k = 0; k < h.alternatives; ++k) listed = listed || h.alternative_model[static_cast<std::size_t>(k)] == o.model;
+    for (const Hypothesis::Alternative& a : h.listed_alternatives()) listed = listed || a.model == o.model;
     if (listed) continue;
-    h.alternative_model[static_cast<std::size_t>(h.alternatives)] = o.model;
-    h.alternative_confidence[static_cast<std::size_t>(h.alternatives)] = o.verify.confidence;
-    ++h.alternatives;
+    h.alternative[static_cast<std::size_t>(h.alternatives++)] = {o.model, o.verify.confidence};
   }
 }
 

@@ -9,6 +9,7 @@
 #include <array>
 #include <cstdint>
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -132,10 +133,16 @@ struct Hypothesis {
   bool merged = false;                // a compatible solution was merged into it
   // Other models that fit this view as well (same scene faces, confidence and inliers within
   // RecognizeParams::alternative_*): the parts where they differ are out of view. Accepted objects only.
+  struct Alternative {
+    int model = -1;
+    double confidence = 0.0;
+  };
   static constexpr int kMaxAlternatives = 4;
-  std::array<int, kMaxAlternatives> alternative_model{};
-  std::array<double, kMaxAlternatives> alternative_confidence{};
-  int alternatives = 0;
+  std::array<Alternative, kMaxAlternatives> alternative{};
+  int alternatives = 0;   // listed in alternative[0 .. alternatives)
+  std::span<const Alternative> listed_alternatives() const {
+    return {alternative.data(), static_cast<std::size_t>(alternatives)};
+  }
   std::vector<std::uint32_t> inlier_cells;
 };
 

@@ -43,10 +43,11 @@ std::string result_table(const Recognition& r, const Library& library) {
                      h.matches.size(), h.faces_visible);
     if (h.alternatives > 0) {
       s += "    fits this view as well:";
-      for (int k = 0; k < h.alternatives; ++k)
-        s += fmt::format("{} {} ({:.2f})", k ? "," : "",
-                         library.models[static_cast<std::size_t>(h.alternative_model[static_cast<std::size_t>(k)])].name,
-                         h.alternative_confidence[static_cast<std::size_t>(k)]);
+      const char* sep = "";
+      for (const Hypothesis::Alternative& a : h.listed_alternatives()) {
+        s += fmt::format("{} {} ({:.2f})", sep, library.models[static_cast<std::size_t>(a.model)].name, a.confidence);
+        sep = ",";
+      }
       s += "\n";
     }
   }

@@ -310,8 +310,8 @@ int run(const Args& args) {
           const auto& h = found_objects[static_cast<std::size_t>(nearest)];
           if (h.model != rs.catalog_index[oi]) {
             ++confused_with[truth.name + " -> " + library.models[static_cast<std::size_t>(h.model)].name];
-            for (int k = 0; k < h.alternatives; ++k)
-              if (h.alternative_model[static_cast<std::size_t>(k)] == rs.catalog_index[oi]) {
+            for (const auto& a : h.listed_alternatives())
+              if (a.model == rs.catalog_index[oi]) {
                 ++s.truth_is_alternative;
                 got += " (true model listed as an alternative)";
               }

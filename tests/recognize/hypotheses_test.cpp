@@ -290,8 +290,7 @@ TEST(Report, ResultTableNamesTheAlternativesOfAnObject) {
   const std::string plain = fs::host::rec::result_table(r, library);
   EXPECT_EQ(plain.find("fits this view as well"), std::string::npos) << plain;
   r.objects[0].alternatives = 1;
-  r.objects[0].alternative_model[0] = 1;
-  r.objects[0].alternative_confidence[0] = 0.99;
+  r.objects[0].alternative[0] = {1, 0.99};
   const std::string table = fs::host::rec::result_table(r, library);
   EXPECT_NE(table.find("fits this view as well: cube-b (0.99)"), std::string::npos) << table;
   const nlohmann::json j = fs::host::rec::to_json(r, library);
