@@ -166,7 +166,9 @@ TEST(VmLoopScan, FirmwareBinaryScansThroughCanV4l2AndGpioSim) {
 
   // --- the firmware: the facetscan-fw binary ---
   const std::string fw_bin = FACETSCAN_FW_BIN;
-  const std::string galvo = "can:vcan0:node=1,sdo_ms=200,state_ms=5000";
+  // Heartbeat 1 s (tolerance 2 s): on one emulated vCPU the frame extraction takes ~100 ms of CPU per frame and
+  // the drive twin's thread can be starved for 250 ms, past the default 100 ms producer time's 200 ms limit.
+  const std::string galvo = "can:vcan0:node=1,hb=1000,sdo_ms=200,state_ms=5000";
   const std::string cam = "v4l2:/dev/video10:fmt=GREY,width=" + std::to_string(W) + ",height=" + std::to_string(H);
   const std::string laser = "gpio:facetscan-sim:line=" + std::to_string(kLaserLine);
   const int check_rc = run({fw_bin, "--check", "--galvo", galvo, "--camera", cam, "--laser", laser},

@@ -95,6 +95,7 @@ TEST(VmScan, DemoSceneThroughCanGalvoAndV4l2Loopback) {
 
   // --- the firmware side ---
   fw::Cia402Config cfg;
+  cfg.heartbeat_ms = 1000;  // rendering + extraction on TCG's one vCPU can starve the twin's thread for >200 ms
   cfg.sdo_timeout = 100 * kMs;
   cfg.state_timeout = 2000 * kMs;
   auto galvo = fw::CanGalvo::open("vcan0", cfg);
