@@ -1,5 +1,7 @@
 // bench_extract: stripe extraction throughput on a 1280x1024 Mono8 frame of the cube scene (scene renderer,
 // default noise) next to memcpy of the same frame in the same run. bytes_per_second = pixels per second.
+// BM_Memcpy / BM_Extract*: one frame, hot in the caches; BM_MemcpyStream / BM_ExtractStream: a stream of
+// frames that each come from memory, as a camera delivers them.
 // BM_ScanRow: the per-row pass alone over the frame, 0 = the portable auto-vectorized loop, 1 = the path
 // extraction uses (SIMD on x86-64; label says which). BM_GaussMlBatch: the batched sub-pixel fit alone.
 #include <benchmark/benchmark.h>
@@ -49,6 +51,57 @@ void BM_Memcpy(benchmark::State& state) {
   state.SetBytesProcessed(static_cast<std::int64_t>(state.iterations() * f.pixels.size()));
 }
 BENCHMARK(BM_Memcpy);
+
+// A camera stream: every frame is new to the caches (DMA wrote it to memory), so both copies of 48 distinct
+// frames (63 MB, past this machine's 32 MB L3) in turn: memcpy to one destination, and extraction. The frames
+// hold the same pixels (the throughput does not depend on which stripe), at distinct addresses.
+struct FrameStream {
+  FrameStream() : pixels(kFrames * frame().pixels.size()) {
+    const std::size_t n = frame().pixels.size();
+    for (std::size_t k = 0; k < kFrames; ++k) std::memcpy(pixels.data() + k * n, frame().pixels.data(), n);
+  }
+  fs::fw::FrameView view(std::size_t k) const {
+    fs::fw::FrameView v = frame().view;
+    v.data = pixels.data() + k * frame().pixels.size();
+    return v;
+  }
+  static constexpr std::size_t kFrames = 48;
+  std::vector<std::uint8_t> pixels;
+};
+FrameStream& stream() {
+  static FrameStream s;
+  return s;
+}
+
+void BM_MemcpyStream(benchmark::State& state) {
+  FrameStream& s = stream();
+  const std::size_t n = frame().pixels.size();
+  std::vector<std::uint8_t> dst(n);
+  std::size_t k = 0;
+  for (auto _ : state) {
+    std::memcpy(dst.data(), s.pixels.data() + k * n, n);
+    k = (k + 1) % FrameStream::kFrames;
+    benchmark::DoNotOptimize(dst.data());
+    benchmark::ClobberMemory();
+  }
+  state.SetBytesProcessed(static_cast<std::int64_t>(state.iterations() * n));
+}
+BENCHMARK(BM_MemcpyStream);
+
+void BM_ExtractStream(benchmark::State& state) {
+  FrameStream& s = stream();
+  fs::fw::ExtractParams p;
+  std::vector<fs::msg::StripePoint> out(frame().view.height);
+  std::size_t k = 0;
+  for (auto _ : state) {
+    fs::fw::extract_frame(s.view(k), p, out);
+    k = (k + 1) % FrameStream::kFrames;
+    benchmark::DoNotOptimize(out.data());
+  }
+  state.SetBytesProcessed(static_cast<std::int64_t>(state.iterations() * frame().pixels.size()));
+  state.SetLabel(std::string(fs::fw::to_string(p.method)) + ", along_stripe " + std::to_string(p.along_stripe));
+}
+BENCHMARK(BM_ExtractStream);
 
 void BM_Extract(benchmark::State& state) {
   Frame& f = frame();
