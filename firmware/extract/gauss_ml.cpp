@@ -141,6 +141,24 @@ struct Lanes<8> {
   using DI = i64x8;
 };
 
+// x = -kBatchHalf .. kBatchHalf - 1 as int, float and float x^2 (all exact), indexed by kBatchHalf + x: a
+// broadcast from memory is a load, where the conversion and product of a loop counter are vector-unit work.
+constexpr auto kXTables = [] {
+  struct {
+    std::int32_t i[2 * kBatchHalf];
+    float f[2 * kBatchHalf], f2[2 * kBatchHalf];
+  } t{};
+  for (int k = 0; k < 2 * kBatchHalf; ++k) {
+    t.i[k] = k - kBatchHalf;
+    t.f[k] = static_cast<float>(k - kBatchHalf);
+    t.f2[k] = t.f[k] * t.f[k];
+  }
+  return t;
+}();
+constexpr auto& kXi = kXTables.i;
+constexpr auto& kX = kXTables.f;
+constexpr auto& kX2 = kXTables.f2;
+
 template <typename V>
 inline V load(const void* p) {
   V v;
@@ -196,7 +214,7 @@ template <int W>
   const D contrast = load<D>(b.contrast + g);
   const F fl = __builtin_convertvector(vmax(0.1 * contrast, D{} + 1e-3), F);
   const F cl = __builtin_convertvector(load<D>(b.clip + g), F);
-  const I xa = load<I>(b.xa + g), xb = load<I>(b.xb + g);
+  const I xa1 = load<I>(b.xa + g) - 1, xb1 = load<I>(b.xb + g) + 1;  // x >= xa as x > xa - 1, x <= xb as xb + 1 > x
   // 1. Unweighted log-parabola over the contiguous samples above 10 % of the contrast: the walks out of the
   // peak are lane masks (alive while every sample so far was above the floor and inside the window).
   F a[8] = {};  // per lane: 1, x, x^2, x^3, x^4, ln y, x ln y, x^2 ln y
@@ -210,9 +228,9 @@ template <int W>
     I alive = I{} - 1;
     for (int d = 1; d < C; ++d) {
       const int x = dir * d;
-      const float xf = static_cast<float>(x), x2 = xf * xf;
+      const float xf = kX[C + x], x2 = kX2[C + x];
       const F v = load<F>(&b.y[C + x][g]);
-      alive &= (I{} + x >= xa) & (I{} + x <= xb) & (v > fl);
+      alive &= (I{} + kXi[C + x] > xa1) & (xb1 > I{} + kXi[C + x]) & (v > fl);
       std::uint64_t parts[W / 2];
       __builtin_memcpy(parts, &alive, sizeof parts);
       std::uint64_t any = 0;
@@ -255,6 +273,7 @@ template <int W>
   flo += __builtin_convertvector(std::bit_cast<DI>(tlo < __builtin_convertvector(flo, D) ? all : D{}), I);
   chi -= __builtin_convertvector(std::bit_cast<DI>(thi > __builtin_convertvector(chi, D) ? all : D{}), I);
   const I ok = __builtin_convertvector(std::bit_cast<DI>(good), I);
+  const I xa = xa1 + 1, xb = xb1 - 1;
   const I ka = ok ? (xa < flo ? flo : xa) : 1;
   const I kb = ok ? (xb < chi ? xb : chi) : 0;
   const F af = __builtin_convertvector(pk(good, ai, D{}), F), bf = __builtin_convertvector(bs, F),
@@ -273,14 +292,16 @@ template <int W>
   }
   const float rr = static_cast<float>(noise.read * noise.read + 1.0 / 12.0);
   const float q2 = static_cast<float>(noise.shot * noise.shot), p2 = static_cast<float>(noise.speckle * noise.speckle);
-  // Both directions in one loop (two independent recurrences and two sets of sums: more work in flight).
+  // Each direction its own loop and set of sums.
   F gr[8] = {}, gl[8] = {};  // per lane: w, w x, w x^2, w x^3, w x^4, we, we x, we x^2
+  const I ka1 = ka - 1, kb1 = kb + 1;  // x >= ka as x > ka - 1, x <= kb as kb + 1 > x: one compare each
   const auto add = [&](F (&gs)[8], int x, F S) {
-    const float xf = static_cast<float>(x), x2 = xf * xf;
-    const I xv = I{} + x;
+    const float xf = kX[C + x], x2 = kX2[C + x];  // loads, not conversions
+    const I xv = I{} + kXi[C + x];
     const F v = load<F>(&b.y[C + x][g]);
-    const F m = one((xv >= ka) & (xv <= kb) & (v < cl));
-    const F sv = m * S / (rr + S * (q2 + p2 * S));
+    // S where the sample is in (S > 0 and finite: the same bits as 1.0f * S), +0 = 0.0f * S elsewhere.
+    const F mS = std::bit_cast<F>((xv > ka1) & (kb1 > xv) & (v < cl) & std::bit_cast<I>(S));
+    const F sv = mS / (rr + S * (q2 + p2 * S));
     const F w = S * sv, we = (v - S) * sv;
     gs[0] += w;
     gs[1] += w * xf;
@@ -299,11 +320,13 @@ template <int W>
   F Sl = floor_at(S0 * Ll);
   Ll = floor_at(Ll * Q);
   const int nr = xmax + 1, nl = -xmin;  // x = 0 .. xmax and x = -1 .. xmin
-  for (int d = 0; d < std::max(nr, nl); ++d) {
-    if (d < nr) add(gr, d, Sr);
-    if (d < nl) add(gl, -1 - d, Sl);
+  for (int d = 0; d < nr; ++d) {
+    add(gr, d, Sr);
     Sr = floor_at(Sr * Rr);
     Rr = floor_at(Rr * Q);
+  }
+  for (int d = 0; d < nl; ++d) {
+    add(gl, -1 - d, Sl);
     Sl = floor_at(Sl * Ll);
     Ll = floor_at(Ll * Q);
   }
