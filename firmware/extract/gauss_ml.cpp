@@ -165,6 +165,18 @@ inline V load(const void* p) {
   __builtin_memcpy(&v, p, sizeof v);
   return v;
 }
+// True when every lane of the 0 / -1 mask m is 0 (8 lanes or-ed down to 4 in a vector register first: one
+// extract and or, where each 64-bit piece took a move to a general register).
+inline bool none(i32x4 m) {
+  std::uint64_t parts[2];
+  __builtin_memcpy(parts, &m, sizeof parts);
+  return !(parts[0] | parts[1]);
+}
+inline bool none(i32x8 m) {
+  i32x4 half[2];
+  __builtin_memcpy(half, &m, sizeof half);
+  return none(half[0] | half[1]);
+}
 template <typename D>
 inline D vabs(D v) { return v < 0.0 ? -v : v; }
 template <typename D>
@@ -245,11 +257,7 @@ template <int W, int G>
         alive[h] &= (I{} + kXi[C + x] > xa1[h]) & (xb1[h] > I{} + kXi[C + x]) & (v[h] > fl[h]);
         some |= alive[h];
       }
-      std::uint64_t parts[W / 2];
-      __builtin_memcpy(parts, &some, sizeof parts);
-      std::uint64_t any = 0;
-      for (int q = 0; q < W / 2; ++q) any |= parts[q];
-      if (!any) break;
+      if (none(some)) break;
       for (int h = 0; h < G; ++h) {
         const F w = one(alive[h] & (v[h] < cl[h]));
         const F ly = w * fast_lnf(v[h] < fl[h] ? fl[h] : v[h]);
@@ -337,7 +345,14 @@ template <int W, int G>
     gs[7] += we * x2;
   };
   const F tiny = F{} + 1e-30f;
-  const auto floor_at = [&](F v) { return v < tiny ? tiny : v; };
+  // max(v, tiny) on the bits as integers: the same as v < tiny ? tiny : v for every v but a NaN with the sign
+  // set (a negative v or -0 gives tiny both ways), and v here is a product of positive finite floats; one
+  // integer max where the float select was a compare and a blend, on the recurrences' chains.
+  const I tiny_bits = std::bit_cast<I>(tiny);
+  const auto floor_at = [&](F v) {
+    const I vb = std::bit_cast<I>(v);
+    return std::bit_cast<F>(vb < tiny_bits ? tiny_bits : vb);
+  };
   F Sr[G], Rr[G], Sl[G], Ll[G], Q[G];
   for (int h = 0; h < G; ++h) {
     const F S0 = fast_expf(af[h]);
