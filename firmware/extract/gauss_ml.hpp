@@ -14,7 +14,7 @@
 // Speed: gauss_ml_centre (one row): the per-sample work (log, exp, weights, the moment sums) is branch-free
 // float arithmetic over chunks of kChunk samples with one accumulator per lane, which the compiler vectorizes
 // (SSE2/AVX2/NEON); the 3x3 solves are in double. gauss_ml_centre_batch (below, what extraction uses) fits 8
-// rows at once with the rows in the SIMD lanes: 66 ns per row portable (SSE2), 41 AVX2, 30 AVX-512VL, against
+// rows at once with the rows in the SIMD lanes: 65 ns per row portable (SSE2), 38 AVX2, 26 AVX-512VL, against
 // ~200 ns for the one-row fit (bench_extract BM_GaussMlBatch).
 // On the scene renderer's stripes this reaches the Cramer-Rao bound within 3 % (tests/firmware/
 // extract_scene_test.cpp prints both). Samples at full scale are censored (left out of both steps).
