@@ -8,17 +8,14 @@
 // The recorded .fscan must hold one stripe per step whose centres match the renderer's ground truth there.
 #include <gtest/gtest.h>
 #include <fcntl.h>
-#include <linux/videodev2.h>
 #include <signal.h>
 #include <spawn.h>
-#include <sys/ioctl.h>
 #include <sys/wait.h>
 #include <time.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
-#include <cstring>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -28,12 +25,11 @@
 #include <vector>
 
 #include "common/scan_file.hpp"
-#include "firmware/backends/can_port.hpp"
 #include "firmware/loop/monotonic_clock.hpp"
-#include "hw-sim/can/cia402_twin.hpp"
 #include "hw-sim/scene/scene.hpp"
 #include "hw-sim/scene/stripe_renderer.hpp"
 #include "support/test_paths.hpp"
+#include "vm_rig.hpp"
 
 extern char** environ;
 
@@ -42,7 +38,6 @@ namespace {
 
 namespace stdfs = std::filesystem;
 using fw::Nanos;
-constexpr Nanos kMs = 1'000'000;
 
 std::string slurp_trim(const stdfs::path& p) {
   std::ifstream f(p);
@@ -102,50 +97,23 @@ TEST(VmLoopScan, FirmwareBinaryScansThroughCanV4l2AndGpioSim) {
 
   // --- the scanner hardware ---
   fw::MonotonicClock clock;
-  constexpr canid_t m = CAN_SFF_MASK | CAN_EFF_FLAG | CAN_RTR_FLAG;
-  const can_filter tf[] = {{0x000, m}, {0x601, m}, {0x201, m}};
-  fw::CanPort twin_port = fw::CanPort::open_raw("vcan0", tf);
-  sim::Cia402TwinConfig tc;
-  tc.start_position = first - 30;
-  sim::Cia402Twin twin(twin_port.fd(), clock, tc);
-  std::atomic<double> twin_pos{tc.start_position};
-  twin.set_position_callback([&](double p, std::int64_t) { twin_pos = p; });
-  const int out = ::open("/dev/video10", O_RDWR);
-  ASSERT_GE(out, 0);
-  v4l2_format f{};
-  f.type = V4L2_BUF_TYPE_VIDEO_OUTPUT;
-  f.fmt.pix.width = W;
-  f.fmt.pix.height = H;
-  f.fmt.pix.pixelformat = V4L2_PIX_FMT_GREY;
-  f.fmt.pix.field = V4L2_FIELD_NONE;
-  f.fmt.pix.bytesperline = W;
-  f.fmt.pix.sizeimage = W * H;
-  ASSERT_EQ(::ioctl(out, VIDIOC_S_FMT, &f), 0) << std::strerror(errno);
-  std::vector<std::uint8_t> black(std::size_t(W) * H, 0);
-  ASSERT_EQ(::write(out, black.data(), black.size()), static_cast<ssize_t>(black.size()));
-  std::atomic<bool> stop{false};
+  const VcanDriveTwin twin(clock, first - 30);
+  std::string error;
+  const int out = open_loopback_output(W, H, error);
+  ASSERT_GE(out, 0) << error;
   std::atomic<int> written{0}, discarded{0};
-  std::thread drive([&] {
-    Nanos next = clock.now();
-    while (!stop) {
-      next += kMs;
-      clock.sleep_until(next);
-      if (clock.now() - next > 100 * kMs) next = clock.now();
-      twin.poll();
-    }
-  });
-  std::thread camera([&] {
+  std::jthread camera([&](std::stop_token stop) {  // stopped before `out` is closed; joined before `twin` goes
     sim::StripeRenderer r(scene, ro);
     std::vector<std::uint8_t> img(std::size_t(W) * H);
     const sim::FrameBuffer fb{img.data(), W, H, W, sim::FrameFormat::Mono8};
-    while (!stop) {
+    while (!stop.stop_requested()) {
       if (!laser_on()) {
         ::usleep(500);
         continue;
       }
-      const double p = twin_pos.load();
+      const double p = twin.position();
       r.render_step(p, 1, fb);
-      if (!laser_on() || twin_pos.load() != p) {
+      if (!laser_on() || twin.position() != p) {
         ++discarded;
         continue;
       }
@@ -153,16 +121,6 @@ TEST(VmLoopScan, FirmwareBinaryScansThroughCanV4l2AndGpioSim) {
       ++written;
     }
   });
-  struct Join {
-    std::atomic<bool>& stop;
-    std::thread& a;
-    std::thread& b;
-    ~Join() {
-      stop = true;
-      a.join();
-      b.join();
-    }
-  } join{stop, drive, camera};
 
   // --- the firmware: the facetscan-fw binary ---
   const std::string fw_bin = FACETSCAN_FW_BIN;
@@ -254,6 +212,8 @@ TEST(VmLoopScan, FirmwareBinaryScansThroughCanV4l2AndGpioSim) {
   EXPECT_LE(missed, object_rows / 50);
   EXPECT_LT(median, 0.1);
   EXPECT_LT(p95, 0.5);
+  camera.request_stop();
+  camera.join();
   ::close(out);
 }
 

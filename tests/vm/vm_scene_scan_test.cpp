@@ -4,10 +4,7 @@
 // "Firmware" (this thread): CanGalvo on vcan0 moves to each step, V4l2Camera captures from the loopback, the
 // firmware's stripe extractor finds the centres; the captured frame must equal the render of that step byte for
 // byte and the extracted centres must match the renderer's ground truth.
-#include <fcntl.h>
 #include <gtest/gtest.h>
-#include <linux/videodev2.h>
-#include <sys/ioctl.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -24,10 +21,10 @@
 #include "firmware/backends/gpiod_lines.hpp"
 #include "firmware/backends/v4l2_camera.hpp"
 #include "firmware/extract/stripe_extractor.hpp"
-#include "hw-sim/can/cia402_twin.hpp"
 #include "hw-sim/scene/scene.hpp"
 #include "hw-sim/scene/stripe_renderer.hpp"
 #include "support/test_paths.hpp"
+#include "vm_rig.hpp"
 
 namespace fs::vmtest {
 namespace {
@@ -46,45 +43,18 @@ TEST(VmScan, DemoSceneThroughCanGalvoAndV4l2Loopback) {
 
   // --- the scanner hardware ---
   MonotonicClock clock;
-  constexpr canid_t m = CAN_SFF_MASK | CAN_EFF_FLAG | CAN_RTR_FLAG;
-  const can_filter tf[] = {{0x000, m}, {0x601, m}, {0x201, m}};
-  fw::CanPort twin_port = fw::CanPort::open_raw("vcan0", tf);
-  sim::Cia402TwinConfig tc;
-  tc.start_position = scene.calibration.first_step;
-  sim::Cia402Twin twin(twin_port.fd(), clock, tc);
-  std::atomic<double> twin_pos{tc.start_position};
-  twin.set_position_callback([&](double p, std::int64_t) { twin_pos = p; });
-  const int out = ::open("/dev/video10", O_RDWR);
-  ASSERT_GE(out, 0);
-  v4l2_format f{};
-  f.type = V4L2_BUF_TYPE_VIDEO_OUTPUT;
-  f.fmt.pix.width = W;
-  f.fmt.pix.height = H;
-  f.fmt.pix.pixelformat = V4L2_PIX_FMT_GREY;
-  f.fmt.pix.field = V4L2_FIELD_NONE;
-  f.fmt.pix.bytesperline = W;
-  f.fmt.pix.sizeimage = W * H;
-  ASSERT_EQ(::ioctl(out, VIDIOC_S_FMT, &f), 0) << std::strerror(errno);
-  std::atomic<bool> stop{false};
+  const VcanDriveTwin twin(clock, scene.calibration.first_step);
+  std::string error;
+  const int out = open_loopback_output(W, H, error);
+  ASSERT_GE(out, 0) << error;
   std::atomic<std::int64_t> written_pos{-1};  // position of the last frame written
   std::atomic<int> written_count{0};
-  std::vector<std::uint8_t> first(W * H, 0);
-  ASSERT_EQ(::write(out, first.data(), first.size()), static_cast<ssize_t>(first.size()));
-  std::thread drive([&] {
-    Nanos next = clock.now();
-    while (!stop) {
-      next += kMs;
-      clock.sleep_until(next);
-      if (clock.now() - next > 100 * kMs) next = clock.now();
-      twin.poll();
-    }
-  });
-  std::thread camera([&] {
+  std::jthread camera([&](std::stop_token stop) {  // stopped before `out` is closed; joined before `twin` goes
     sim::StripeRenderer r(scene, ro);
     std::vector<std::uint8_t> img(W * H);
     const sim::FrameBuffer fb{img.data(), W, H, W, sim::FrameFormat::Mono8};
-    while (!stop) {
-      const double p = twin_pos.load();
+    while (!stop.stop_requested()) {
+      const double p = twin.position();
       r.render_step(p, 1, fb);
       if (::write(out, img.data(), img.size()) != static_cast<ssize_t>(img.size())) break;
       written_pos = std::llround(p);
@@ -160,8 +130,7 @@ TEST(VmScan, DemoSceneThroughCanGalvoAndV4l2Loopback) {
     ++steps_done;
   }
   const double scan_s = double(clock.now() - t_scan) / 1e9;
-  stop = true;
-  drive.join();
+  camera.request_stop();
   camera.join();
   cam.stop();
   galvo->disable();
