@@ -115,7 +115,7 @@ bool gauss_ml_centre(const float* y, int n, int ic, double contrast, double clip
 namespace {
 
 // The batched fit (gauss_ml.hpp) on generic vectors of W lanes, native width: W = 8 with AVX2, W = 4 on
-// SSE2 / NEON (run twice per batch; wider generic vectors lower to poor code there). Float lanes for the
+// SSE2 / NEON (two groups of 4 lanes side by side per batch; wider generic vectors lower to poor code there). Float lanes for the
 // per-sample work, double lanes for the solves. Masks instead of branches; everything outside a lane's samples
 // adds exact zeros. Comparisons give 0 / -1 lanes; `m & kOne` turns such a mask into 0.0f / 1.0f.
 using f64x4 = double __attribute__((vector_size(32)));
@@ -309,7 +309,7 @@ template <int W, int G>
     ka1[h] = ka - 1;  // x >= ka as x > ka - 1, x <= kb as kb + 1 > x: one compare each
     kb1[h] = kb + 1;
     af[h] = __builtin_convertvector(pk(good, ai, D{}), F);
-    bf[h] = __builtin_convertvector(bs[h], F);
+    bf[h] = __builtin_convertvector(pk(good, bs[h], D{}), F);  // a failed lane's model: exp(0), inert
     cf[h] = __builtin_convertvector(pk(good, cs[h], D{}), F);
     for (int j = 0; j < W; ++j) {
       xmin = std::min(xmin, ka[j]);

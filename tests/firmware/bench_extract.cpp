@@ -52,9 +52,9 @@ void BM_Memcpy(benchmark::State& state) {
 }
 BENCHMARK(BM_Memcpy);
 
-// A camera stream: every frame is new to the caches (DMA wrote it to memory), so both copies of 48 distinct
-// frames (63 MB, past this machine's 32 MB L3) in turn: memcpy to one destination, and extraction. The frames
-// hold the same pixels (the throughput does not depend on which stripe), at distinct addresses.
+// A camera stream: every frame is new to the caches (DMA wrote it to memory), so both benchmarks below read 48
+// distinct frames (63 MB, past this machine's 32 MB L3) in turn: memcpy to one destination, and extraction. The
+// frames hold the same pixels (the throughput does not depend on which stripe), at distinct addresses.
 struct FrameStream {
   FrameStream() : pixels(kFrames * frame().pixels.size()) {
     const std::size_t n = frame().pixels.size();

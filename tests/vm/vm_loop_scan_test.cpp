@@ -98,11 +98,10 @@ TEST(VmLoopScan, FirmwareBinaryScansThroughCanV4l2AndGpioSim) {
   // --- the scanner hardware ---
   fw::MonotonicClock clock;
   const VcanDriveTwin twin(clock, first - 30);
-  std::string error;
-  const int out = open_loopback_output(W, H, error);
-  ASSERT_GE(out, 0) << error;
+  const LoopbackOutput out(W, H);
+  ASSERT_GE(out.fd(), 0) << out.error();
   std::atomic<int> written{0}, discarded{0};
-  std::jthread camera([&](std::stop_token stop) {  // stopped before `out` is closed; joined before `twin` goes
+  const std::jthread camera([&](std::stop_token stop) {  // stopped and joined before `out` and `twin` go
     sim::StripeRenderer r(scene, ro);
     std::vector<std::uint8_t> img(std::size_t(W) * H);
     const sim::FrameBuffer fb{img.data(), W, H, W, sim::FrameFormat::Mono8};
@@ -117,7 +116,7 @@ TEST(VmLoopScan, FirmwareBinaryScansThroughCanV4l2AndGpioSim) {
         ++discarded;
         continue;
       }
-      if (::write(out, img.data(), img.size()) != static_cast<ssize_t>(img.size())) break;
+      if (::write(out.fd(), img.data(), img.size()) != static_cast<ssize_t>(img.size())) break;
       ++written;
     }
   });
@@ -212,9 +211,6 @@ TEST(VmLoopScan, FirmwareBinaryScansThroughCanV4l2AndGpioSim) {
   EXPECT_LE(missed, object_rows / 50);
   EXPECT_LT(median, 0.1);
   EXPECT_LT(p95, 0.5);
-  camera.request_stop();
-  camera.join();
-  ::close(out);
 }
 
 }  // namespace

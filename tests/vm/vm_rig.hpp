@@ -61,31 +61,44 @@ class VcanDriveTwin {
 };
 
 // /dev/video10's output side set to width x height GREY with one black frame written (a capture can start
-// before the first render). Returns the descriptor, or -1 with `error` saying which step failed.
-inline int open_loopback_output(std::uint32_t width, std::uint32_t height, std::string& error) {
-  const int out = ::open("/dev/video10", O_RDWR);
-  if (out < 0) {
-    error = std::string("open /dev/video10: ") + std::strerror(errno);
-    return -1;
+// before the first render), closed when destroyed: declare it before the thread that writes into it. fd() is -1
+// on failure, and error() says which step failed.
+class LoopbackOutput {
+ public:
+  LoopbackOutput(std::uint32_t width, std::uint32_t height) : fd_(::open("/dev/video10", O_RDWR)) {
+    if (fd_ < 0) {
+      error_ = std::string("open /dev/video10: ") + std::strerror(errno);
+      return;
+    }
+    v4l2_format f{};
+    f.type = V4L2_BUF_TYPE_VIDEO_OUTPUT;
+    f.fmt.pix.width = width;
+    f.fmt.pix.height = height;
+    f.fmt.pix.pixelformat = V4L2_PIX_FMT_GREY;
+    f.fmt.pix.field = V4L2_FIELD_NONE;
+    f.fmt.pix.bytesperline = width;
+    f.fmt.pix.sizeimage = width * height;
+    const std::vector<std::uint8_t> black(std::size_t(width) * height, 0);
+    if (::ioctl(fd_, VIDIOC_S_FMT, &f) != 0)
+      error_ = std::string("VIDIOC_S_FMT on /dev/video10: ") + std::strerror(errno);
+    else if (::write(fd_, black.data(), black.size()) != static_cast<ssize_t>(black.size()))
+      error_ = std::string("first frame into /dev/video10: ") + std::strerror(errno);
+    if (!error_.empty()) {
+      ::close(fd_);
+      fd_ = -1;
+    }
   }
-  v4l2_format f{};
-  f.type = V4L2_BUF_TYPE_VIDEO_OUTPUT;
-  f.fmt.pix.width = width;
-  f.fmt.pix.height = height;
-  f.fmt.pix.pixelformat = V4L2_PIX_FMT_GREY;
-  f.fmt.pix.field = V4L2_FIELD_NONE;
-  f.fmt.pix.bytesperline = width;
-  f.fmt.pix.sizeimage = width * height;
-  const std::vector<std::uint8_t> black(std::size_t(width) * height, 0);
-  if (::ioctl(out, VIDIOC_S_FMT, &f) != 0) {
-    error = std::string("VIDIOC_S_FMT on /dev/video10: ") + std::strerror(errno);
-  } else if (::write(out, black.data(), black.size()) != static_cast<ssize_t>(black.size())) {
-    error = std::string("first frame into /dev/video10: ") + std::strerror(errno);
-  } else {
-    return out;
+  ~LoopbackOutput() {
+    if (fd_ >= 0) ::close(fd_);
   }
-  ::close(out);
-  return -1;
-}
+  LoopbackOutput(const LoopbackOutput&) = delete;
+  LoopbackOutput& operator=(const LoopbackOutput&) = delete;
+  int fd() const { return fd_; }
+  const std::string& error() const { return error_; }
+
+ private:
+  int fd_;
+  std::string error_;
+};
 
 }  // namespace fs::vmtest

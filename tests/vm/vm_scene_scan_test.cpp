@@ -44,19 +44,18 @@ TEST(VmScan, DemoSceneThroughCanGalvoAndV4l2Loopback) {
   // --- the scanner hardware ---
   MonotonicClock clock;
   const VcanDriveTwin twin(clock, scene.calibration.first_step);
-  std::string error;
-  const int out = open_loopback_output(W, H, error);
-  ASSERT_GE(out, 0) << error;
+  const LoopbackOutput out(W, H);
+  ASSERT_GE(out.fd(), 0) << out.error();
   std::atomic<std::int64_t> written_pos{-1};  // position of the last frame written
   std::atomic<int> written_count{0};
-  std::jthread camera([&](std::stop_token stop) {  // stopped before `out` is closed; joined before `twin` goes
+  const std::jthread camera([&](std::stop_token stop) {  // stopped and joined before `out` and `twin` go
     sim::StripeRenderer r(scene, ro);
     std::vector<std::uint8_t> img(W * H);
     const sim::FrameBuffer fb{img.data(), W, H, W, sim::FrameFormat::Mono8};
     while (!stop.stop_requested()) {
       const double p = twin.position();
       r.render_step(p, 1, fb);
-      if (::write(out, img.data(), img.size()) != static_cast<ssize_t>(img.size())) break;
+      if (::write(out.fd(), img.data(), img.size()) != static_cast<ssize_t>(img.size())) break;
       written_pos = std::llround(p);
       ++written_count;
       ::usleep(5000);
@@ -130,11 +129,8 @@ TEST(VmScan, DemoSceneThroughCanGalvoAndV4l2Loopback) {
     ++steps_done;
   }
   const double scan_s = double(clock.now() - t_scan) / 1e9;
-  camera.request_stop();
-  camera.join();
   cam.stop();
   galvo->disable();
-  ::close(out);
   std::sort(errors.begin(), errors.end());
   const double median = errors.empty() ? 1e9 : errors[errors.size() / 2];
   const double p95 = errors.empty() ? 1e9 : errors[errors.size() * 95 / 100];
