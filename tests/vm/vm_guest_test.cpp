@@ -1,11 +1,9 @@
 // Runs INSIDE the test VM (tests/vm/run_vm.sh), as root, against real kernel drivers: the CiA 402 master drives
 // the hw-sim twin over vcan0, GpiodLines (+ the stepper galvo) on a gpio-sim chip read back through sysfs,
 // V4l2Camera on v4l2loopback (frames written by this process) and on vivid. Outside the VM every test skips.
-#include <fcntl.h>
 #include <gtest/gtest.h>
 #include <linux/can/error.h>
 #include <linux/videodev2.h>
-#include <sys/ioctl.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -26,6 +24,7 @@
 #include "firmware/extract/stripe_extractor.hpp"
 #include "firmware/galvo_stepper.hpp"
 #include "hw-sim/can/cia402_twin.hpp"
+#include "vm_rig.hpp"
 
 namespace fs::vmtest {
 namespace {
@@ -323,20 +322,10 @@ std::uint32_t frame_number(const fw::FrameView& f, std::uint32_t bpp) {
 void loopback_capture(std::uint32_t fourcc, const char* fmt_name) {
   const bool yuyv = fourcc == V4L2_PIX_FMT_YUYV;
   const std::uint32_t bpp = yuyv ? 2 : 1;
-  const int out = ::open("/dev/video10", O_RDWR);
-  ASSERT_GE(out, 0) << "open /dev/video10: " << std::strerror(errno);
-  v4l2_format f{};
-  f.type = V4L2_BUF_TYPE_VIDEO_OUTPUT;
-  f.fmt.pix.width = kW;
-  f.fmt.pix.height = kH;
-  f.fmt.pix.pixelformat = fourcc;
-  f.fmt.pix.field = V4L2_FIELD_NONE;
-  f.fmt.pix.bytesperline = kW * bpp;
-  f.fmt.pix.sizeimage = kW * kH * bpp;
-  ASSERT_EQ(::ioctl(out, VIDIOC_S_FMT, &f), 0) << "S_FMT output " << fmt_name << ": " << std::strerror(errno);
   std::vector<std::uint8_t> img;
   render(img, 0, yuyv);
-  ASSERT_EQ(::write(out, img.data(), img.size()), static_cast<ssize_t>(img.size()));
+  const LoopbackOutput out(kW, kH, fourcc, img);
+  ASSERT_GE(out.fd(), 0) << fmt_name << ": " << out.error();
 
   fw::V4l2Camera cam(fw::parse_v4l2_spec(std::string("v4l2:/dev/video10:fmt=") + fmt_name + ",width=640,height=480"));
   EXPECT_EQ(cam.width(), kW);
@@ -350,7 +339,7 @@ void loopback_capture(std::uint32_t fourcc, const char* fmt_name) {
     std::vector<std::uint8_t> im;
     for (std::uint32_t k = 1; k <= kFrames && !stop; ++k) {
       render(im, k, yuyv);
-      if (::write(out, im.data(), im.size()) != static_cast<ssize_t>(im.size())) break;
+      if (::write(out.fd(), im.data(), im.size()) != static_cast<ssize_t>(im.size())) break;
       ::usleep(40'000);
     }
   });
@@ -387,7 +376,6 @@ void loopback_capture(std::uint32_t fourcc, const char* fmt_name) {
   stop = true;
   writer.join();
   cam.stop();
-  ::close(out);
   std::printf("VMRESULT v4l2loopback %s frames=%u rows=%u max_centre_error_px=%.4f dropped=%u non_monotonic=%llu\n",
               fmt_name, got, checked_rows, max_err, cam.frames_dropped(),
               static_cast<unsigned long long>(cam.stats().non_monotonic));

@@ -12,6 +12,7 @@
 #include <cerrno>
 #include <cstdint>
 #include <cstring>
+#include <span>
 #include <string>
 #include <thread>
 #include <vector>
@@ -60,28 +61,33 @@ class VcanDriveTwin {
   std::jthread thread_;  // last: stopped and joined first
 };
 
-// /dev/video10's output side set to width x height GREY with one black frame written (a capture can start
-// before the first render), closed when destroyed: declare it before the thread that writes into it. fd() is -1
-// on failure, and error() says which step failed.
+// /dev/video10's output side set to width x height in `fourcc` (GREY or YUYV) with `first_frame` written (a
+// capture can start before the first render; the two-argument form: GREY and a black frame), closed when
+// destroyed: declare it before the thread that writes into it. fd() is -1 on failure, and error() says which
+// step failed.
 class LoopbackOutput {
  public:
-  LoopbackOutput(std::uint32_t width, std::uint32_t height) : fd_(::open("/dev/video10", O_RDWR)) {
+  LoopbackOutput(std::uint32_t width, std::uint32_t height)
+      : LoopbackOutput(width, height, V4L2_PIX_FMT_GREY, std::vector<std::uint8_t>(std::size_t(width) * height, 0)) {}
+  LoopbackOutput(std::uint32_t width, std::uint32_t height, std::uint32_t fourcc,
+                 std::span<const std::uint8_t> first_frame)
+      : fd_(::open("/dev/video10", O_RDWR)) {
     if (fd_ < 0) {
       error_ = std::string("open /dev/video10: ") + std::strerror(errno);
       return;
     }
+    const std::uint32_t bytes_per_pixel = fourcc == V4L2_PIX_FMT_YUYV ? 2 : 1;
     v4l2_format f{};
     f.type = V4L2_BUF_TYPE_VIDEO_OUTPUT;
     f.fmt.pix.width = width;
     f.fmt.pix.height = height;
-    f.fmt.pix.pixelformat = V4L2_PIX_FMT_GREY;
+    f.fmt.pix.pixelformat = fourcc;
     f.fmt.pix.field = V4L2_FIELD_NONE;
-    f.fmt.pix.bytesperline = width;
-    f.fmt.pix.sizeimage = width * height;
-    const std::vector<std::uint8_t> black(std::size_t(width) * height, 0);
+    f.fmt.pix.bytesperline = width * bytes_per_pixel;
+    f.fmt.pix.sizeimage = width * height * bytes_per_pixel;
     if (::ioctl(fd_, VIDIOC_S_FMT, &f) != 0)
       error_ = std::string("VIDIOC_S_FMT on /dev/video10: ") + std::strerror(errno);
-    else if (::write(fd_, black.data(), black.size()) != static_cast<ssize_t>(black.size()))
+    else if (::write(fd_, first_frame.data(), first_frame.size()) != static_cast<ssize_t>(first_frame.size()))
       error_ = std::string("first frame into /dev/video10: ") + std::strerror(errno);
     if (!error_.empty()) {
       ::close(fd_);
