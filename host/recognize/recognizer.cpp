@@ -372,7 +372,9 @@ Recognizer::Recognizer(const Library& library, const RecognizeParams& params, st
   impl_->slot_cells.resize(static_cast<std::size_t>(std::max(params.max_refined, 1)));
   for (auto& b : impl_->slot_cells) b.reserve(max_samples);
   impl_->slot_owner.reserve(impl_->slot_cells.size());
-  for (auto& v : impl_->verifiers) v.reserve(max_samples);
+  std::size_t max_faces = 0;  // the largest model's front-face list
+  for (const Model& m : library_.models) max_faces = std::max(max_faces, m.faces.size());
+  for (auto& v : impl_->verifiers) v.reserve(max_samples, max_faces);
   impl_->hull.reserve(max_samples);
   impl_->hull_scratch.reserve(2 * max_samples);
   result_.objects.reserve(static_cast<std::size_t>(std::max(params.max_objects, 1)));

@@ -114,9 +114,10 @@ class SampleSet {
 class Verifier {
  public:
   explicit Verifier(const VerifyParams& params = {}) : params_(params) {}
-  // Sizes the internal buffers for up to `samples` points (a warm verify() then never allocates).
-  void reserve(std::size_t samples) {
-    front_.reserve(1024);
+  // Sizes the internal buffers for up to `samples` points and models of up to `faces` faces (a warm verify() then
+  // never allocates).
+  void reserve(std::size_t samples, std::size_t faces) {
+    front_.reserve(faces);
     inlier_cells_.reserve(samples);
     inlier_sample_.reserve(samples);
     inlier_face_.reserve(samples);
