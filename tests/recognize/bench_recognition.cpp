@@ -3,13 +3,19 @@
 // positives, CPU time and the allocations of a warm recognize(), per scene category.
 //
 //   bench_recognition [--scenes N] [--seed S] [--categories single,separated,occluded,empty] [--steps 500]
-//                     [--noise 0.05] [--threads 1] [--alloc-every 1] [--verbose] [--candidates] [--only I] [--preset NAME] [--min-level N] [--solutions N] [--max-states N] [--area-ratio R] [--omega DEG] [--max-solutions N] [--no-rigidity-pairs] [--scene-stats] [--dump-graph] [--max-verified N] [--verify-per-face N]
-//                     [--sample-mm MM] [--seg-dist MM] [--seg-noise-factor K] [--seg-merge-angle DEG] [--refine-per-face N] [--max-refined N] [--rounds N] [--inlier-weight W]
+//                     [--noise 0.05] [--threads 1] [--alloc-every 1] [--verbose] [--candidates] [--only I]
+//                     [--scene-stats] [--dump-graph] and tuning options that each set one RecognizeParams field
+//                     (--preset, --min-level, --solutions, --max-states, --area-ratio, --omega, --max-solutions,
+//                     --no-rigidity-pairs, --max-verified, --verify-per-face, --refine-per-face, --max-refined,
+//                     --rounds, --inlier-weight, --sample-mm, --seg-dist, --seg-noise-factor, --seg-merge-angle;
+//                     `--help` lists them with their meaning)
 //
 // --alloc-every K: the allocation count is taken in every K-th round of the categories (all categories).
 //
 // Scenes are spread round-robin over the categories; scene i uses seed S + i.
 #include <time.h>
+
+#include <CLI/CLI.hpp>
 
 #include <algorithm>
 #include <chrono>
@@ -64,86 +70,85 @@ struct Args {
                                         SceneCategory::empty};
   std::uint32_t steps = 500;
   double noise = 0.05;
-  int threads = 1;
   int alloc_every = 1;
   bool verbose = false;
   bool candidates = false;
   int only = -1;
-  std::string preset;        // matching preset (default: the recognizer's)
-  int min_level = 0;         // 0 = the recognizer's default
-  int solutions = 0;         // solutions kept per model (0 = default)
-  long max_states = 0;       // state budget of one match (0 = default)
-  double area_ratio = -1;    // match_area_ratio (< 0 = default, 0 = off)
-  double omega = -1;         // rigidity cone TH_omega in degrees (< 0 = the recognizer's default, 0 = the preset's)
-  long max_solutions = 0;    // TH_solutions of one match (0 = the recognizer's default)
-  bool no_rigidity_pairs = false;   // switch the level-1 rigidity off (the thesis)
   bool scene_stats = false;  // one line per scene: graph parts, faces, search states, matching time
   bool dump_graph = false;   // with --candidates: the scene PFRG JSON (for facetscan match)
-  int max_verified = 0;      // hypotheses verified per round (0 = default)
-  int verify_per_face = 0;   // a scene face draws at most this many into verification (0 = default)
-  int refine_per_face = 0;   // 0 = default
-  double inlier_weight = -1;   // RecognizeParams::inlier_weight (< 0 = default)
-  int rounds = 0;            // rounds of matching + verification (0 = default)
-  int max_refined = 0;       // 0 = default
-  double sample_mm = -1;    // VerifyParams::sample_spacing_mm (< 0 = default)
-  double seg_dist = -1;      // segmentation dist_abs_mm (< 0 = the laser default)
-  double seg_noise_factor = -1;   // segmentation dist_noise_factor (< 0 = the laser default)
-  double seg_merge_angle = -1;  // segmentation merge_angle_deg (< 0 = the laser default)
+  // The recognizer's parameters: its defaults (one thread), with the tuning options below written into them.
+  fs::host::rec::RecognizeParams params = [] {
+    fs::host::rec::RecognizeParams p;
+    p.threads = 1;
+    return p;
+  }();
 };
 
-Args parse_args(int argc, char** argv) {
+// value >= lo (CLI11 2.1's PositiveNumber / NonNegativeNumber name the whole range up to DBL_MAX in their message).
+CLI::Validator at_least(double lo, const std::string& text) {
+  return CLI::Validator(
+      [lo, text](std::string& v) -> std::string {
+        char* end = nullptr;
+        const double d = std::strtod(v.c_str(), &end);
+        if (end == v.c_str() || *end != '\0') return "expected a number, got '" + v + "'";
+        return d >= lo ? std::string() : "expected " + text + ", got " + v;
+      },
+      text);
+}
+
+// Throws CLI::ParseError (main prints it, or the help, through CLI::App::exit).
+Args parse_args(CLI::App& app, int argc, char** argv) {
+  const CLI::Validator positive = at_least(1, ">= 1"), non_negative = at_least(0, ">= 0");
   Args a;
-  for (int i = 1; i < argc; ++i) {
-    const std::string k = argv[i];
-    auto value = [&]() -> std::string {
-      if (i + 1 >= argc) throw fs::Error("argument " + k + ": missing value");
-      return argv[++i];
-    };
-    if (k == "--scenes") a.scenes = std::stoi(value());
-    else if (k == "--seed") a.seed = std::stoull(value());
-    else if (k == "--steps") a.steps = static_cast<std::uint32_t>(std::stoul(value()));
-    else if (k == "--noise") a.noise = std::stod(value());
-    else if (k == "--threads") a.threads = std::stoi(value());
-    else if (k == "--alloc-every") a.alloc_every = std::stoi(value());
-    else if (k == "--verbose") a.verbose = true;
-    else if (k == "--candidates") a.candidates = a.verbose = true;
-    else if (k == "--only") a.only = std::stoi(value());
-    else if (k == "--preset") a.preset = value();
-    else if (k == "--min-level") a.min_level = std::stoi(value());
-    else if (k == "--solutions") a.solutions = std::stoi(value());
-    else if (k == "--max-states") a.max_states = std::stol(value());
-    else if (k == "--area-ratio") a.area_ratio = std::stod(value());
-    else if (k == "--omega") a.omega = std::stod(value());
-    else if (k == "--max-solutions") a.max_solutions = std::stol(value());
-    else if (k == "--no-rigidity-pairs") a.no_rigidity_pairs = true;
-    else if (k == "--scene-stats") a.scene_stats = true;
-    else if (k == "--dump-graph") a.dump_graph = a.candidates = a.verbose = true;
-    else if (k == "--max-verified") a.max_verified = std::stoi(value());
-    else if (k == "--verify-per-face") a.verify_per_face = std::stoi(value());
-    else if (k == "--inlier-weight") a.inlier_weight = std::stod(value());
-    else if (k == "--rounds") a.rounds = std::stoi(value());
-    else if (k == "--refine-per-face") a.refine_per_face = std::stoi(value());
-    else if (k == "--max-refined") a.max_refined = std::stoi(value());
-    else if (k == "--sample-mm") a.sample_mm = std::stod(value());
-    else if (k == "--seg-dist") a.seg_dist = std::stod(value());
-    else if (k == "--seg-noise-factor") a.seg_noise_factor = std::stod(value());
-    else if (k == "--seg-merge-angle") a.seg_merge_angle = std::stod(value());
-    else if (k == "--categories") {
-      a.categories.clear();
-      std::string list = value();
-      std::size_t start = 0;
-      while (start <= list.size()) {
-        const std::size_t comma = std::min(list.find(',', start), list.size());
-        a.categories.push_back(fs::sim::parse_scene_category(list.substr(start, comma - start)));
-        start = comma + 1;
-      }
-    } else {
-      throw fs::Error("unknown argument '" + k +
-                      "' (--scenes N --seed S --categories a,b --steps K --noise MM --threads T --alloc-every K "
-                      "--verbose)");
-    }
+  fs::host::rec::RecognizeParams& p = a.params;
+  std::vector<std::string> categories;
+  std::string preset;
+  app.add_option("--scenes", a.scenes, "scenes, spread round-robin over the categories")->check(positive);
+  app.add_option("--seed", a.seed, "scene i uses seed S + i");
+  app.add_option("--categories", categories, "single,separated,occluded,empty")->delimiter(',');
+  app.add_option("--steps", a.steps, "scan steps (grid rows)")->check(CLI::Range(10u, 1u << 20));
+  app.add_option("--noise", a.noise, "depth noise sigma, mm")->check(non_negative);
+  app.add_option("--threads", p.threads, "recognizer threads (0 = all cores)")->check(non_negative);
+  app.add_option("--alloc-every", a.alloc_every,
+                 "count the allocations of a warm recognize() in every K-th round of the categories (0 = never)")
+      ->check(non_negative);
+  app.add_flag("--verbose", a.verbose, "per-object lines for misses and extras");
+  app.add_flag("--candidates", a.candidates, "the hypotheses of each scene (implies --verbose)");
+  app.add_option("--only", a.only, "run only scene I");
+  app.add_flag("--scene-stats", a.scene_stats, "one line per scene: graph parts, faces, search states, CPU and stage times");
+  app.add_flag("--dump-graph", a.dump_graph, "the scene PFRG JSON (implies --candidates)");
+  // Tuning: each writes one RecognizeParams field; left out, the recognizer's default stays.
+  app.add_option("--preset", preset, "matching preset (match::preset)");
+  app.add_option("--min-level", p.min_level, "TH_minlevel")->check(positive);
+  app.add_option("--solutions", p.solutions_per_model, "solutions kept per model")->check(positive);
+  app.add_option("--max-states", p.max_states, "state budget of one match")->check(positive);
+  app.add_option("--area-ratio", p.match_area_ratio, "match_area_ratio (0 = off)")->check(non_negative);
+  app.add_option("--omega", p.rigidity_deg, "rigidity cone TH_omega, degrees (0 = the preset's)")
+      ->check(non_negative);
+  app.add_option("--max-solutions", p.max_solutions, "TH_solutions of one match")->check(positive);
+  app.add_flag("--no-rigidity-pairs{false}", p.rigidity_pairs, "switch the level-1 rigidity off (the thesis)");
+  app.add_option("--max-verified", p.max_verified, "hypotheses verified per round")->check(positive);
+  app.add_option("--verify-per-face", p.verify_per_face, "a scene face draws at most this many into verification")
+      ->check(positive);
+  app.add_option("--refine-per-face", p.refine_per_face, "... and into refinement")->check(positive);
+  app.add_option("--max-refined", p.max_refined, "hypotheses refined by ICP")->check(positive);
+  app.add_option("--rounds", p.rounds, "rounds of matching + verification")->check(positive);
+  app.add_option("--inlier-weight", p.inlier_weight, "RecognizeParams::inlier_weight")->check(non_negative);
+  app.add_option("--sample-mm", p.verify.sample_spacing_mm, "VerifyParams::sample_spacing_mm (0 = every sample_step-th cell)")
+      ->check(non_negative);
+  app.add_option("--seg-dist", p.segment.dist_abs_mm, "segmentation dist_abs_mm")->check(non_negative);
+  app.add_option("--seg-noise-factor", p.segment.dist_noise_factor, "segmentation dist_noise_factor")
+      ->check(non_negative);
+  app.add_option("--seg-merge-angle", p.segment.merge_angle_deg, "segmentation merge_angle_deg")
+      ->check(non_negative);
+  app.parse(argc, argv);
+  if (!categories.empty()) {
+    a.categories.clear();
+    for (const std::string& c : categories) a.categories.push_back(fs::sim::parse_scene_category(c));
   }
-  if (a.scenes < 1 || a.steps < 10 || a.alloc_every < 0) throw fs::Error("arguments out of range");
+  if (!preset.empty()) p.match = fs::host::match::preset(preset);  // p.match holds none of the options above
+  a.candidates = a.candidates || a.dump_graph;
+  a.verbose = a.verbose || a.candidates;
   return a;
 }
 
@@ -156,26 +161,7 @@ int run(const Args& args) {
   std::printf("library: %zu models built in %.1f s\n", library.models.size(),
               std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
 
-  fs::host::rec::RecognizeParams params;
-  params.threads = args.threads;
-  if (!args.preset.empty()) params.match = fs::host::match::preset(args.preset);
-  if (args.min_level > 0) params.min_level = args.min_level;
-  if (args.solutions > 0) params.solutions_per_model = args.solutions;
-  if (args.max_states > 0) params.max_states = args.max_states;
-  if (args.area_ratio >= 0) params.match_area_ratio = args.area_ratio;
-  if (args.omega >= 0) params.rigidity_deg = args.omega;
-  if (args.max_solutions > 0) params.max_solutions = args.max_solutions;
-  if (args.no_rigidity_pairs) params.rigidity_pairs = false;
-  if (args.max_verified > 0) params.max_verified = args.max_verified;
-  if (args.verify_per_face > 0) params.verify_per_face = args.verify_per_face;
-  if (args.inlier_weight >= 0) params.inlier_weight = args.inlier_weight;
-  if (args.rounds > 0) params.rounds = args.rounds;
-  if (args.refine_per_face > 0) params.refine_per_face = args.refine_per_face;
-  if (args.max_refined > 0) params.max_refined = args.max_refined;
-  if (args.sample_mm >= 0) params.verify.sample_spacing_mm = args.sample_mm;
-  if (args.seg_dist >= 0) params.segment.dist_abs_mm = args.seg_dist;
-  if (args.seg_noise_factor >= 0) params.segment.dist_noise_factor = args.seg_noise_factor;
-  if (args.seg_merge_angle >= 0) params.segment.merge_angle_deg = args.seg_merge_angle;
+  const fs::host::rec::RecognizeParams& params = args.params;
   const std::size_t cells =
       static_cast<std::size_t>(args.steps) * fs::ScannerCalibration::bench_default().camera.height;
   fs::host::rec::Recognizer recognizer(library, params, cells);
@@ -338,7 +324,7 @@ int run(const Args& args) {
   }
 
   std::printf("\n%d scenes, %u steps, depth noise %.2f mm, threads %d, seed %llu, %.0f s total\n\n", args.scenes,
-              args.steps, args.noise, args.threads, static_cast<unsigned long long>(args.seed),
+              args.steps, args.noise, args.params.threads, static_cast<unsigned long long>(args.seed),
               std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
   std::printf("| category | scenes | objects | found (model + centre < 10 mm) | top-1 identity | rot err median / p90 "
               "(deg) | centre err median / p90 (mm) | extra objects | scenes with a false positive | CPU ms median "
@@ -380,8 +366,11 @@ int run(const Args& args) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  CLI::App app{"bench_recognition: the recognition benchmark (issue 10)"};
   try {
-    return run(parse_args(argc, argv));
+    return run(parse_args(app, argc, argv));
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "bench_recognition: %s\n", e.what());
     return 2;
