@@ -9,7 +9,7 @@
 //     "loop": {"period_us": 500, "max_dwell_ms": 40, "camera_timeout_ms": 25, "late_limit_us": 250,
 //              "max_consecutive_late": 3, "heartbeat_ms": 500, "require_host": false, "host_grace_ms": 0,
 //              "homing_timeout_ms": 2000, "move_timeout_ms": 50},
-//     "extract": {"method": "gauss-ml" | "gauss-fit" | "blais-rioux" | "gauss3" | "cog", "min_contrast": 24,
+//     "extract": {"method": "gauss-ml" | "gauss-log" | "gauss-fit" | "blais-rioux" | "gauss3" | "cog", "min_contrast": 24,
 //                 "read_noise": 1.5, "shot_noise": 0.35, "speckle": 0.12 (gauss-ml noise model), "ambiguous_ratio": 0.5,
 //                 "saturation_run": 3, "along_stripe": 7 (rows of the along-stripe refinement: 0 = off, odd 3..15)},
 //     "sim_camera": {"period_us": 5000, "exposure_us": 1000, "readout_us": 1000, "buffers": 4},

@@ -32,7 +32,7 @@ inline void lane_sums(const float (&acc)[8][kChunk], double (&out)[8]) {
 }  // namespace
 
 bool gauss_ml_centre(const float* y, int n, int ic, double contrast, double clip, const SensorNoise& noise,
-                     double& centre) {
+                     double& centre, bool intensity_step) {
   if (ic < 0 || ic >= n) return false;
   const float clip_f = static_cast<float>(clip);
   // 1. Unweighted log-parabola over the contiguous samples above 10 % of the contrast (x relative to ic).
@@ -74,6 +74,10 @@ bool gauss_ml_centre(const float* y, int n, int ic, double contrast, double clip
   const double s = std::sqrt(-0.5 / c);
   const double ln_peak = a - b * b / (4.0 * c);
   if (!(s >= 0.25) || !(ln_peak <= 30.0) || !(ln_peak >= -10.0)) return false;
+  if (!intensity_step) {
+    centre = ic + u0;
+    return true;
+  }
   const int ka = std::max(0, static_cast<int>(std::floor(ic + u0 - 3.0 * s)));
   const int kb = std::min(n - 1, static_cast<int>(std::ceil(ic + u0 + 3.0 * s)));
   const float af = static_cast<float>(a), bf = static_cast<float>(b), cf = static_cast<float>(c);
@@ -315,6 +319,14 @@ template <int W, int G>
       xmin = std::min(xmin, ka[j]);
       xmax = std::max(xmax, kb[j]);
     }
+  }
+  if (!b.intensity_step) {  // GaussLog: the log-parabola's centre
+    for (int h = 0; h < G; ++h) {
+      __builtin_memcpy(b.centre + h * W, &u0[h], sizeof u0[h]);
+      const I ok01 = ok[h] & 1;
+      __builtin_memcpy(b.ok + h * W, &ok01, sizeof ok01);
+    }
+    return;
   }
   // 2. One Gauss-Newton step in the intensity domain, weights 1 / var(model) (see gauss_ml_centre), over the
   // union of the lanes' windows, masked outside each lane's. The model S(x) = exp(a + b x + c x^2) by

@@ -34,8 +34,10 @@ constexpr int kChunk = 8;
 // n + kChunk floats (the tail is read, masked out, never used: fill it with anything finite, e.g. 0). `ic` is
 // the index of the peak sample, `contrast` the peak's height above background (DN). On success returns true
 // and sets `centre` (in index units of y, e.g. ic + 0.31); false when no Gaussian fits (caller falls back).
+// intensity_step = false stops after step 1 (SubpixelMethod::GaussLog: the unweighted log-parabola, the ML
+// fit under speckle alone; the same sample set and the same fallbacks).
 bool gauss_ml_centre(const float* y, int n, int ic, double contrast, double clip, const SensorNoise& noise,
-                     double& centre);
+                     double& centre, bool intensity_step = true);
 
 // The Cramer-Rao lower bound on the variance of any unbiased estimate of u (px^2) for a stripe of peak A (DN
 // above background) and sigma s (px) centred at u on integer pixels, with A and s unknown too (Fisher
@@ -60,6 +62,7 @@ struct GaussMlBatch {
   alignas(32) std::int32_t xb[kBatch] = {};
   alignas(32) double contrast[kBatch] = {};          // peak height above background, DN
   alignas(32) double clip[kBatch] = {};              // samples >= clip are at full scale (censored)
+  bool intensity_step = true;                        // false: step 1 only (GaussLog), see gauss_ml_centre
   // Results: ok[lane] != 0 when a Gaussian fits; then centre[lane] is the centre relative to ic.
   alignas(32) double centre[kBatch] = {};
   alignas(32) std::int32_t ok[kBatch] = {};

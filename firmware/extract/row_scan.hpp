@@ -185,4 +185,9 @@ T max_outside(const T* row, const RowScan<T>& s, std::int64_t lo, std::int64_t h
   return right > m ? right : m;
 }
 
+// max_outside for contiguous 8-bit rows, the same result: on x86-64 with AVX2 it overwrites the lane maxima of
+// the (at most two) blocks that [lo, hi] overlaps with those of their samples outside [lo, hi], so s is spent
+// for any other window afterwards (what extraction does: one double-peak test per row pass).
+std::uint8_t max_outside_u8(const std::uint8_t* row, RowScan<std::uint8_t>& s, std::int64_t lo, std::int64_t hi);
+
 }  // namespace fs::fw::detail

@@ -22,6 +22,7 @@ const char* to_string(SubpixelMethod m) {
     case SubpixelMethod::BlaisRioux: return "blais-rioux";
     case SubpixelMethod::GaussFit: return "gauss-fit";
     case SubpixelMethod::GaussMl: return "gauss-ml";
+    case SubpixelMethod::GaussLog: return "gauss-log";
   }
   return "unknown";
 }
@@ -33,7 +34,9 @@ SubpixelMethod parse_subpixel_method(const char* text) {
   if (t == "blais-rioux") return SubpixelMethod::BlaisRioux;
   if (t == "gauss-fit") return SubpixelMethod::GaussFit;
   if (t == "gauss-ml") return SubpixelMethod::GaussMl;
-  throw Error("unknown sub-pixel method '" + t + "' (expected cog, gauss3, blais-rioux, gauss-fit or gauss-ml)");
+  if (t == "gauss-log") return SubpixelMethod::GaussLog;
+  throw Error("unknown sub-pixel method '" + t +
+              "' (expected cog, gauss3, blais-rioux, gauss-fit, gauss-ml or gauss-log)");
 }
 
 namespace {
@@ -59,6 +62,9 @@ std::uint32_t first_argmax(const T* row, const detail::RowScan<T>& s, T mx) {
     return i;
   }
 }
+
+// The methods whose centres the batched fit computes (gauss_ml.hpp: GaussLog is its first step alone).
+inline bool fits_in_batch(SubpixelMethod m) { return m == SubpixelMethod::GaussMl || m == SubpixelMethod::GaussLog; }
 
 // A row whose GaussMl centre waits for the batched fit (lane `lane` of the block's GaussMlBatch): what
 // finish_row needs besides the batch's result.
@@ -271,7 +277,9 @@ template <typename T, std::uint32_t Step>
 bool ambiguous(RowState<T>& st, const ExtractParams& p) {
   const std::int64_t lo = st.lo, hi = st.hi;
   const double second_limit = st.bg + p.ambiguous_ratio * st.contrast;
-  const double second = static_cast<double>(detail::max_outside<T, Step>(st.row, st.scan, lo - 1, hi + 1));
+  double second;
+  if constexpr (sizeof(T) == 1 && Step == 1) second = static_cast<double>(detail::max_outside_u8(st.row, st.scan, lo - 1, hi + 1));
+  else second = static_cast<double>(detail::max_outside<T, Step>(st.row, st.scan, lo - 1, hi + 1));
   if (second > second_limit || (hi - lo) >= 2 * static_cast<std::int64_t>(p.max_half_width)) {
     st.r.status = RowStatus::Ambiguous;
     return true;
@@ -357,7 +365,8 @@ void centre_end(RowState<T>& st, double full_scale, const ExtractParams& p, deta
       }
       break;
     }
-    case SubpixelMethod::GaussMl: {
+    case SubpixelMethod::GaussMl:
+    case SubpixelMethod::GaussLog: {
       // Samples minus background in 8-bit DN over ic +- (3 sigma + 3), sigma from the FWHM.
       const std::int64_t k = ml_half_window(r.width);
       const std::int64_t first = std::max<std::int64_t>(0, ic - k);
@@ -378,7 +387,7 @@ void centre_end(RowState<T>& st, double full_scale, const ExtractParams& p, deta
       const detail::SensorNoise noise{p.read_noise, p.shot_noise, p.speckle};
       double c = 0.0;
       if (detail::gauss_ml_centre(y.data(), static_cast<int>(last - first + 1), static_cast<int>(ic - first),
-                                  contrast * inv, clip, noise, c)) {
+                                  contrast * inv, clip, noise, c, p.method == SubpixelMethod::GaussMl)) {
         col = static_cast<double>(first) + c;
       } else {
         col = support_cog<T, Step>(row, lo, hi, ic, bg);
@@ -511,7 +520,7 @@ void stage_lanes(RowState<std::uint8_t>* st, int rows, double full_scale, const 
     const std::int64_t im = s.imax;
     const std::int64_t ic = (im + im + sup.top[l]) / 2;
     const std::int64_t k = ml_half_window(width[l]);
-    if (p.method != SubpixelMethod::GaussMl || k >= detail::kBatchHalf) {  // the per-row code
+    if (!fits_in_batch(p.method) || k >= detail::kBatchHalf) {  // the per-row code
       centre_end<std::uint8_t, Step>(s, full_scale, p, batch, l, im - left[l], im + right[l], im + sup.top[l]);
       continue;
     }
@@ -551,7 +560,7 @@ void finish_row(const T* row, const Deferred& d, const detail::GaussMlBatch& bat
 // 8-bit GaussMl rows take the lane path (stage_lanes) unless the walks could leave its window. The other methods
 // keep the per-row walks: measured 2-12 % faster for them (the lane path pays off through the batch's lane fill).
 inline bool lane_path(const ExtractParams& p) {
-  return p.method == SubpixelMethod::GaussMl && p.max_half_width <= static_cast<std::uint32_t>(detail::kMaxLaneWalk);
+  return fits_in_batch(p.method) && p.max_half_width <= static_cast<std::uint32_t>(detail::kMaxLaneWalk);
 }
 
 // One row alone (extract_row): the stages back to back, a batch of one.
@@ -560,6 +569,7 @@ RowPeak extract_row_impl(const T* row, std::uint32_t n, double full_scale, const
                          bool lanes = true) {
   RowState<T> st;
   detail::GaussMlBatch batch;
+  batch.intensity_step = p.method == SubpixelMethod::GaussMl;
   stage_scan<T, Step>(st, row, n, full_scale, p);
   if constexpr (sizeof(T) == 1) {
     if (lanes && lane_path(p)) {
@@ -608,6 +618,7 @@ void extract_rows(const FrameView& f, double full_scale, const ExtractParams& pa
   constexpr int L = detail::kBatch;
   RowState<T> st[L];
   detail::GaussMlBatch batch;
+  batch.intensity_step = params.method == SubpixelMethod::GaussMl;
   const detail::SensorNoise noise{params.read_noise, params.shot_noise, params.speckle};
   detail::LaneWindow win{};
   const bool lanes = lane_path(params);

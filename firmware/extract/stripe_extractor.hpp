@@ -30,11 +30,13 @@ namespace fs::fw {
 // (weights I^2, Guo's estimator) over every sample of the peak's support above 20 % of the contrast.
 // GaussMl: maximum likelihood under the sensor noise model below (gauss_ml.hpp): unweighted log-parabola over
 // the samples above 10 % of the contrast, then one Gauss-Newton step with weights 1 / var(signal).
+// GaussLog: GaussMl's first step alone (the unweighted log-parabola over the samples above 10 % of the
+// contrast: the maximum-likelihood fit when speckle is the only noise), about half the fit's cost.
 enum class SubpixelMethod : std::uint8_t {
-  CentreOfGravity = 0, Gaussian3 = 1, BlaisRioux = 2, GaussFit = 3, GaussMl = 4
+  CentreOfGravity = 0, Gaussian3 = 1, BlaisRioux = 2, GaussFit = 3, GaussMl = 4, GaussLog = 5
 };
 const char* to_string(SubpixelMethod m);
-// Parses "cog" | "gauss3" | "blais-rioux" | "gauss-fit" | "gauss-ml"; throws fs::Error otherwise.
+// Parses "cog" | "gauss3" | "blais-rioux" | "gauss-fit" | "gauss-ml" | "gauss-log"; throws fs::Error otherwise.
 SubpixelMethod parse_subpixel_method(const char* text);
 
 enum class RowStatus : std::uint8_t { Ok = 0, NoStripe = 1, Ambiguous = 2, Saturated = 3 };

@@ -169,7 +169,7 @@ void BM_GaussMlBatch(benchmark::State& state) {
 }
 BENCHMARK(BM_GaussMlBatch)->Arg(0)->Arg(1)->Arg(2);
 
-BENCHMARK(BM_Extract)->Arg(0)->Arg(1)->Arg(2)->Arg(3)->Arg(4);
+BENCHMARK(BM_Extract)->Arg(0)->Arg(1)->Arg(2)->Arg(3)->Arg(4)->Arg(5);
 
 // The default method with the along-stripe refinement over 0 (off), 5 or 7 rows (ExtractParams::along_stripe).
 void BM_ExtractAlongStripe(benchmark::State& state) {

@@ -53,7 +53,8 @@ TEST(ExtractLanes, RandomRowsGiveThePerRowResults) {
     }
     if (u(rng) < 0.05) std::fill(row.begin() + rng() % n, row.end(), row[0]);  // flat stretches
     ExtractParams p;
-    p.method = t % 2 ? SubpixelMethod::GaussMl : methods[t / 2 % 5];  // the others take the per-row walks
+    // the batched methods take the lane walks, the others the per-row walks
+    p.method = t % 2 ? (t % 4 == 1 ? SubpixelMethod::GaussMl : SubpixelMethod::GaussLog) : methods[t / 2 % 5];
     if (t % 7 == 0) {
       p.max_half_width = 1 + static_cast<std::uint32_t>(rng() % 30);
       p.saturation_run = static_cast<std::uint32_t>(rng() % 6);
@@ -83,7 +84,7 @@ TEST(ExtractLanes, SceneFramesGiveThePerRowResults) {
   int ok = 0;
   for (double step : {30.0, 250.0, 470.0}) {
     r.render_step(step, 5, sim::FrameBuffer{img.data(), w, h, w, sim::FrameFormat::Mono8});
-    for (auto m : {SubpixelMethod::GaussMl, SubpixelMethod::CentreOfGravity}) {
+    for (auto m : {SubpixelMethod::GaussMl, SubpixelMethod::GaussLog, SubpixelMethod::CentreOfGravity}) {
       ExtractParams p;
       p.method = m;
       for (std::uint32_t y = 0; y < h; ++y) {

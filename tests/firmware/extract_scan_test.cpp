@@ -97,6 +97,16 @@ TEST(ExtractScan, MaxOutsideMatchesBruteForce) {
     for (std::int64_t i = 0; i < 1000; ++i)
       if (i < lo || i > hi) want = std::max(want, row[static_cast<std::size_t>(i)]);
     ASSERT_EQ((max_outside<std::uint8_t, 1>(row.data(), *s, lo, hi)), want) << lo << ".." << hi;
+    // The 8-bit version (AVX2 on x86-64: writes over the lane maxima of the blocks [lo, hi] overlaps), also on
+    // rows that end inside the last block and windows at the row ends.
+    const std::uint32_t n = t % 3 ? 1000 : 1000 - static_cast<std::uint32_t>(rng() % 64);
+    scan_row<std::uint8_t, 1>(row.data(), n, *s);
+    const std::int64_t lo8 = t % 5 == 0 ? -3 : t % 5 == 1 ? static_cast<std::int64_t>(n) - 40 : lo;
+    const std::int64_t hi8 = lo8 + 3 + static_cast<std::int64_t>(rng() % 60);  // windows hold a sample (the peak)
+    std::uint8_t want8 = 0;
+    for (std::int64_t i = 0; i < n; ++i)
+      if (i < lo8 || i > hi8) want8 = std::max(want8, row[static_cast<std::size_t>(i)]);
+    ASSERT_EQ(max_outside_u8(row.data(), *s, lo8, hi8), want8) << n << ": " << lo8 << ".." << hi8;
   }
 }
 
@@ -209,8 +219,12 @@ std::vector<float> noisy_profile(double u, double s, double A, double clip, std:
   return y;
 }
 
-TEST(ExtractScan, GaussMlBatchMatchesTheOneRowFit) {
-  std::printf("batched gauss-ml fit: %s\n", gauss_ml_batch_isa());
+// Both fits: GaussMl (intensity_step) and GaussLog (its first step alone).
+class GaussMlBatchFit : public ::testing::TestWithParam<bool> {};
+
+TEST_P(GaussMlBatchFit, MatchesTheOneRowFit) {
+  const bool intensity_step = GetParam();
+  std::printf("batched %s fit: %s\n", intensity_step ? "gauss-ml" : "gauss-log", gauss_ml_batch_isa());
   std::mt19937 rng(11);
   std::uniform_real_distribution<double> uu(-0.5, 0.5), ss(0.6, 4.0), aa(30.0, 240.0);
   std::uniform_int_distribution<int> half(3, kBatchHalf - 1);
@@ -218,6 +232,7 @@ TEST(ExtractScan, GaussMlBatchMatchesTheOneRowFit) {
   double worst = 0.0;
   for (int round = 0; round < 400; ++round) {
     GaussMlBatch batch;
+    batch.intensity_step = intensity_step;
     std::vector<float> win[kBatch];
     int first[kBatch], last[kBatch], ic[kBatch];
     double contrast[kBatch], clip[kBatch];
@@ -261,7 +276,7 @@ TEST(ExtractScan, GaussMlBatchMatchesTheOneRowFit) {
       y.resize(y.size() + kChunk, 0.0f);
       double c = 0.0;
       const bool ok = gauss_ml_centre(y.data(), last[j] - first[j] + 1, ic[j] - first[j], contrast[j], clip[j],
-                                      SensorNoise{}, c);
+                                      SensorNoise{}, c, intensity_step);
       ++compared;
       ASSERT_EQ(ok, batch.ok[j] != 0) << "round " << round << " lane " << j;
       if (!ok) continue;
@@ -276,6 +291,8 @@ TEST(ExtractScan, GaussMlBatchMatchesTheOneRowFit) {
   std::printf("%d of %d lanes fitted, largest difference to the one-row fit %.2g px\n", fitted, compared, worst);
   EXPECT_GT(fitted, compared * 9 / 10);
 }
+INSTANTIATE_TEST_SUITE_P(ExtractScan, GaussMlBatchFit, ::testing::Values(true, false),
+                         [](const auto& info) { return info.param ? "GaussMl" : "GaussLog"; });
 
 }  // namespace
 }  // namespace fs::fw::detail

@@ -70,7 +70,7 @@ TEST(ExtractScene, ErrorVersusNoiseOnCubeFrames) {
   std::printf("noise_scale  method       mean|err|px  CRB mean|err|  rows  outliers(>1px)  rejected\n");
   for (double ns : {0.0, 0.25, 0.5, 1.0}) {
     for (auto m : {fw::SubpixelMethod::CentreOfGravity, fw::SubpixelMethod::Gaussian3, fw::SubpixelMethod::BlaisRioux,
-                   fw::SubpixelMethod::GaussFit, fw::SubpixelMethod::GaussMl}) {
+                   fw::SubpixelMethod::GaussFit, fw::SubpixelMethod::GaussMl, fw::SubpixelMethod::GaussLog}) {
       const Err e = measure(scene, ns, m);
       std::printf("%11.2f  %-11s  %11.4f  %13.4f  %4d  %14d  %8d\n", ns, fw::to_string(m), e.mean, e.bound, e.rows,
                   e.outliers, e.rejected);
@@ -131,7 +131,8 @@ TEST(ExtractScene, FrameGivesTheRowByRowResults) {
       yuyv[2 * i] = img[i];
       yuyv[2 * i + 1] = static_cast<std::uint8_t>(i);
     }
-    for (auto m : {fw::SubpixelMethod::GaussMl, fw::SubpixelMethod::CentreOfGravity, fw::SubpixelMethod::GaussFit}) {
+    for (auto m : {fw::SubpixelMethod::GaussMl, fw::SubpixelMethod::GaussLog, fw::SubpixelMethod::CentreOfGravity,
+                   fw::SubpixelMethod::GaussFit}) {
       fw::ExtractParams p;
       p.method = m;
       p.along_stripe = 0;  // the per-row centres (the refinement across rows: the next test)

@@ -208,6 +208,8 @@ TEST(Extract, ParsesMethodNames) {
   EXPECT_EQ(parse_subpixel_method("gauss-fit"), SubpixelMethod::GaussFit);
   EXPECT_EQ(parse_subpixel_method("gauss-ml"), SubpixelMethod::GaussMl);
   EXPECT_STREQ(to_string(SubpixelMethod::GaussMl), "gauss-ml");
+  EXPECT_EQ(parse_subpixel_method("gauss-log"), SubpixelMethod::GaussLog);
+  EXPECT_STREQ(to_string(SubpixelMethod::GaussLog), "gauss-log");
   EXPECT_THROW(parse_subpixel_method("fft"), fs::Error);
 }
 
