@@ -27,10 +27,9 @@ struct LaneWindow {
   alignas(64) LaneI16 w[2 * kWinHalf];                    // transposed: w[x][lane] = raw[lane][x]
 };
 
-// raw[lane] = the row's samples at imax - kWinHalf + x (spaced Step apart), 0 outside [0, n).
+// dst[x] = the row's samples at imax - kWinHalf + x (spaced Step apart) for x < 2 kWinHalf, 0 outside [0, n).
 template <std::uint32_t Step>
-inline void lane_window_fill(LaneWindow& win, int lane, const std::uint8_t* row, std::uint32_t n, std::uint32_t imax) {
-  std::uint8_t* dst = win.raw[lane];
+inline void window_fill(std::uint8_t* dst, const std::uint8_t* row, std::uint32_t n, std::uint32_t imax) {
   const std::int64_t first = static_cast<std::int64_t>(imax) - kWinHalf;
   if (Step == 1 && first >= 0 && first + 2 * kWinHalf <= static_cast<std::int64_t>(n)) {
     std::memcpy(dst, row + first, 2 * kWinHalf);
@@ -40,6 +39,12 @@ inline void lane_window_fill(LaneWindow& win, int lane, const std::uint8_t* row,
     const std::int64_t i = first + x;
     dst[x] = (i >= 0 && i < static_cast<std::int64_t>(n)) ? row[static_cast<std::size_t>(i) * Step] : 0;
   }
+}
+
+// raw[lane] = the row's window (window_fill).
+template <std::uint32_t Step>
+inline void lane_window_fill(LaneWindow& win, int lane, const std::uint8_t* row, std::uint32_t n, std::uint32_t imax) {
+  window_fill<Step>(win.raw[lane], row, n, imax);
 }
 
 namespace lanes {

@@ -11,6 +11,7 @@
 #include "firmware/extract/along_stripe.hpp"
 #include "firmware/extract/gauss_ml.hpp"
 #include "firmware/extract/row_lanes.hpp"
+#include "firmware/extract/row_masks.hpp"
 #include "firmware/extract/row_scan.hpp"
 
 namespace fs::fw {
@@ -548,6 +549,125 @@ void stage_lanes(RowState<std::uint8_t>* st, int rows, double full_scale, const 
   }
 }
 
+#if defined(__x86_64__)
+// stage_lanes for contiguous 8-bit rows on x86-64 CPUs with AVX2 (masks_supported()): each row's walks as bit
+// masks of its 64-sample window (row_masks.hpp) instead of lane walks over transposed windows, and the batch's
+// input converted per row and transposed once per block. Three passes over the block's rows (support and
+// background; contrast, saturation and FWHM; double-peak test and the centre's window), so that the rows'
+// dependency chains (arg-max, masks, divisions) overlap as in stage_lanes. The same arithmetic in the same order
+// as stage_lanes and the per-row code (same bits, tests/firmware/extract_lanes_test.cpp); compiled for AVX2
+// without FMA (no contraction: the double expressions round as in the portable build).
+FS_ROW_MASKS_TARGET void stage_masks(RowState<std::uint8_t>* st, int rows, double full_scale, const ExtractParams& p,
+                                     detail::GaussMlBatch& batch, detail::LaneWindow& win) {
+  using detail::kWinHalf;
+  constexpr int C = detail::kBatchHalf, L = detail::kBatch;
+  const int hw = static_cast<int>(p.max_half_width);
+  const double min_contrast = p.min_contrast * (full_scale / 255.0);
+  const double inv = 1.0 / (full_scale / 255.0);  // centre_end's 1 / scale
+  int left[L], right[L], top[L], left2[L], right2[L];
+  double width[L];
+  bool live[L];
+  // 1. Arg-max, window, support walks and sum, background without the support.
+  for (int l = 0; l < rows; ++l) {
+    RowState<std::uint8_t>& s = st[l];
+    live[l] = s.active;
+    if (!live[l]) continue;
+    s.active = false;
+    const std::uint8_t* row = s.row;
+    const std::uint32_t imax = first_argmax<std::uint8_t, 1>(row, s.scan, s.mx);
+    s.imax = imax;
+    std::uint8_t* raw = win.raw[l];
+    // Straight from the row (a load right after the copy's stores would wait for them), kept for passes 2 and 3.
+    detail::masks::Window w;
+    if (static_cast<std::int64_t>(imax) < kWinHalf || imax + kWinHalf > s.n) {
+      detail::window_fill<1>(raw, row, s.n, imax);
+      w = detail::masks::load(raw);
+    } else {
+      w = detail::masks::load(row + (imax - kWinHalf));
+      detail::masks::store(raw, w);
+    }
+    const int low = static_cast<std::int16_t>(s.bg + 0.2 * (s.peak - s.bg));  // >= 0: truncation = floor
+    const std::uint64_t above_low = detail::masks::above(w, low);
+    left[l] = detail::masks::run_left(above_low, hw);
+    right[l] = detail::masks::run_right(above_low, hw);
+    top[l] = detail::masks::run_right(detail::masks::equal(w, s.mx), right[l]);
+    const std::int64_t supsum = detail::masks::support_sum(w, left[l], right[l]);
+    // stage_lanes' expressions
+    const double total = static_cast<double>(static_cast<std::int64_t>(s.scan.sum) - raw[kWinHalf] - supsum);
+    const double rest = static_cast<double>(static_cast<std::int64_t>(s.n) - (left[l] + right[l] + 1));
+    const double bq = total / (rest > 0.0 ? rest : 1.0);
+    s.contrast = rest > 0.0 ? bq : s.bg;  // the background without the support, until support_decide
+  }
+  // 2. Contrast and saturation (support_decide), half-maximum walks inside the support, FWHM.
+  for (int l = 0; l < rows; ++l) {
+    if (!live[l]) continue;
+    RowState<std::uint8_t>& s = st[l];
+    live[l] = false;
+    const double bg = s.contrast;
+    if (s.peak - bg < min_contrast) continue;
+    const std::int64_t im = s.imax, n = s.n;
+    support_decide<std::uint8_t, 1>(s, im - left[l], im + right[l], bg, full_scale, p);
+    if (!s.active) continue;
+    s.active = false;
+    live[l] = true;
+    const std::uint8_t* raw = win.raw[l];
+    const double hv = s.bg + 0.5 * s.contrast;
+    const std::uint64_t above_half = detail::masks::above(detail::masks::load(raw), static_cast<std::int16_t>(hv));
+    left2[l] = detail::masks::run_left(above_half, left[l]);
+    right2[l] = detail::masks::run_right(above_half, right[l]);
+    const int li = kWinHalf - left2[l], rj = kWinHalf + right2[l];
+    const double a = raw[li - 1], b = raw[li], c = raw[rj], d = raw[rj + 1];
+    const std::int64_t i = im - left2[l], j = im + right2[l];
+    const bool ul = i > 0 && b != a, ur = j + 1 < n && c != d;
+    const double ql = (b - hv) / (ul ? b - a : 1.0), qr = (c - hv) / (ur ? c - d : 1.0);
+    const double lx = ul ? static_cast<double>(i) - ql : static_cast<double>(i);
+    const double rx = ur ? static_cast<double>(j) + qr : static_cast<double>(j);
+    width[l] = rx - lx;
+  }
+  // 3. Double-peak test, then the centre: the batch's lane (or the per-row code).
+  alignas(32) float lane_y[L][2 * C];  // the whole lanes' fit inputs, row-major (transposed below)
+  bool any_whole = false, edge[L] = {};
+  for (int l = 0; l < rows; ++l) {
+    if (!live[l]) continue;
+    RowState<std::uint8_t>& s = st[l];
+    if (ambiguous<std::uint8_t, 1>(s, p)) continue;
+    const std::int64_t im = s.imax, n = s.n;
+    const std::int64_t ic = (im + im + top[l]) / 2;
+    const std::int64_t k = ml_half_window(width[l]);
+    if (!fits_in_batch(p.method) || k >= C) {  // the per-row code
+      centre_end<std::uint8_t, 1>(s, full_scale, p, batch, l, im - left2[l], im + right2[l], im + top[l]);
+      continue;
+    }
+    s.r.width = width[l];
+    const std::int64_t first = std::max<std::int64_t>(0, ic - k), last = std::min<std::int64_t>(n - 1, ic + k);
+    const bool whole = ic - C >= 0 && ic + C <= n;
+    edge[l] = !whole;
+    if (!whole) {  // after the transpose, which writes every lane: defer_to_batch's per-sample fill
+      s.d.ic = ic;
+      s.d.lo = first;
+      s.d.hi = last;
+      continue;
+    }
+    // the lane's 32 samples from the window (ic - imax = top / 2 <= 15); then lanes without a row hold finite
+    // values too
+    detail::masks::fill_lane(win.raw[l] + (kWinHalf + (ic - im) - C), static_cast<float>(s.bg),
+                             static_cast<float>(inv), lane_y[l]);
+    any_whole = true;
+    defer_to_batch<std::uint8_t, 1>(s, batch, l, nullptr, ic, first, last, inv, (full_scale - s.bg) * inv, false);
+  }
+  if (any_whole) {
+    for (int l = 0; l < L; ++l)  // lanes without a whole window: finite placeholders
+      if (l >= rows || !st[l].deferred) std::memset(lane_y[l], 0, sizeof lane_y[l]);
+    detail::masks::transpose_lanes(lane_y, batch.y);
+  }
+  for (int l = 0; l < rows; ++l)
+    if (edge[l]) {
+      RowState<std::uint8_t>& s = st[l];
+      defer_to_batch<std::uint8_t, 1>(s, batch, l, nullptr, s.d.ic, s.d.lo, s.d.hi, inv, (full_scale - s.bg) * inv);
+    }
+}
+#endif
+
 // Completes a row analyse_row deferred, once its batch has been fitted.
 template <typename T, std::uint32_t Step>
 void finish_row(const T* row, const Deferred& d, const detail::GaussMlBatch& batch, int lane, RowPeak& r) {
@@ -563,18 +683,48 @@ inline bool lane_path(const ExtractParams& p) {
   return fits_in_batch(p.method) && p.max_half_width <= static_cast<std::uint32_t>(detail::kMaxLaneWalk);
 }
 
+// Which code a lane-path block of 8-bit rows takes: the bit-mask walks (stage_masks: contiguous rows on x86-64
+// CPUs with AVX2, BMI1, LZCNT, POPCNT; detected once) or the lane walks (stage_lanes: YUYV, other CPUs and
+// targets). Walks::Rows: the per-row walks (detail::extract_row_per_row_walks, the reference).
+enum class Walks { Best, Lanes, Rows };
+inline bool masks_supported() {
+#if defined(__x86_64__)
+  static const bool ok = [] {
+    __builtin_cpu_init();
+    return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("bmi") && __builtin_cpu_supports("lzcnt") &&
+           __builtin_cpu_supports("popcnt");
+  }();
+  return ok;
+#else
+  return false;
+#endif
+}
+template <std::uint32_t Step>
+void stage_walks(RowState<std::uint8_t>* st, int rows, double full_scale, const ExtractParams& p,
+                 detail::GaussMlBatch& batch, detail::LaneWindow& win, Walks walks) {
+#if defined(__x86_64__)
+  if constexpr (Step == 1) {
+    if (walks == Walks::Best && masks_supported()) {
+      stage_masks(st, rows, full_scale, p, batch, win);
+      return;
+    }
+  }
+#endif
+  stage_lanes<Step>(st, rows, full_scale, p, batch, win);
+}
+
 // One row alone (extract_row): the stages back to back, a batch of one.
 template <typename T, std::uint32_t Step>
 RowPeak extract_row_impl(const T* row, std::uint32_t n, double full_scale, const ExtractParams& p,
-                         bool lanes = true) {
+                         Walks walks = Walks::Best) {
   RowState<T> st;
   detail::GaussMlBatch batch;
   batch.intensity_step = p.method == SubpixelMethod::GaussMl;
   stage_scan<T, Step>(st, row, n, full_scale, p);
   if constexpr (sizeof(T) == 1) {
-    if (lanes && lane_path(p)) {
+    if (walks != Walks::Rows && lane_path(p)) {
       detail::LaneWindow win{};
-      if (st.active) stage_lanes<Step>(&st, 1, full_scale, p, batch, win);
+      if (st.active) stage_walks<Step>(&st, 1, full_scale, p, batch, win, walks);
     }
   }
   if (st.active) stage_support<T, Step>(st, full_scale, p);
@@ -597,9 +747,17 @@ RowPeak extract_row<std::uint8_t>(const std::uint8_t* row, std::uint32_t n, std:
 
 RowPeak detail::extract_row_per_row_walks(const std::uint8_t* row, std::uint32_t n, std::uint32_t step,
                                           double full_scale, const ExtractParams& p) {
-  return step == 2 ? extract_row_impl<std::uint8_t, 2>(row, n, full_scale, p, false)
-                   : extract_row_impl<std::uint8_t, 1>(row, n, full_scale, p, false);
+  return step == 2 ? extract_row_impl<std::uint8_t, 2>(row, n, full_scale, p, Walks::Rows)
+                   : extract_row_impl<std::uint8_t, 1>(row, n, full_scale, p, Walks::Rows);
 }
+
+RowPeak detail::extract_row_lane_walks(const std::uint8_t* row, std::uint32_t n, std::uint32_t step,
+                                       double full_scale, const ExtractParams& p) {
+  return step == 2 ? extract_row_impl<std::uint8_t, 2>(row, n, full_scale, p, Walks::Lanes)
+                   : extract_row_impl<std::uint8_t, 1>(row, n, full_scale, p, Walks::Lanes);
+}
+
+const char* detail::extract_walks_isa() { return masks_supported() ? "bit masks (avx2)" : "lanes"; }
 
 template <>
 RowPeak extract_row<std::uint16_t>(const std::uint16_t* row, std::uint32_t n, std::uint32_t /*step*/,
@@ -631,7 +789,7 @@ void extract_rows(const FrameView& f, double full_scale, const ExtractParams& pa
     }
     for (int i = 0; i < rows; ++i) stage_level<T>(st[i], full_scale, params);
     if constexpr (sizeof(T) == 1) {
-      if (lanes) stage_lanes<Step>(st, rows, full_scale, params, batch, win);
+      if (lanes) stage_walks<Step>(st, rows, full_scale, params, batch, win, Walks::Best);
     }
     for (int i = 0; i < rows; ++i)
       if (st[i].active) stage_support<T, Step>(st[i], full_scale, params);

@@ -83,6 +83,12 @@ namespace detail {
 // rows in SIMD lanes (row_lanes.hpp) that 8-bit rows take: the reference that tests compare the lane path with.
 RowPeak extract_row_per_row_walks(const std::uint8_t* row, std::uint32_t n, std::uint32_t step, double full_scale,
                                   const ExtractParams& p);
+// extract_row with the walks of a block's rows in SIMD lanes (row_lanes.hpp) where extract_row takes the bit-mask
+// walks (row_masks.hpp: contiguous 8-bit rows on x86-64 with AVX2); the same results.
+RowPeak extract_row_lane_walks(const std::uint8_t* row, std::uint32_t n, std::uint32_t step, double full_scale,
+                               const ExtractParams& p);
+// Which walks extract_row and extract_frame take for contiguous 8-bit rows here: "bit masks (avx2)" or "lanes".
+const char* extract_walks_isa();
 }  // namespace detail
 
 // Extracts every row of the frame into `out` (at most out.size() points, rows in order), then refines the

@@ -1,4 +1,5 @@
-// The walks of 8-bit rows in SIMD lanes (firmware/extract/row_lanes.hpp) against the per-row walks
+// The walks of 8-bit rows in SIMD lanes (firmware/extract/row_lanes.hpp) and as bit masks (row_masks.hpp, what
+// x86-64 CPUs with AVX2 take for contiguous rows) against the per-row walks
 // (detail::extract_row_per_row_walks): the same status, centre, peak and width, bit for bit, on random rows
 // (stripes anywhere including the row ends, narrow and wide, flat and saturated tops, second peaks, short rows,
 // every method, other parameters) and on the scene renderer's frames, Mono8 and YUYV.
@@ -31,6 +32,7 @@ void add_stripe(std::vector<double>& v, double c, double s, double a) {
 }
 
 TEST(ExtractLanes, RandomRowsGiveThePerRowResults) {
+  std::printf("walks of contiguous 8-bit rows: %s\n", detail::extract_walks_isa());
   std::mt19937 rng(4);
   std::uniform_real_distribution<double> u(0.0, 1.0);
   std::normal_distribution<double> nd(0.0, 1.0);
@@ -66,6 +68,8 @@ TEST(ExtractLanes, RandomRowsGiveThePerRowResults) {
     ASSERT_TRUE(same(got, want)) << "trial " << t << " status " << int(got.status) << " / " << int(want.status)
                                  << " col " << got.col << " / " << want.col << " width " << got.width << " / "
                                  << want.width;
+    const RowPeak lanes = detail::extract_row_lane_walks(row.data(), n, 1, 255.0, p);
+    ASSERT_TRUE(same(lanes, want)) << "lane walks, trial " << t;
     ++status_seen[static_cast<int>(want.status)];
     if (t % 3 == 0) {
       const RowPeak want2 = detail::extract_row_per_row_walks(yuyv.data(), n, 2, 255.0, p);
@@ -91,6 +95,7 @@ TEST(ExtractLanes, SceneFramesGiveThePerRowResults) {
         const std::uint8_t* row = img.data() + std::size_t{y} * w;
         const RowPeak want = detail::extract_row_per_row_walks(row, w, 1, 255.0, p);
         ASSERT_TRUE(same(extract_row<std::uint8_t>(row, w, 1, 255.0, p), want)) << "step " << step << " row " << y;
+        ASSERT_TRUE(same(detail::extract_row_lane_walks(row, w, 1, 255.0, p), want)) << "lanes " << y;
         ok += want.status == RowStatus::Ok;
       }
     }
