@@ -565,8 +565,12 @@ FS_ROW_MASKS_TARGET void stage_masks(RowState<std::uint8_t>* st, int rows, doubl
   const double min_contrast = p.min_contrast * (full_scale / 255.0);
   const double inv = 1.0 / (full_scale / 255.0);  // centre_end's 1 / scale
   int left[L], right[L], top[L], left2[L], right2[L];
-  double width[L];
+  // the divisions of every row side by side in double lanes (after the loops that feed them: vdivpd)
+  alignas(64) double total[L] = {}, rest[L], bg0[L] = {}, bg[L];
+  alignas(64) double fa[L] = {}, fb[L] = {}, fc[L] = {}, fd[L] = {}, hv[L] = {}, fi[L] = {}, fj[L] = {}, width[L];
+  alignas(64) std::int64_t ok_l[L] = {}, ok_r[L] = {};
   bool live[L];
+  for (int l = 0; l < L; ++l) rest[l] = 1.0;
   // 1. Arg-max, window, support walks and sum, background without the support.
   for (int l = 0; l < rows; ++l) {
     RowState<std::uint8_t>& s = st[l];
@@ -593,35 +597,46 @@ FS_ROW_MASKS_TARGET void stage_masks(RowState<std::uint8_t>* st, int rows, doubl
     top[l] = detail::masks::run_right(detail::masks::equal(w, s.mx), right[l]);
     const std::int64_t supsum = detail::masks::support_sum(w, left[l], right[l]);
     // stage_lanes' expressions
-    const double total = static_cast<double>(static_cast<std::int64_t>(s.scan.sum) - raw[kWinHalf] - supsum);
-    const double rest = static_cast<double>(static_cast<std::int64_t>(s.n) - (left[l] + right[l] + 1));
-    const double bq = total / (rest > 0.0 ? rest : 1.0);
-    s.contrast = rest > 0.0 ? bq : s.bg;  // the background without the support, until support_decide
+    total[l] = static_cast<double>(static_cast<std::int64_t>(s.scan.sum) - raw[kWinHalf] - supsum);
+    rest[l] = static_cast<double>(static_cast<std::int64_t>(s.n) - (left[l] + right[l] + 1));
+    bg0[l] = s.bg;
+  }
+  for (int l = 0; l < L; ++l) {  // the background without the support
+    const double b = total[l] / (rest[l] > 0.0 ? rest[l] : 1.0);
+    bg[l] = rest[l] > 0.0 ? b : bg0[l];
   }
   // 2. Contrast and saturation (support_decide), half-maximum walks inside the support, FWHM.
   for (int l = 0; l < rows; ++l) {
     if (!live[l]) continue;
     RowState<std::uint8_t>& s = st[l];
     live[l] = false;
-    const double bg = s.contrast;
-    if (s.peak - bg < min_contrast) continue;
+    if (s.peak - bg[l] < min_contrast) continue;
     const std::int64_t im = s.imax, n = s.n;
-    support_decide<std::uint8_t, 1>(s, im - left[l], im + right[l], bg, full_scale, p);
+    support_decide<std::uint8_t, 1>(s, im - left[l], im + right[l], bg[l], full_scale, p);
     if (!s.active) continue;
     s.active = false;
     live[l] = true;
     const std::uint8_t* raw = win.raw[l];
-    const double hv = s.bg + 0.5 * s.contrast;
-    const std::uint64_t above_half = detail::masks::above(detail::masks::load(raw), static_cast<std::int16_t>(hv));
+    hv[l] = s.bg + 0.5 * s.contrast;
+    const std::uint64_t above_half = detail::masks::above(detail::masks::load(raw), static_cast<std::int16_t>(hv[l]));
     left2[l] = detail::masks::run_left(above_half, left[l]);
     right2[l] = detail::masks::run_right(above_half, right[l]);
     const int li = kWinHalf - left2[l], rj = kWinHalf + right2[l];
-    const double a = raw[li - 1], b = raw[li], c = raw[rj], d = raw[rj + 1];
+    fa[l] = raw[li - 1];
+    fb[l] = raw[li];
+    fc[l] = raw[rj];
+    fd[l] = raw[rj + 1];
     const std::int64_t i = im - left2[l], j = im + right2[l];
-    const bool ul = i > 0 && b != a, ur = j + 1 < n && c != d;
-    const double ql = (b - hv) / (ul ? b - a : 1.0), qr = (c - hv) / (ur ? c - d : 1.0);
-    const double lx = ul ? static_cast<double>(i) - ql : static_cast<double>(i);
-    const double rx = ur ? static_cast<double>(j) + qr : static_cast<double>(j);
+    fi[l] = static_cast<double>(i);
+    fj[l] = static_cast<double>(j);
+    ok_l[l] = i > 0;
+    ok_r[l] = j + 1 < n;
+  }
+  for (int l = 0; l < L; ++l) {  // the FWHM by interpolation on both flanks (stage_lanes' expressions)
+    const bool ul = ok_l[l] && fb[l] != fa[l], ur = ok_r[l] && fc[l] != fd[l];
+    const double ql = (fb[l] - hv[l]) / (ul ? fb[l] - fa[l] : 1.0), qr = (fc[l] - hv[l]) / (ur ? fc[l] - fd[l] : 1.0);
+    const double lx = ul ? fi[l] - ql : fi[l];
+    const double rx = ur ? fj[l] + qr : fj[l];
     width[l] = rx - lx;
   }
   // 3. Double-peak test, then the centre: the batch's lane (or the per-row code).
