@@ -137,7 +137,7 @@ BENCHMARK(BM_ScanRow)->Arg(0)->Arg(1);
 
 // The batched GaussMl fit alone: 8 stripe profiles (sigma 2.5 px, the cube frames' typical stripe) per call,
 // 0 = the portable build (what arm runs, here SSE2), 1 = the one extraction uses (AVX-512VL or AVX2 when
-// present), 2 = the AVX2 build.
+// present), 2 = the AVX2 build, 3 = the one extraction uses, gauss-log (the first step alone).
 // Items = rows fitted.
 void BM_GaussMlBatch(benchmark::State& state) {
   fs::fw::detail::GaussMlBatch b;
@@ -153,6 +153,7 @@ void BM_GaussMlBatch(benchmark::State& state) {
     b.clip[j] = 200.0;
   }
   const fs::fw::detail::SensorNoise noise;
+  b.intensity_step = state.range(0) != 3;
   if (state.range(0) == 2 && !fs::fw::detail::gauss_ml_centre_batch_avx2(b, noise)) {
     state.SkipWithError("no AVX2 here");
     return;
@@ -165,9 +166,11 @@ void BM_GaussMlBatch(benchmark::State& state) {
     benchmark::ClobberMemory();
   }
   state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * kBatch));
-  state.SetLabel(state.range(0) == 0 ? "portable" : state.range(0) == 2 ? "avx2" : fs::fw::detail::gauss_ml_batch_isa());
+  state.SetLabel(state.range(0) == 0   ? "portable"
+                 : state.range(0) == 2 ? "avx2"
+                 : std::string(fs::fw::detail::gauss_ml_batch_isa()) + (state.range(0) == 3 ? ", gauss-log" : ""));
 }
-BENCHMARK(BM_GaussMlBatch)->Arg(0)->Arg(1)->Arg(2);
+BENCHMARK(BM_GaussMlBatch)->Arg(0)->Arg(1)->Arg(2)->Arg(3);
 
 BENCHMARK(BM_Extract)->Arg(0)->Arg(1)->Arg(2)->Arg(3)->Arg(4)->Arg(5);
 
