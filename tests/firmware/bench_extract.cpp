@@ -88,9 +88,10 @@ void BM_MemcpyStream(benchmark::State& state) {
 }
 BENCHMARK(BM_MemcpyStream);
 
-void BM_ExtractStream(benchmark::State& state) {
+void BM_ExtractStream(benchmark::State& state) {  // argument: the sub-pixel method
   FrameStream& s = stream();
   fs::fw::ExtractParams p;
+  p.method = static_cast<fs::fw::SubpixelMethod>(state.range(0));
   std::vector<fs::msg::StripePoint> out(frame().view.height);
   std::size_t k = 0;
   for (auto _ : state) {
@@ -101,7 +102,8 @@ void BM_ExtractStream(benchmark::State& state) {
   state.SetBytesProcessed(static_cast<std::int64_t>(state.iterations() * frame().pixels.size()));
   state.SetLabel(std::string(fs::fw::to_string(p.method)) + ", along_stripe " + std::to_string(p.along_stripe));
 }
-BENCHMARK(BM_ExtractStream);
+BENCHMARK(BM_ExtractStream)->Arg(static_cast<int>(fs::fw::SubpixelMethod::GaussMl))
+    ->Arg(static_cast<int>(fs::fw::SubpixelMethod::GaussLog));
 
 void BM_Extract(benchmark::State& state) {
   Frame& f = frame();
