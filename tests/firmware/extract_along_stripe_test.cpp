@@ -121,8 +121,10 @@ TEST(ExtractAlongStripe, GaussLogMeetsTheTargetRefined) {
   const Err row = measure(scene, 1.0, 0, steps, fw::SubpixelMethod::GaussLog);
   const Err refined = measure(scene, 1.0, fw::ExtractParams{}.along_stripe, steps, fw::SubpixelMethod::GaussLog);
   const Err ml = measure(scene, 1.0, 0, steps, fw::SubpixelMethod::GaussMl);
-  std::printf("gauss-log at noise 1: per row %.4f px, refined %.4f px (gauss-ml per row %.4f)\n", row.mean,
-              refined.mean, ml.mean);
+  std::printf("gauss-log at noise 1: per row %.4f px, refined %.4f px (gauss-ml per row %.4f); the %d edge rows "
+              "%.4f per row, %.4f refined\n",
+              row.mean, refined.mean, ml.mean, refined.edge_rows, row.edge_mean, refined.edge_mean);
+  EXPECT_LE(refined.edge_mean, 1.05 * row.edge_mean + 0.001);
   EXPECT_EQ(row.outliers, 0);
   EXPECT_EQ(refined.outliers, 0);
   EXPECT_EQ(refined.rows, row.rows);
