@@ -12,7 +12,7 @@
 #include <bit>
 #include <cstdint>
 
-#define FS_ROW_MASKS_TARGET __attribute__((target("avx2,bmi,lzcnt,popcnt")))
+#define FS_ROW_MASKS_TARGET __attribute__((target("avx2,bmi,lzcnt")))
 
 namespace fs::fw::detail::masks {
 

@@ -12,6 +12,10 @@
 #include "firmware/extract/gauss_ml.hpp"
 #include "firmware/extract/row_lanes.hpp"
 #include "firmware/extract/row_masks.hpp"
+
+#if defined(__x86_64__)
+#include <cpuid.h>
+#endif
 #include "firmware/extract/row_scan.hpp"
 
 namespace fs::fw {
@@ -101,7 +105,7 @@ struct RowState {
   T mx = 0;
   std::uint32_t imax = 0;
   std::int64_t lo = 0, hi = 0;
-  detail::RowScan<T> scan;
+  detail::RowScan<T> scan;  // its lane maxima are spent by the double-peak test (detail::max_outside_u8)
 };
 
 // Stage 1: the row pass (stage_pass), then background = row mean, peak = row max (stage_level); rows without
@@ -699,15 +703,17 @@ inline bool lane_path(const ExtractParams& p) {
 }
 
 // Which code a lane-path block of 8-bit rows takes: the bit-mask walks (stage_masks: contiguous rows on x86-64
-// CPUs with AVX2, BMI1, LZCNT, POPCNT; detected once) or the lane walks (stage_lanes: YUYV, other CPUs and
-// targets). Walks::Rows: the per-row walks (detail::extract_row_per_row_walks, the reference).
-enum class Walks { Best, Lanes, Rows };
+// CPUs with AVX2, BMI1 and LZCNT; detected once) or the lane walks (stage_lanes: YUYV, other CPUs and targets).
+// Walks::Rows: the per-row walks (detail::extract_row_per_row_walks, the reference).
+using Walks = detail::Walks;
 inline bool masks_supported() {
 #if defined(__x86_64__)
   static const bool ok = [] {
     __builtin_cpu_init();
-    return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("bmi") && __builtin_cpu_supports("lzcnt") &&
-           __builtin_cpu_supports("popcnt");
+    // LZCNT (ABM): CPUID 0x80000001 ECX bit 5 (clang's __builtin_cpu_supports has no "lzcnt")
+    unsigned a = 0, b = 0, c = 0, d = 0;
+    const bool lzcnt = __get_cpuid(0x80000001u, &a, &b, &c, &d) && (c & (1u << 5));
+    return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("bmi") && lzcnt;
   }();
   return ok;
 #else
@@ -716,7 +722,7 @@ inline bool masks_supported() {
 }
 template <std::uint32_t Step>
 void stage_walks(RowState<std::uint8_t>* st, int rows, double full_scale, const ExtractParams& p,
-                 detail::GaussMlBatch& batch, detail::LaneWindow& win, Walks walks) {
+                 detail::GaussMlBatch& batch, detail::LaneWindow& win, [[maybe_unused]] Walks walks) {
 #if defined(__x86_64__)
   if constexpr (Step == 1) {
     if (walks == Walks::Best && masks_supported()) {
@@ -787,14 +793,14 @@ namespace {
 // block's points in row order.
 template <typename T, std::uint32_t Step>
 void extract_rows(const FrameView& f, double full_scale, const ExtractParams& params, std::span<msg::StripePoint> out,
-                  ExtractCounts& c) {
+                  ExtractCounts& c, Walks walks) {
   constexpr int L = detail::kBatch;
   RowState<T> st[L];
   detail::GaussMlBatch batch;
   batch.intensity_step = params.method == SubpixelMethod::GaussMl;
   const detail::SensorNoise noise{params.read_noise, params.shot_noise, params.speckle};
   detail::LaneWindow win{};
-  const bool lanes = lane_path(params);
+  const bool lanes = walks != Walks::Rows && lane_path(params);
   for (std::uint32_t y0 = 0; y0 < f.height; y0 += L) {
     const int rows = static_cast<int>(std::min<std::uint32_t>(L, f.height - y0));
     for (int i = 0; i < rows; ++i) {
@@ -804,7 +810,7 @@ void extract_rows(const FrameView& f, double full_scale, const ExtractParams& pa
     }
     for (int i = 0; i < rows; ++i) stage_level<T>(st[i], full_scale, params);
     if constexpr (sizeof(T) == 1) {
-      if (lanes) stage_walks<Step>(st, rows, full_scale, params, batch, win, Walks::Best);
+      if (lanes) stage_walks<Step>(st, rows, full_scale, params, batch, win, walks);
     }
     for (int i = 0; i < rows; ++i)
       if (st[i].active) stage_support<T, Step>(st[i], full_scale, params);
@@ -842,12 +848,17 @@ void extract_rows(const FrameView& f, double full_scale, const ExtractParams& pa
 }  // namespace
 
 ExtractCounts extract_frame(const FrameView& f, const ExtractParams& params, std::span<msg::StripePoint> out) {
+  return detail::extract_frame_walks(f, params, out, Walks::Best);
+}
+
+ExtractCounts detail::extract_frame_walks(const FrameView& f, const ExtractParams& params,
+                                          std::span<msg::StripePoint> out, Walks walks) {
   ExtractCounts c;
   if (!f.data || f.width == 0 || f.height == 0) return c;
   switch (f.format) {
-    case PixelFormat::Mono8: extract_rows<std::uint8_t, 1>(f, 255.0, params, out, c); break;
-    case PixelFormat::Yuyv: extract_rows<std::uint8_t, 2>(f, 255.0, params, out, c); break;
-    case PixelFormat::Mono16: extract_rows<std::uint16_t, 1>(f, 65535.0, params, out, c); break;
+    case PixelFormat::Mono8: extract_rows<std::uint8_t, 1>(f, 255.0, params, out, c, walks); break;
+    case PixelFormat::Yuyv: extract_rows<std::uint8_t, 2>(f, 255.0, params, out, c, walks); break;
+    case PixelFormat::Mono16: extract_rows<std::uint16_t, 1>(f, 65535.0, params, out, c, walks); break;
   }
   if (params.along_stripe >= 3) {
     const std::span<msg::StripePoint> pts = out.first(std::min<std::size_t>(c.points, out.size()));

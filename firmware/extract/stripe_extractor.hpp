@@ -89,10 +89,19 @@ RowPeak extract_row_lane_walks(const std::uint8_t* row, std::uint32_t n, std::ui
                                const ExtractParams& p);
 // Which walks extract_row and extract_frame take for contiguous 8-bit rows here: "bit masks (avx2)" or "lanes".
 const char* extract_walks_isa();
+// The walks of 8-bit rows: Best (what extract_row and extract_frame take), Lanes (the SIMD-lane walks, what arm
+// and CPUs without AVX2 take) or Rows (the per-row walks).
+enum class Walks { Best, Lanes, Rows };
 }  // namespace detail
 
 // Extracts every row of the frame into `out` (at most out.size() points, rows in order), then refines the
 // centres along the stripe when params.along_stripe >= 3. Returns the counts.
 ExtractCounts extract_frame(const FrameView& frame, const ExtractParams& params, std::span<msg::StripePoint> out);
+
+namespace detail {
+// extract_frame with the walks chosen; every choice gives the same results (tests/firmware/extract_lanes_test.cpp).
+ExtractCounts extract_frame_walks(const FrameView& frame, const ExtractParams& params, std::span<msg::StripePoint> out,
+                                  Walks walks);
+}  // namespace detail
 
 }  // namespace fs::fw

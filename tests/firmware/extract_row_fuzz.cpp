@@ -17,8 +17,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   data += 2;
   size -= 2;
   fs::fw::ExtractParams p;
-  p.method = static_cast<fs::fw::SubpixelMethod>(sel % 5);
-  const auto format = static_cast<fs::fw::PixelFormat>((sel / 5) % 3);
+  p.method = static_cast<fs::fw::SubpixelMethod>(sel % 6);  // every method, gauss-log included
+  const auto format = static_cast<fs::fw::PixelFormat>((sel / 6) % 3);
   const std::uint32_t bpp = format == fs::fw::PixelFormat::Mono8 ? 1 : 2;
   const std::uint32_t stride = width * bpp;
   const std::uint32_t height = static_cast<std::uint32_t>(size / stride);
