@@ -582,7 +582,7 @@ FS_ROW_MASKS_TARGET void stage_masks(RowState<std::uint8_t>* st, int rows, doubl
     if (!live[l]) continue;
     s.active = false;
     const std::uint8_t* row = s.row;
-    const std::uint32_t imax = first_argmax<std::uint8_t, 1>(row, s.scan, s.mx);
+    const std::uint32_t imax = detail::masks::first_argmax(row, s.scan, s.mx);
     s.imax = imax;
     std::uint8_t* raw = win.raw[l];
     // Straight from the row (a load right after the copy's stores would wait for them), kept for passes 2 and 3.
