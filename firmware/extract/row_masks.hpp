@@ -122,48 +122,5 @@ FS_ROW_MASKS_TARGET inline std::uint32_t first_argmax(const std::uint8_t* row, c
   return base + static_cast<std::uint32_t>(std::countr_zero(equal(load(row + base), mx)));  // the block holds mx
 }
 
-// max_outside (row_scan.hpp) for contiguous 8-bit rows where [lo, hi] (clamped to the row) overlaps at most two
-// blocks, both full: their lane maxima are replaced by those of their samples outside [lo, hi] (masked reads of
-// the row), then every block's lane maxima are reduced in one pass of fixed length (the same trip count for
-// every row of a frame: no mispredicted loop exit). False, s untouched, in any other case (the caller takes the
-// generic max_outside).
-FS_ROW_MASKS_TARGET inline bool max_outside(const std::uint8_t* row, RowScan<std::uint8_t>& s, std::int64_t lo,
-                                            std::int64_t hi, std::uint8_t& out) {
-  const std::int64_t n = s.n;
-  lo = std::clamp<std::int64_t>(lo, 0, n - 1);
-  hi = std::clamp<std::int64_t>(hi, lo, n - 1);
-  const std::uint32_t blo = static_cast<std::uint32_t>(lo) / kBlock, bhi = static_cast<std::uint32_t>(hi) / kBlock;
-  if (bhi > blo + 1 || static_cast<std::int64_t>(bhi + 1) * kBlock > n) return false;
-  const __m256i iota0 = _mm256_setr_epi8(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20,
-                                         21, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31);
-  const __m256i iota1 = _mm256_add_epi8(iota0, _mm256_set1_epi8(32));
-  for (std::uint32_t b = blo; b <= bhi; ++b) {
-    const std::int64_t base = static_cast<std::int64_t>(b) * kBlock;
-    const __m256i rlo = _mm256_set1_epi8(static_cast<char>(std::clamp<std::int64_t>(lo - base, -1, kBlock)));
-    const __m256i rhi = _mm256_set1_epi8(static_cast<char>(std::clamp<std::int64_t>(hi - base, -1, kBlock)));
-    // outside [lo, hi]: i < lo or i > hi (indices and bounds in -1 .. 64: signed byte compares are exact)
-    const __m256i out0 = _mm256_or_si256(_mm256_cmpgt_epi8(rlo, iota0), _mm256_cmpgt_epi8(iota0, rhi));
-    const __m256i out1 = _mm256_or_si256(_mm256_cmpgt_epi8(rlo, iota1), _mm256_cmpgt_epi8(iota1, rhi));
-    const __m256i a0 = _mm256_and_si256(out0, _mm256_loadu_si256(reinterpret_cast<const __m256i*>(row + base)));
-    const __m256i a1 = _mm256_and_si256(out1, _mm256_loadu_si256(reinterpret_cast<const __m256i*>(row + base + 32)));
-    _mm256_storeu_si256(reinterpret_cast<__m256i*>(s.lane_max[b]), _mm256_max_epu8(a0, a1));
-  }
-  __m256i m0 = _mm256_setzero_si256(), m1 = _mm256_setzero_si256();
-  std::uint32_t b = 0;
-  for (; b + 1 < s.nblocks; b += 2) {
-    m0 = _mm256_max_epu8(m0, _mm256_loadu_si256(reinterpret_cast<const __m256i*>(s.lane_max[b])));
-    m1 = _mm256_max_epu8(m1, _mm256_loadu_si256(reinterpret_cast<const __m256i*>(s.lane_max[b + 1])));
-  }
-  if (b < s.nblocks) m0 = _mm256_max_epu8(m0, _mm256_loadu_si256(reinterpret_cast<const __m256i*>(s.lane_max[b])));
-  m0 = _mm256_max_epu8(m0, m1);
-  __m128i v = _mm_max_epu8(_mm256_castsi256_si128(m0), _mm256_extracti128_si256(m0, 1));
-  v = _mm_max_epu8(v, _mm_srli_si128(v, 8));
-  v = _mm_max_epu8(v, _mm_srli_si128(v, 4));
-  v = _mm_max_epu8(v, _mm_srli_si128(v, 2));
-  v = _mm_max_epu8(v, _mm_srli_si128(v, 1));
-  out = static_cast<std::uint8_t>(_mm_cvtsi128_si32(v) & 0xff);
-  return true;
-}
-
 }  // namespace fs::fw::detail::masks
 #endif

@@ -2,8 +2,6 @@
 
 #include <cstring>
 
-#include "firmware/extract/row_masks.hpp"
-
 #if defined(__x86_64__)
 #include <immintrin.h>
 #define FS_SCAN_X86 1
@@ -81,6 +79,39 @@ __attribute__((target("avx2"))) void scan_avx2(const std::uint8_t* row, std::uin
   s.sum = static_cast<std::uint64_t>(_mm_cvtsi128_si64(a)) + static_cast<std::uint64_t>(_mm_cvtsi128_si64(_mm_unpackhi_epi64(a, a)));
 }
 
+// max_outside_u8 on AVX2: the (at most two) blocks that [lo, hi] overlaps get lane maxima of their samples
+// outside [lo, hi] (masked reads of the row), written over theirs in s.lane_max, then every block's lane
+// maxima in one pass of fixed length (the same trip count for every row of a frame: no mispredicted exits).
+__attribute__((target("avx2"))) std::uint8_t max_outside_avx2(const std::uint8_t* row, RowScan<std::uint8_t>& s,
+                                                              std::int64_t lo, std::int64_t hi, std::uint32_t blo,
+                                                              std::uint32_t bhi) {
+  const __m256i iota0 = _mm256_setr_epi8(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20,
+                                         21, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31);
+  const __m256i iota1 = _mm256_add_epi8(iota0, _mm256_set1_epi8(32));
+  for (std::uint32_t b = blo; b <= bhi; ++b) {
+    const std::int64_t base = static_cast<std::int64_t>(b) * kBlock;
+    const __m256i rlo = _mm256_set1_epi8(static_cast<char>(std::clamp<std::int64_t>(lo - base, -1, kBlock)));
+    const __m256i rhi = _mm256_set1_epi8(static_cast<char>(std::clamp<std::int64_t>(hi - base, -1, kBlock)));
+    // inside [lo, hi]: !(i < lo) && !(i > hi)
+    const __m256i in0 = _mm256_andnot_si256(_mm256_or_si256(_mm256_cmpgt_epi8(rlo, iota0), _mm256_cmpgt_epi8(iota0, rhi)),
+                                            _mm256_set1_epi8(-1));
+    const __m256i in1 = _mm256_andnot_si256(_mm256_or_si256(_mm256_cmpgt_epi8(rlo, iota1), _mm256_cmpgt_epi8(iota1, rhi)),
+                                            _mm256_set1_epi8(-1));
+    const __m256i a0 = _mm256_andnot_si256(in0, _mm256_loadu_si256(reinterpret_cast<const __m256i*>(row + base)));
+    const __m256i a1 = _mm256_andnot_si256(in1, _mm256_loadu_si256(reinterpret_cast<const __m256i*>(row + base + 32)));
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(s.lane_max[b]), _mm256_max_epu8(a0, a1));
+  }
+  __m256i m0 = _mm256_setzero_si256(), m1 = _mm256_setzero_si256();
+  std::uint32_t b = 0;
+  for (; b + 1 < s.nblocks; b += 2) {
+    m0 = _mm256_max_epu8(m0, _mm256_loadu_si256(reinterpret_cast<const __m256i*>(s.lane_max[b])));
+    m1 = _mm256_max_epu8(m1, _mm256_loadu_si256(reinterpret_cast<const __m256i*>(s.lane_max[b + 1])));
+  }
+  if (b < s.nblocks) m0 = _mm256_max_epu8(m0, _mm256_loadu_si256(reinterpret_cast<const __m256i*>(s.lane_max[b])));
+  m0 = _mm256_max_epu8(m0, m1);
+  return hmax16(_mm_max_epu8(_mm256_castsi256_si128(m0), _mm256_extracti128_si256(m0, 1)));
+}
+
 enum class Isa { Sse2, Avx2 };
 Isa isa() {
   static const Isa detected = [] {  // once (thread-safe, no allocation)
@@ -104,8 +135,11 @@ bool cpu_has_avx512vl() {
 }
 
 std::uint8_t max_outside_u8(const std::uint8_t* row, RowScan<std::uint8_t>& s, std::int64_t lo, std::int64_t hi) {
-  std::uint8_t m = 0;
-  if (isa() == Isa::Avx2 && masks::max_outside(row, s, lo, hi, m)) return m;
+  const std::int64_t n = s.n;
+  const std::int64_t l = std::clamp<std::int64_t>(lo, 0, n - 1), h = std::clamp<std::int64_t>(hi, l, n - 1);
+  const std::uint32_t blo = static_cast<std::uint32_t>(l / kBlock), bhi = static_cast<std::uint32_t>(h / kBlock);
+  if (isa() == Isa::Avx2 && bhi <= blo + 1 && static_cast<std::int64_t>(bhi + 1) * kBlock <= n)
+    return max_outside_avx2(row, s, l, h, blo, bhi);
   return max_outside<std::uint8_t, 1>(row, s, lo, hi);
 }
 

@@ -247,8 +247,6 @@ void defer_to_batch(RowState<T>& st, detail::GaussMlBatch& batch, int lane, cons
 
 template <typename T, std::uint32_t Step>
 bool ambiguous(RowState<T>& st, const ExtractParams& p);
-template <typename T>
-bool ambiguous_given(RowState<T>& st, const ExtractParams& p, double second);
 template <typename T, std::uint32_t Step>
 void centre_end(RowState<T>& st, double full_scale, const ExtractParams& p, detail::GaussMlBatch& batch, int lane,
                 std::int64_t left_end, std::int64_t right_end, std::int64_t top_end);
@@ -282,17 +280,11 @@ void stage_centre(RowState<T>& st, double full_scale, const ExtractParams& p, de
 // side), or a support too wide, makes the row Ambiguous.
 template <typename T, std::uint32_t Step>
 bool ambiguous(RowState<T>& st, const ExtractParams& p) {
-  double second;
-  if constexpr (sizeof(T) == 1 && Step == 1) second = static_cast<double>(detail::max_outside_u8(st.row, st.scan, st.lo - 1, st.hi + 1));
-  else second = static_cast<double>(detail::max_outside<T, Step>(st.row, st.scan, st.lo - 1, st.hi + 1));
-  return ambiguous_given(st, p, second);
-}
-
-// The decision once the largest sample outside the support and its flank samples (`second`) is known.
-template <typename T>
-bool ambiguous_given(RowState<T>& st, const ExtractParams& p, double second) {
   const std::int64_t lo = st.lo, hi = st.hi;
   const double second_limit = st.bg + p.ambiguous_ratio * st.contrast;
+  double second;
+  if constexpr (sizeof(T) == 1 && Step == 1) second = static_cast<double>(detail::max_outside_u8(st.row, st.scan, lo - 1, hi + 1));
+  else second = static_cast<double>(detail::max_outside<T, Step>(st.row, st.scan, lo - 1, hi + 1));
   if (second > second_limit || (hi - lo) >= 2 * static_cast<std::int64_t>(p.max_half_width)) {
     st.r.status = RowStatus::Ambiguous;
     return true;
@@ -657,11 +649,7 @@ FS_ROW_MASKS_TARGET void stage_masks(RowState<std::uint8_t>* st, int rows, doubl
   for (int l = 0; l < rows; ++l) {
     if (!live[l]) continue;
     RowState<std::uint8_t>& s = st[l];
-    // the double-peak test with max_outside_u8's AVX2 code inlined (2-3 % per frame over the call)
-    std::uint8_t second = 0;
-    if (!detail::masks::max_outside(s.row, s.scan, s.lo - 1, s.hi + 1, second))
-      second = detail::max_outside<std::uint8_t, 1>(s.row, s.scan, s.lo - 1, s.hi + 1);
-    if (ambiguous_given(s, p, static_cast<double>(second))) continue;
+    if (ambiguous<std::uint8_t, 1>(s, p)) continue;
     const std::int64_t im = s.imax, n = s.n;
     const std::int64_t ic = (im + im + top[l]) / 2;
     const std::int64_t k = ml_half_window(width[l]);
