@@ -308,10 +308,13 @@ void centre_end(RowState<T>& st, double full_scale, const ExtractParams& p, deta
   double left = static_cast<double>(imax), right = static_cast<double>(imax);
   {
     const std::int64_t i = left_end, j = right_end;
+    // Interpolated where the walk ended on the flank (the sample past it at or below half: then b > half >= a
+    // and the edge lies in [i - 1, i)); a walk stopped by the support's bound (max_half_width) on a stretch
+    // still above half keeps the bound (interpolating there extrapolated: widths of -4500 px on such rows).
     const double a = at(row, Step, i - (i > 0 ? 1 : 0)), b = at(row, Step, i);
-    left = (i > 0 && b != a) ? static_cast<double>(i) - (b - half) / (b - a) : static_cast<double>(i);
+    left = (i > 0 && a <= half) ? static_cast<double>(i) - (b - half) / (b - a) : static_cast<double>(i);
     const double c = at(row, Step, j), d = at(row, Step, j + (j + 1 < n ? 1 : 0));
-    right = (j + 1 < n && c != d) ? static_cast<double>(j) + (c - half) / (c - d) : static_cast<double>(j);
+    right = (j + 1 < n && d <= half) ? static_cast<double>(j) + (c - half) / (c - d) : static_cast<double>(j);
   }
   r.width = right - left;
 
@@ -506,7 +509,7 @@ void stage_lanes(RowState<std::uint8_t>* st, int rows, double full_scale, const 
     ok_r[l] = j + 1 < n;
   }
   for (int l = 0; l < L; ++l) {
-    const bool ul = ok_l[l] && b[l] != a[l], ur = ok_r[l] && c[l] != d[l];
+    const bool ul = ok_l[l] && a[l] <= hv[l], ur = ok_r[l] && d[l] <= hv[l];  // on the flank (centre_end)
     const double ql = (b[l] - hv[l]) / (ul ? b[l] - a[l] : 1.0), qr = (c[l] - hv[l]) / (ur ? c[l] - d[l] : 1.0);
     lx[l] = ul ? iv[l] - ql : iv[l];
     rx[l] = ur ? jv[l] + qr : jv[l];
@@ -637,7 +640,7 @@ FS_ROW_MASKS_TARGET void stage_masks(RowState<std::uint8_t>* st, int rows, doubl
     ok_r[l] = j + 1 < n;
   }
   for (int l = 0; l < L; ++l) {  // the FWHM by interpolation on both flanks (stage_lanes' expressions)
-    const bool ul = ok_l[l] && fb[l] != fa[l], ur = ok_r[l] && fc[l] != fd[l];
+    const bool ul = ok_l[l] && fa[l] <= hv[l], ur = ok_r[l] && fd[l] <= hv[l];  // on the flank (centre_end)
     const double ql = (fb[l] - hv[l]) / (ul ? fb[l] - fa[l] : 1.0), qr = (fc[l] - hv[l]) / (ur ? fc[l] - fd[l] : 1.0);
     const double lx = ul ? fi[l] - ql : fi[l];
     const double rx = ur ? fj[l] + qr : fj[l];
@@ -863,6 +866,10 @@ ExtractCounts detail::extract_frame_walks(const FrameView& f, const ExtractParam
   if (params.along_stripe >= 3) {
     const std::span<msg::StripePoint> pts = out.first(std::min<std::size_t>(c.points, out.size()));
     refine_along_stripe(pts, params.along_stripe, along_stripe_sigma(pts));
+    // A line through the neighbours can end a little past the row's first or last pixel (a stripe along the
+    // frame's edge): the centre stays inside the row, as the per-row centres do (found by the fuzz target).
+    const float last = static_cast<float>(f.width) - 0.5f;
+    for (msg::StripePoint& pt : pts) pt.col = std::clamp(pt.col, -0.5f, last);
   }
   return c;
 }

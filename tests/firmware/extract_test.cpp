@@ -159,6 +159,37 @@ TEST(Extract, CentreStaysInsideTheRowAtItsEdges) {
   }
 }
 
+// A stripe with a shoulder above half maximum that reaches exactly one sample past the support's bound
+// (max_half_width = 24 samples right of the peak): the half-maximum walk stops at the bound, not on a flank, so
+// the FWHM keeps the bound there instead of interpolating towards the next shoulder sample (which, alternating
+// by 3 DN, extrapolated by up to ~17 px either way: the fuzzer found widths of -4500 px on such Mono16 rows).
+// Every method and walk path, 8 and 16 bit.
+TEST(Extract, FwhmStaysInsideASupportCutByMaxHalfWidth) {
+  std::vector<std::uint8_t> row(100, 10);
+  row[39] = 60;
+  row[40] = 250;  // the peak
+  for (int i = 41; i <= 65; ++i) row[static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(180 + (i % 2) * 3);
+  std::vector<std::uint16_t> row16(row.size());
+  for (std::size_t i = 0; i < row.size(); ++i) row16[i] = static_cast<std::uint16_t>(row[i] * 257);
+  for (auto m : {SubpixelMethod::GaussMl, SubpixelMethod::GaussLog, SubpixelMethod::CentreOfGravity,
+                 SubpixelMethod::GaussFit, SubpixelMethod::Gaussian3, SubpixelMethod::BlaisRioux}) {
+    ExtractParams p;
+    p.method = m;
+    const RowPeak results[] = {extract_row<std::uint8_t>(row.data(), 100, 1, 255.0, p),
+                               detail::extract_row_lane_walks(row.data(), 100, 1, 255.0, p),
+                               detail::extract_row_per_row_walks(row.data(), 100, 1, 255.0, p),
+                               extract_row<std::uint16_t>(row16.data(), 100, 1, 65535.0, p)};
+    for (const RowPeak& r : results) {
+      ASSERT_EQ(r.status, RowStatus::Ok) << to_string(m);
+      // left edge interpolated between samples 38 and 40, right edge = the bound at 40 + 24
+      EXPECT_GE(r.width, 24.0) << to_string(m);
+      EXPECT_LE(r.width, 26.0) << to_string(m);
+      EXPECT_GE(r.col, 39.5) << to_string(m);
+      EXPECT_LE(r.col, 64.5) << to_string(m);
+    }
+  }
+}
+
 TEST(Extract, FrameFormatsAgree) {
   std::mt19937 rng(5);
   const std::uint32_t w = 256, h = 8;
