@@ -7,6 +7,7 @@
 
 #include "common/error.hpp"
 #include "firmware/extract/along_stripe.hpp"
+#include "common/json_text.hpp"
 
 namespace fs::fw {
 
@@ -42,12 +43,7 @@ bool get_bool(const json& j, const std::string& source, const std::string& field
 }  // namespace
 
 void apply_config_json(FwConfig& c, const std::string& text, const std::string& src) {
-  json doc;
-  try {
-    doc = json::parse(text);
-  } catch (const json::parse_error& e) {
-    throw error_at_offset(src, e.byte, std::string("invalid JSON: ") + e.what());
-  }
+  const json doc = parse_json_text(text, src);
   if (!doc.is_object()) bad(src, "(top level)", "expected an object");
   for (const auto& [k, v] : doc.items()) {
     if (k == "galvo") c.galvo = get_str(v, src, k);

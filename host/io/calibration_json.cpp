@@ -2,8 +2,10 @@
 
 #include <cmath>
 #include <fstream>
+#include <sstream>
 
 #include "common/error.hpp"
+#include "common/json_text.hpp"
 
 namespace fs::host {
 namespace {
@@ -140,13 +142,9 @@ ScannerCalibration calibration_from_json(const nlohmann::json& j, const std::str
 ScannerCalibration read_calibration_file(const std::string& path) {
   std::ifstream f(path);
   if (!f) throw Error(path + ": cannot open for reading");
-  nlohmann::json j;
-  try {
-    j = nlohmann::json::parse(f);
-  } catch (const nlohmann::json::parse_error& e) {
-    throw error_at_offset(path, e.byte, std::string("invalid JSON: ") + e.what());
-  }
-  return calibration_from_json(j, path);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return calibration_from_json(parse_json_text(ss.str(), path), path);
 }
 
 void write_calibration_file(const std::string& path, const ScannerCalibration& c, const nlohmann::json& extra) {

@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "common/error.hpp"
+#include "common/json_text.hpp"
 
 namespace fs::host::match {
 
@@ -163,13 +164,7 @@ MatchParams read_params(const std::string& preset_or_file) {
   if (!in) throw Error(preset_or_file + ": cannot open");
   std::stringstream ss;
   ss << in.rdbuf();
-  nlohmann::json j;
-  try {
-    j = nlohmann::json::parse(ss.str());
-  } catch (const nlohmann::json::parse_error& e) {
-    throw error_at_offset(preset_or_file, e.byte, std::string("invalid JSON: ") + e.what());
-  }
-  return params_from_json(j, preset_or_file);
+  return params_from_json(parse_json_text(ss.str(), preset_or_file), preset_or_file);
 }
 
 nlohmann::json to_json(const MatchParams& p) {

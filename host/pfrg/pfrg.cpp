@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "common/error.hpp"
+#include "common/json_text.hpp"
 
 namespace fs::host {
 
@@ -173,12 +174,7 @@ Pfrg read_pfrg_json(const std::filesystem::path& path) {
   if (!in) throw Error(path.string() + ": cannot open");
   std::stringstream ss;
   ss << in.rdbuf();
-  json j;
-  try {
-    j = json::parse(ss.str());
-  } catch (const json::parse_error& e) {
-    throw error_at_offset(path.string(), e.byte, std::string("invalid JSON: ") + e.what());
-  }
+  const json j = parse_json_text(ss.str(), path.string());
   Pfrg g = pfrg_from_json(j, path.string());
   if (g.name.empty()) g.name = path.stem().string();
   return g;

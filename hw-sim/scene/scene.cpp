@@ -2,9 +2,11 @@
 
 #include <cmath>
 #include <fstream>
+#include <sstream>
 
 #include "common/error.hpp"
 #include "common/mesh_io.hpp"
+#include "common/json_text.hpp"
 
 namespace fs::sim {
 namespace {
@@ -230,13 +232,9 @@ Scene load_scene(const std::filesystem::path& path) {
     throw Error(path.string() + ": not a regular file");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw Error(path.string() + ": cannot open scene file");
-  json doc;
-  try {
-    doc = json::parse(in);
-  } catch (const json::parse_error& e) {
-    throw error_at_offset(path.string(), e.byte, std::string("invalid JSON: ") + e.what());
-  }
-  return parse_scene(doc, path.parent_path(), path.string());
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return parse_scene(parse_json_text(ss.str(), path.string()), path.parent_path(), path.string());
 }
 
 }  // namespace fs::sim
