@@ -92,13 +92,11 @@ __attribute__((target("avx2"))) std::uint8_t max_outside_avx2(const std::uint8_t
     const std::int64_t base = static_cast<std::int64_t>(b) * kBlock;
     const __m256i rlo = _mm256_set1_epi8(static_cast<char>(std::clamp<std::int64_t>(lo - base, -1, kBlock)));
     const __m256i rhi = _mm256_set1_epi8(static_cast<char>(std::clamp<std::int64_t>(hi - base, -1, kBlock)));
-    // inside [lo, hi]: !(i < lo) && !(i > hi)
-    const __m256i in0 = _mm256_andnot_si256(_mm256_or_si256(_mm256_cmpgt_epi8(rlo, iota0), _mm256_cmpgt_epi8(iota0, rhi)),
-                                            _mm256_set1_epi8(-1));
-    const __m256i in1 = _mm256_andnot_si256(_mm256_or_si256(_mm256_cmpgt_epi8(rlo, iota1), _mm256_cmpgt_epi8(iota1, rhi)),
-                                            _mm256_set1_epi8(-1));
-    const __m256i a0 = _mm256_andnot_si256(in0, _mm256_loadu_si256(reinterpret_cast<const __m256i*>(row + base)));
-    const __m256i a1 = _mm256_andnot_si256(in1, _mm256_loadu_si256(reinterpret_cast<const __m256i*>(row + base + 32)));
+    // outside [lo, hi]: i < lo or i > hi (indices and bounds in -1 .. 64: signed byte compares are exact)
+    const __m256i out0 = _mm256_or_si256(_mm256_cmpgt_epi8(rlo, iota0), _mm256_cmpgt_epi8(iota0, rhi));
+    const __m256i out1 = _mm256_or_si256(_mm256_cmpgt_epi8(rlo, iota1), _mm256_cmpgt_epi8(iota1, rhi));
+    const __m256i a0 = _mm256_and_si256(out0, _mm256_loadu_si256(reinterpret_cast<const __m256i*>(row + base)));
+    const __m256i a1 = _mm256_and_si256(out1, _mm256_loadu_si256(reinterpret_cast<const __m256i*>(row + base + 32)));
     _mm256_storeu_si256(reinterpret_cast<__m256i*>(s.lane_max[b]), _mm256_max_epu8(a0, a1));
   }
   __m256i m0 = _mm256_setzero_si256(), m1 = _mm256_setzero_si256();

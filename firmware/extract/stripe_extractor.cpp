@@ -292,6 +292,19 @@ bool ambiguous(RowState<T>& st, const ExtractParams& p) {
   return false;
 }
 
+// The FWHM from the half-maximum walks' ends i (left) and j (right), b and c the samples there, a and d the ones
+// past them (has_l / has_r: those exist in the row). Each edge is interpolated where the walk ended on the flank
+// (the sample past it at or below half: then b > half >= a and the edge lies in [i - 1, i)); a walk stopped by
+// the support's bound (max_half_width) on a stretch still above half keeps the bound (interpolating there
+// extrapolated: widths of -4500 px on such rows). The one expression of the per-row, lane and mask paths (same
+// bits), written with selects so that their lane loops vectorize.
+inline double half_max_width(double a, double b, double c, double d, double half, double i, double j, bool has_l,
+                             bool has_r) {
+  const bool ul = has_l && a <= half, ur = has_r && d <= half;
+  const double ql = (b - half) / (ul ? b - a : 1.0), qr = (c - half) / (ur ? c - d : 1.0);
+  return (ur ? j + qr : j) - (ul ? i - ql : i);
+}
+
 // The rest of stage 3 once the half-maximum walks ended at i (left) and j (right) and the flat top at top_end
 // (shared with the lane path).
 template <typename T, std::uint32_t Step>
@@ -304,19 +317,13 @@ void centre_end(RowState<T>& st, double full_scale, const ExtractParams& p, deta
   const std::uint32_t imax = st.imax;
   const std::int64_t lo = st.lo, hi = st.hi;
   RowPeak& r = st.r;
-  const double half = bg + 0.5 * contrast;
-  double left = static_cast<double>(imax), right = static_cast<double>(imax);
   {
     const std::int64_t i = left_end, j = right_end;
-    // Interpolated where the walk ended on the flank (the sample past it at or below half: then b > half >= a
-    // and the edge lies in [i - 1, i)); a walk stopped by the support's bound (max_half_width) on a stretch
-    // still above half keeps the bound (interpolating there extrapolated: widths of -4500 px on such rows).
-    const double a = at(row, Step, i - (i > 0 ? 1 : 0)), b = at(row, Step, i);
-    left = (i > 0 && a <= half) ? static_cast<double>(i) - (b - half) / (b - a) : static_cast<double>(i);
-    const double c = at(row, Step, j), d = at(row, Step, j + (j + 1 < n ? 1 : 0));
-    right = (j + 1 < n && d <= half) ? static_cast<double>(j) + (c - half) / (c - d) : static_cast<double>(j);
+    const bool has_l = i > 0, has_r = j + 1 < n;
+    r.width = half_max_width(at(row, Step, i - (has_l ? 1 : 0)), at(row, Step, i), at(row, Step, j),
+                             at(row, Step, j + (has_r ? 1 : 0)), bg + 0.5 * contrast, static_cast<double>(i),
+                             static_cast<double>(j), has_l, has_r);
   }
-  r.width = right - left;
 
   const auto v = [&](std::int64_t i) {
     if (i < 0 || i >= static_cast<std::int64_t>(n)) return 0.0;
@@ -491,7 +498,7 @@ void stage_lanes(RowState<std::uint8_t>* st, int rows, double full_scale, const 
 
   // The FWHM by interpolation on both flanks, in double lanes: centre_end's formulas, the samples at the walks'
   // ends from the windows (0 outside the row, where the conditions i > 0, j + 1 < n exclude them anyway).
-  alignas(64) double a[L], b[L], c[L], d[L], hv[L], iv[L], jv[L], lx[L], rx[L], width[L];
+  alignas(64) double a[L], b[L], c[L], d[L], hv[L], iv[L], jv[L], width[L];
   alignas(64) std::int32_t ok_l[L], ok_r[L];
   for (int l = 0; l < L; ++l) {
     const bool act = l < rows && st[l].active;
@@ -508,13 +515,8 @@ void stage_lanes(RowState<std::uint8_t>* st, int rows, double full_scale, const 
     ok_l[l] = i > 0;
     ok_r[l] = j + 1 < n;
   }
-  for (int l = 0; l < L; ++l) {
-    const bool ul = ok_l[l] && a[l] <= hv[l], ur = ok_r[l] && d[l] <= hv[l];  // on the flank (centre_end)
-    const double ql = (b[l] - hv[l]) / (ul ? b[l] - a[l] : 1.0), qr = (c[l] - hv[l]) / (ur ? c[l] - d[l] : 1.0);
-    lx[l] = ul ? iv[l] - ql : iv[l];
-    rx[l] = ur ? jv[l] + qr : jv[l];
-    width[l] = rx[l] - lx[l];
-  }
+  for (int l = 0; l < L; ++l)
+    width[l] = half_max_width(a[l], b[l], c[l], d[l], hv[l], iv[l], jv[l], ok_l[l] != 0, ok_r[l] != 0);
   const double inv = 1.0 / (full_scale / 255.0);  // centre_end's 1 / scale
   alignas(64) std::int64_t ic_l[L], first_l[L], last_l[L];
   alignas(64) float bgf[L];
@@ -572,7 +574,8 @@ FS_ROW_MASKS_TARGET void stage_masks(RowState<std::uint8_t>* st, int rows, doubl
   const double min_contrast = p.min_contrast * (full_scale / 255.0);
   const double inv = 1.0 / (full_scale / 255.0);  // centre_end's 1 / scale
   int left[L], right[L], top[L], left2[L], right2[L];
-  // the divisions of every row side by side in double lanes (after the loops that feed them: vdivpd)
+  // the rows' divisions in loops of their own after the loops that feed them (independent of each other, so they
+  // overlap in the core; GCC keeps them scalar: vdivsd)
   alignas(64) double total[L] = {}, rest[L], bg0[L] = {}, bg[L];
   alignas(64) double fa[L] = {}, fb[L] = {}, fc[L] = {}, fd[L] = {}, hv[L] = {}, fi[L] = {}, fj[L] = {}, width[L];
   alignas(64) std::int64_t ok_l[L] = {}, ok_r[L] = {};
@@ -639,16 +642,12 @@ FS_ROW_MASKS_TARGET void stage_masks(RowState<std::uint8_t>* st, int rows, doubl
     ok_l[l] = i > 0;
     ok_r[l] = j + 1 < n;
   }
-  for (int l = 0; l < L; ++l) {  // the FWHM by interpolation on both flanks (stage_lanes' expressions)
-    const bool ul = ok_l[l] && fa[l] <= hv[l], ur = ok_r[l] && fd[l] <= hv[l];  // on the flank (centre_end)
-    const double ql = (fb[l] - hv[l]) / (ul ? fb[l] - fa[l] : 1.0), qr = (fc[l] - hv[l]) / (ur ? fc[l] - fd[l] : 1.0);
-    const double lx = ul ? fi[l] - ql : fi[l];
-    const double rx = ur ? fj[l] + qr : fj[l];
-    width[l] = rx - lx;
-  }
+  for (int l = 0; l < L; ++l)  // the FWHM, the rows side by side
+    width[l] = half_max_width(fa[l], fb[l], fc[l], fd[l], hv[l], fi[l], fj[l], ok_l[l] != 0, ok_r[l] != 0);
   // 3. Double-peak test, then the centre: the batch's lane (or the per-row code).
   alignas(32) float lane_y[L][2 * C];  // the whole lanes' fit inputs, row-major (transposed below)
   bool any_whole = false, edge[L] = {};
+  std::int64_t edge_ic[L], edge_first[L], edge_last[L];  // the edge lanes' windows, filled after the transpose
   for (int l = 0; l < rows; ++l) {
     if (!live[l]) continue;
     RowState<std::uint8_t>& s = st[l];
@@ -665,9 +664,9 @@ FS_ROW_MASKS_TARGET void stage_masks(RowState<std::uint8_t>* st, int rows, doubl
     const bool whole = ic - C >= 0 && ic + C <= n;
     edge[l] = !whole;
     if (!whole) {  // after the transpose, which writes every lane: defer_to_batch's per-sample fill
-      s.d.ic = ic;
-      s.d.lo = first;
-      s.d.hi = last;
+      edge_ic[l] = ic;
+      edge_first[l] = first;
+      edge_last[l] = last;
       continue;
     }
     // the lane's 32 samples from the window (ic - imax = top / 2 <= 15); then lanes without a row hold finite
@@ -683,10 +682,9 @@ FS_ROW_MASKS_TARGET void stage_masks(RowState<std::uint8_t>* st, int rows, doubl
     detail::masks::transpose_lanes(lane_y, batch.y);
   }
   for (int l = 0; l < rows; ++l)
-    if (edge[l]) {
-      RowState<std::uint8_t>& s = st[l];
-      defer_to_batch<std::uint8_t, 1>(s, batch, l, nullptr, s.d.ic, s.d.lo, s.d.hi, inv, (full_scale - s.bg) * inv);
-    }
+    if (edge[l])
+      defer_to_batch<std::uint8_t, 1>(st[l], batch, l, nullptr, edge_ic[l], edge_first[l], edge_last[l], inv,
+                                      (full_scale - st[l].bg) * inv);
 }
 #endif
 
