@@ -6,19 +6,14 @@
 
 #include <string>
 
-#include "common/error.hpp"
 #include "common/json_text.hpp"
+#include "support/error_of.hpp"
 
 namespace fs {
 namespace {
 
 std::string error_of(const std::string& text) {
-  try {
-    parse_json_text(text, "cfg.json");
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "";
+  return test::error_of([&] { parse_json_text(text, "cfg.json"); });
 }
 
 TEST(JsonText, ParsesAndNamesTheSourceOfEveryFailure) {

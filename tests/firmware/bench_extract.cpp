@@ -10,7 +10,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
-#include <ctime>
 #include <memory>
 #include <string>
 #include <vector>
@@ -21,6 +20,7 @@
 #include "hw-sim/scene/scene.hpp"
 #include "hw-sim/scene/stripe_renderer.hpp"
 #include "support/test_paths.hpp"
+#include "support/thread_cpu.hpp"
 
 namespace {
 
@@ -114,11 +114,7 @@ BENCHMARK(BM_ExtractStream)->Arg(static_cast<int>(fs::fw::SubpixelMethod::GaussM
 // noisy host, where separate benchmarks seconds apart do not. The hot frame only: for a stream the memcpy's
 // write-back would load the extraction that follows (BM_MemcpyStream / BM_ExtractStream measure that case
 // apart). Argument: the sub-pixel method.
-double thread_cpu_us() {
-  timespec t{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
-  return static_cast<double>(t.tv_sec) * 1e6 + static_cast<double>(t.tv_nsec) * 1e-3;
-}
+double thread_cpu_us() { return fs::test::thread_cpu_seconds() * 1e6; }
 double median(std::vector<double> v) {
   std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
   return v[v.size() / 2];

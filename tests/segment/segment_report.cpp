@@ -12,6 +12,7 @@
 #include "host/io/load.hpp"
 #include "hwsim_eval.hpp"
 #include "support/test_paths.hpp"
+#include "support/thread_cpu.hpp"
 
 using namespace fs::host;
 
@@ -50,11 +51,7 @@ int mosd(std::vector<std::string> files) {
   Pfrg g;
   segmenter.prepare(s);
   builder.prepare(g);
-  auto cpu_ms = [] {
-    timespec ts{};
-    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-    return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) * 1e-6;
-  };
+  auto cpu_ms = [] { return fs::test::thread_cpu_seconds() * 1e3; };
   for (std::size_t f = 0; f < files.size(); ++f) {
     OrganizedCloud cloud;
     load_cloud(files[f], cloud);
