@@ -106,7 +106,7 @@ void apply_config_json(FwConfig& c, const std::string& text, const std::string& 
           const auto rows = get_num<std::uint32_t>(ev, src, f, 0, kAlongStripeMaxRows);
           if (rows > 1 && rows % 2 == 0) bad(src, f, "expected 0 or 1 (off) or an odd number of rows 3..15");
           e.along_stripe = rows;
-        }
+        } else if (ek == "prefetch_rows") e.prefetch_rows = get_num<std::uint32_t>(ev, src, f, 0, 1024);
         else bad(src, f, "unknown key");
       }
     } else if (k == "sim_camera") {

@@ -1,8 +1,8 @@
 // bench_extract: stripe extraction throughput on a 1280x1024 Mono8 frame of the cube scene (scene renderer,
 // default noise) next to memcpy of the same frame in the same run. bytes_per_second = pixels per second.
-// BM_Memcpy / BM_Extract*: one frame, hot in the caches; BM_MemcpyStream / BM_ExtractStream: a stream of
-// frames that each come from memory, as a camera delivers them.
-// BM_ExtractVsMemcpy: the two alternating in one loop, their medians and ratio (the issue's criterion).
+// BM_ExtractVsMemcpy (the frame hot in the caches) and BM_StreamVsMemcpy (the frame in memory, as a camera's DMA
+// leaves it): memcpy and extraction alternating in one loop, their medians and ratio (the issue's criterion), and
+// the extraction without software prefetch next to it. BM_Memcpy / BM_Extract*: one hot frame, apart.
 // BM_ScanRow: the per-row pass alone over the frame, 0 = the portable auto-vectorized loop, 1 = the path
 // extraction uses (SIMD on x86-64; label says which). BM_GaussMlBatch: the batched sub-pixel fit alone.
 #include <benchmark/benchmark.h>
@@ -13,6 +13,10 @@
 #include <memory>
 #include <string>
 #include <vector>
+
+#if defined(__x86_64__)
+#include <immintrin.h>
+#endif
 
 #include "firmware/extract/gauss_ml.hpp"
 #include "firmware/extract/row_scan.hpp"
@@ -55,104 +59,103 @@ void BM_Memcpy(benchmark::State& state) {
 }
 BENCHMARK(BM_Memcpy);
 
-// A camera stream: every frame is new to the caches (DMA wrote it to memory), so both benchmarks below read 48
-// distinct frames (63 MB, past this machine's 32 MB L3) in turn: memcpy to one destination, and extraction. The
-// frames hold the same pixels (the throughput does not depend on which stripe), at distinct addresses.
-struct FrameStream {
-  FrameStream() : pixels(kFrames * frame().pixels.size()) {
-    const std::size_t n = frame().pixels.size();
-    for (std::size_t k = 0; k < kFrames; ++k) std::memcpy(pixels.data() + k * n, frame().pixels.data(), n);
-  }
-  fs::fw::FrameView view(std::size_t k) const {
-    fs::fw::FrameView v = frame().view;
-    v.data = pixels.data() + k * frame().pixels.size();
-    return v;
-  }
-  static constexpr std::size_t kFrames = 48;
-  std::vector<std::uint8_t> pixels;
-};
-FrameStream& stream() {
-  static FrameStream s;
-  return s;
-}
-
-void BM_MemcpyStream(benchmark::State& state) {
-  FrameStream& s = stream();
-  const std::size_t n = frame().pixels.size();
-  std::vector<std::uint8_t> dst(n);
-  std::size_t k = 0;
-  for (auto _ : state) {
-    std::memcpy(dst.data(), s.pixels.data() + k * n, n);
-    k = (k + 1) % FrameStream::kFrames;
-    benchmark::DoNotOptimize(dst.data());
-    benchmark::ClobberMemory();
-  }
-  state.SetBytesProcessed(static_cast<std::int64_t>(state.iterations() * n));
-}
-BENCHMARK(BM_MemcpyStream);
-
-void BM_ExtractStream(benchmark::State& state) {  // argument: the sub-pixel method
-  FrameStream& s = stream();
-  fs::fw::ExtractParams p;
-  p.method = static_cast<fs::fw::SubpixelMethod>(state.range(0));
-  std::vector<fs::msg::StripePoint> out(frame().view.height);
-  std::size_t k = 0;
-  for (auto _ : state) {
-    fs::fw::extract_frame(s.view(k), p, out);
-    k = (k + 1) % FrameStream::kFrames;
-    benchmark::DoNotOptimize(out.data());
-  }
-  state.SetBytesProcessed(static_cast<std::int64_t>(state.iterations() * frame().pixels.size()));
-  state.SetLabel(std::string(fs::fw::to_string(p.method)) + ", along_stripe " + std::to_string(p.along_stripe));
-}
-BENCHMARK(BM_ExtractStream)->Arg(static_cast<int>(fs::fw::SubpixelMethod::GaussMl))
-    ->Arg(static_cast<int>(fs::fw::SubpixelMethod::GaussLog));
-
 // Issue #4's criterion in one number: memcpy of the frame and its extraction alternate in every iteration,
 // each timed by the thread's CPU clock, and the counters give their medians and the ratio (memcpy / extraction =
 // extraction's throughput as a fraction of memcpy's). Alternating makes both see the same state of this shared,
-// noisy host, where separate benchmarks seconds apart do not. The hot frame only: for a stream the memcpy's
-// write-back would load the extraction that follows (BM_MemcpyStream / BM_ExtractStream measure that case
-// apart). Argument: the sub-pixel method.
+// noisy host, where separate benchmarks seconds apart do not. Every iteration also extracts once without the
+// software prefetch (ExtractParams::prefetch_rows = 0; which of the two extractions goes first alternates): its
+// cost or gain under the same load (no_prefetch_us). Argument: the sub-pixel method.
 double thread_cpu_us() { return fs::test::thread_cpu_seconds() * 1e6; }
 double median(std::vector<double> v) {
   std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
   return v[v.size() / 2];
 }
-void BM_ExtractVsMemcpy(benchmark::State& state) {
+// Writes the n bytes at p back to memory and drops them from every cache level (x86-64: CLFLUSH; false elsewhere:
+// nothing done).
+bool flush_from_caches(const std::uint8_t* p, std::size_t n) {
+#if defined(__x86_64__)
+  for (std::size_t i = 0; i < n; i += 64) _mm_clflush(p + i);
+  _mm_mfence();
+  return true;
+#else
+  (void)p;
+  (void)n;
+  return false;
+#endif
+}
+
+// The iterations of such a benchmark on the frame f: memcpy of f, then f extracted twice. cold: f is flushed from
+// the caches before each of the three (untimed), so that each reads it from memory.
+void interleave_vs_memcpy(benchmark::State& state, bool cold) {
   Frame& f = frame();
-  std::vector<std::uint8_t> dst(f.pixels.size());
-  fs::fw::ExtractParams p;
-  p.method = static_cast<fs::fw::SubpixelMethod>(state.range(0));
+  const std::size_t n = f.pixels.size();
+  std::vector<std::uint8_t> dst(n);
+  fs::fw::ExtractParams on;
+  on.method = static_cast<fs::fw::SubpixelMethod>(state.range(0));
+  fs::fw::ExtractParams off = on;
+  off.prefetch_rows = 0;
   std::vector<fs::msg::StripePoint> out(f.view.height);
-  std::vector<double> copy_us, extract_us;
+  std::vector<double> copy_us, on_us, off_us;
   copy_us.reserve(1 << 16);
-  extract_us.reserve(1 << 16);
-  for (auto _ : state) {
+  on_us.reserve(1 << 16);
+  off_us.reserve(1 << 16);
+  const auto make_cold = [&] {
+    if (!cold) return;
+    state.PauseTiming();
+    flush_from_caches(f.pixels.data(), n);
+    state.ResumeTiming();
+  };
+  const auto timed_extract = [&](const fs::fw::ExtractParams& params) {
+    make_cold();
     const double t0 = thread_cpu_us();
-    std::memcpy(dst.data(), f.pixels.data(), f.pixels.size());
+    fs::fw::extract_frame(f.view, params, out);
+    benchmark::DoNotOptimize(out.data());
+    return thread_cpu_us() - t0;
+  };
+  if (cold && !flush_from_caches(f.pixels.data(), n)) {
+    state.SkipWithError("no cache flush on this target");
+    return;
+  }
+  bool on_first = true;
+  for (auto _ : state) {
+    make_cold();
+    const double t0 = thread_cpu_us();
+    std::memcpy(dst.data(), f.pixels.data(), n);
     benchmark::DoNotOptimize(dst.data());
     benchmark::ClobberMemory();
-    const double t1 = thread_cpu_us();
-    fs::fw::extract_frame(f.view, p, out);
-    benchmark::DoNotOptimize(out.data());
-    const double t2 = thread_cpu_us();
+    const double copy = thread_cpu_us() - t0;
+    const double first = timed_extract(on_first ? on : off);
+    const double second = timed_extract(on_first ? off : on);
     if (copy_us.size() < copy_us.capacity()) {
-      copy_us.push_back(t1 - t0);
-      extract_us.push_back(t2 - t1);
+      copy_us.push_back(copy);
+      on_us.push_back(on_first ? first : second);
+      off_us.push_back(on_first ? second : first);
     }
+    on_first = !on_first;
   }
   if (copy_us.empty()) return;
-  const double mc = median(copy_us), me = median(extract_us);
+  const double mc = median(copy_us), me = median(on_us);
   state.counters["memcpy_us"] = mc;
   state.counters["extract_us"] = me;
+  state.counters["no_prefetch_us"] = median(off_us);
   state.counters["ratio"] = mc / me;
-  state.SetLabel(fs::fw::to_string(p.method));
+  state.SetLabel(std::string(fs::fw::to_string(on.method)) + ", prefetch_rows " + std::to_string(on.prefetch_rows));
 }
+
+// The hot frame: in the caches for the memcpy and both extractions.
+void BM_ExtractVsMemcpy(benchmark::State& state) { interleave_vs_memcpy(state, false); }
 BENCHMARK(BM_ExtractVsMemcpy)
     ->Arg(static_cast<int>(fs::fw::SubpixelMethod::GaussMl))
     ->Arg(static_cast<int>(fs::fw::SubpixelMethod::GaussLog))
     ->Arg(static_cast<int>(fs::fw::SubpixelMethod::CentreOfGravity));
+
+// A camera's frame: in memory, not in any cache, as a frame a camera's DMA wrote is when the firmware gets it, for
+// the memcpy and for each extraction. The copy's destination is one buffer, hot in the caches as a reused buffer is
+// (the demanding case for the ratio: a cold destination would add its reads to the memcpy).
+void BM_StreamVsMemcpy(benchmark::State& state) { interleave_vs_memcpy(state, true); }
+BENCHMARK(BM_StreamVsMemcpy)
+    ->Arg(static_cast<int>(fs::fw::SubpixelMethod::GaussMl))
+    ->Arg(static_cast<int>(fs::fw::SubpixelMethod::GaussLog));
 
 void BM_Extract(benchmark::State& state) {
   Frame& f = frame();

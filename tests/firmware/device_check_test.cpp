@@ -155,6 +155,18 @@ TEST(DeviceCheck, LaserConfigKeyAndCanTimeoutKeys) {
     }
   }
   EXPECT_EQ(c.loop.extract.along_stripe, 0u);  // unchanged by the refused values
+  // The software prefetch distance: 16 rows by default, 0 = off, at most 1024.
+  EXPECT_EQ(c.loop.extract.prefetch_rows, 16u);
+  fw::apply_config_json(c, R"({"extract": {"prefetch_rows": 0}})", "board.json");
+  EXPECT_EQ(c.loop.extract.prefetch_rows, 0u);
+  fw::apply_config_json(c, R"({"extract": {"prefetch_rows": 32}})", "board.json");
+  EXPECT_EQ(c.loop.extract.prefetch_rows, 32u);
+  for (const char* bad : {R"({"extract": {"prefetch_rows": 1025}})", R"({"extract": {"prefetch_rows": -1}})",
+                          R"({"extract": {"prefetch_rows": 1.5}})"}) {
+    const std::string e = test::error_of([&] { fw::apply_config_json(c, bad, "board.json"); });
+    EXPECT_NE(e.find("board.json: extract.prefetch_rows: "), std::string::npos) << bad << ": " << e;
+  }
+  EXPECT_EQ(c.loop.extract.prefetch_rows, 32u);  // unchanged by the refused values
   // A number beyond a double's range is a clear error naming the file, not a foreign exception (fuzz find).
   const std::string overflow =
       test::error_of([&] { fw::apply_config_json(c, R"({"sim_":4,"period_us":500e7777})", "board.json"); });

@@ -2,9 +2,11 @@
 // method (error vs. noise table printed), Mono8 / Mono16 / YUYV frames.
 #include <gtest/gtest.h>
 
+#include <bit>
 #include <cmath>
 #include <cstdio>
 #include <random>
+#include <string>
 #include <vector>
 
 #include "common/error.hpp"
@@ -231,6 +233,50 @@ TEST(Extract, FrameFormatsAgree) {
   // Output capacity is respected.
   std::vector<msg::StripePoint> small(2);
   EXPECT_EQ(extract_frame(f8, ExtractParams{}, small).points, 2u);
+}
+
+// ExtractParams::prefetch_rows only asks the caches for rows ahead: the same points, bit for bit, at every distance
+// (up to and past the frame's height, where no row is prefetched), in every format and with padded strides.
+TEST(Extract, PrefetchLeavesThePointsAsTheyAre) {
+  std::mt19937 rng(11);
+  const std::uint32_t w = 200, h = 37, pad = 24;
+  std::vector<std::uint8_t> mono8((w + pad) * h), yuyv((2 * w + pad) * h);
+  std::vector<std::uint16_t> mono16((w + pad) * h);
+  for (std::uint32_t y = 0; y < h; ++y) {
+    const auto row = gaussian_row(w, 30.0 + 3.7 * y, 1.5, 160.0, 12.0, 2.0, rng);
+    for (std::uint32_t x = 0; x < w; ++x) {
+      mono8[y * (w + pad) + x] = row[x];
+      mono16[y * (w + pad) + x] = static_cast<std::uint16_t>(row[x] * 257);
+      yuyv[y * (2 * w + pad) + 2 * x] = row[x];
+      yuyv[y * (2 * w + pad) + 2 * x + 1] = 128;
+    }
+  }
+  const FrameView frames[] = {
+      {mono8.data(), w, h, w + pad, PixelFormat::Mono8, 0, 0, 0},
+      {reinterpret_cast<const std::uint8_t*>(mono16.data()), w, h, 2 * (w + pad), PixelFormat::Mono16, 0, 0, 0},
+      {yuyv.data(), w, h, 2 * w + pad, PixelFormat::Yuyv, 0, 0, 0}};
+  for (const FrameView& f : frames) {
+    ExtractParams off;
+    off.prefetch_rows = 0;
+    std::vector<msg::StripePoint> ref(h);
+    const ExtractCounts rc = extract_frame(f, off, ref);
+    ASSERT_GT(rc.points, h - 3);
+    for (const std::uint32_t d : {1u, 7u, 16u, h - 1, h, h + 1, 1000u, 0xffffffffu}) {
+      ExtractParams p;
+      p.prefetch_rows = d;
+      std::vector<msg::StripePoint> out(h);
+      const ExtractCounts c = extract_frame(f, p, out);
+      ASSERT_EQ(c.points, rc.points) << "prefetch_rows " << d;
+      for (std::uint32_t i = 0; i < c.points; ++i) {  // field by field (the padding is not the points')
+        const std::string at = "prefetch_rows " + std::to_string(d) + ", format " +
+                               std::to_string(static_cast<int>(f.format)) + ", point " + std::to_string(i);
+        EXPECT_EQ(out[i].row, ref[i].row) << at;
+        EXPECT_EQ(std::bit_cast<std::uint32_t>(out[i].col), std::bit_cast<std::uint32_t>(ref[i].col)) << at;
+        EXPECT_EQ(out[i].peak, ref[i].peak) << at;
+        EXPECT_EQ(std::bit_cast<std::uint32_t>(out[i].width), std::bit_cast<std::uint32_t>(ref[i].width)) << at;
+      }
+    }
+  }
 }
 
 TEST(Extract, ParsesMethodNames) {
