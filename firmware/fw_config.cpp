@@ -117,6 +117,7 @@ void apply_config_json(FwConfig& c, const std::string& text, const std::string& 
         else if (sk == "exposure_us") c.sim_exposure_us = get_num<std::uint32_t>(sv, src, f, 1, 1e6);
         else if (sk == "readout_us") c.sim_readout_us = get_num<std::uint32_t>(sv, src, f, 0, 1e6);
         else if (sk == "buffers") c.sim_buffers = get_num<std::uint32_t>(sv, src, f, 2, 32);
+        else if (sk == "speckle_grain_px") c.sim_speckle_grain_px = get_num<double>(sv, src, f, 0, 8);
         else bad(src, f, "unknown key");
       }
     } else {

@@ -11,8 +11,10 @@
 //              "homing_timeout_ms": 2000, "move_timeout_ms": 50},
 //     "extract": {"method": "gauss-ml" | "gauss-log" | "gauss-fit" | "blais-rioux" | "gauss3" | "cog", "min_contrast": 24,
 //                 "read_noise": 1.5, "shot_noise": 0.35, "speckle": 0.12 (gauss-ml noise model), "ambiguous_ratio": 0.5,
-//                 "saturation_run": 3, "along_stripe": 7 (rows of the along-stripe refinement: 0 = off, odd 3..15)},
-//     "sim_camera": {"period_us": 5000, "exposure_us": 1000, "readout_us": 1000, "buffers": 4},
+//                 "saturation_run": 3, "along_stripe": 7 (rows of the along-stripe refinement: 0 = off, odd 3..15),
+//                 "prefetch_rows": 16 (software prefetch distance: 0 = off, <= 1024)},
+//     "sim_camera": {"period_us": 5000, "exposure_us": 1000, "readout_us": 1000, "buffers": 4,
+//                    "speckle_grain_px": 0 (correlation length of the simulated speckle, 0..8; 0 = per pixel)},
 //     "stream_buffer_kb": 16384, "host_heartbeat_timeout_ms": 0
 //   }
 // Unknown keys and wrong types are errors: fs::Error "<file>: <field>: <problem>".
@@ -39,6 +41,7 @@ struct FwConfig {
   std::vector<std::string> faults;
   LoopConfig loop;
   std::uint32_t sim_period_us = 5000, sim_exposure_us = 1000, sim_readout_us = 1000, sim_buffers = 4;
+  double sim_speckle_grain_px = 0.0;  // sim::RenderOptions::speckle_grain_px of the simulated camera's frames
   std::uint32_t stream_buffer_kb = 16384;
   std::uint32_t host_heartbeat_timeout_ms = 0;  // 0: host heartbeats not required
   bool steps_given = false;

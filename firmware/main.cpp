@@ -97,7 +97,9 @@ int run_scan(fw::FwConfig& cfg) {
   std::unique_ptr<sim::SceneFrameRenderer> renderer;
   std::unique_ptr<sim::SimRig> rig;
   if (sim_camera) {
-    renderer = std::make_unique<sim::SceneFrameRenderer>(scene);
+    sim::RenderOptions ro;
+    ro.speckle_grain_px = cfg.sim_speckle_grain_px;
+    renderer = std::make_unique<sim::SceneFrameRenderer>(scene, ro);
     rig = std::make_unique<sim::SimRig>(*renderer, rc);
   } else if (!cfg.faults.empty()) {
     throw Error("--fault needs the simulated devices (--galvo sim --camera sim)");

@@ -21,6 +21,7 @@ struct SimFrameArgs {
   double step = 0.0;
   std::string output;
   double noise = 1.0;
+  double speckle_grain = 0.0;
   std::uint64_t seed = 1;
   bool mono16 = false;
   bool reflection = false;
@@ -45,6 +46,7 @@ void run(const SimFrameArgs& a) {
   RenderOptions opt;
   opt.noise_scale = a.noise;
   opt.spurious_reflection = a.reflection;
+  opt.speckle_grain_px = a.speckle_grain;
   StripeRenderer renderer(scene, opt);
   const CameraModel& cam = scene.calibration.camera;
   FrameBuffer fb;
@@ -80,6 +82,9 @@ void add_sim_frame_command(CLI::App& app) {
   sub->add_option("-o,--output", args->output, "Output PNG")->required();
   sub->add_option("--noise", args->noise, "Noise scale: 0 = noise-free, 1 = default sensor noise and speckle")
       ->check(CLI::NonNegativeNumber);
+  sub->add_option("--speckle-grain", args->speckle_grain,
+                  "Correlation length of the speckle (px, along rows and between them; 0 = independent per pixel)")
+      ->check(CLI::Range(0.0, kMaxSpeckleGrainPx));
   sub->add_option("--seed", args->seed, "Noise seed (same seed, same frame)");
   sub->add_flag("--mono16", args->mono16, "16-bit frame instead of 8-bit");
   sub->add_flag("--reflection", args->reflection, "Add a spurious reflection next to the stripe on objects");

@@ -23,6 +23,47 @@ StripeRenderer::StripeRenderer(const Scene& scene, const RenderOptions& options)
   noise_.resize(kNoiseTable + cam.width);
   Prng rng(0x5EEDF00DULL);
   for (float& g : noise_) g = static_cast<float>(rng.gaussian());
+  tile_.resize(std::size_t{kSpeckleTile} * kSpeckleTile);
+  build_speckle_tile();
+}
+
+namespace {
+double effective_grain(double g) { return g > 0.0 ? std::min(g, kMaxSpeckleGrainPx) : 0.0; }  // NaN: 0
+}  // namespace
+
+// White Gaussian noise blurred by a periodic Gaussian of sigma grain / sqrt(2) along both axes (the field's
+// autocorrelation is then exp(-d^2 / (2 grain^2))), scaled to unit variance over the tile. In place, one row or
+// column of scratch on the stack.
+void StripeRenderer::build_speckle_tile() {
+  const double grain = effective_grain(options_.speckle_grain_px);
+  tile_grain_ = grain;
+  if (grain == 0.0) return;
+  constexpr std::uint32_t T = kSpeckleTile, M = T - 1;
+  const double s = grain / std::sqrt(2.0);
+  const int R = static_cast<int>(std::ceil(4.0 * s));
+  float k[2 * 23 + 1];  // R <= ceil(4 * 8 / sqrt 2) = 23
+  for (int i = -R; i <= R; ++i) k[i + R] = static_cast<float>(std::exp(-0.5 * i * i / (s * s)));
+  Prng rng(0x5BEC1E5ULL);
+  for (float& v : tile_) v = static_cast<float>(rng.gaussian());
+  float line[T];
+  const auto blur = [&](std::size_t first, std::size_t step) {  // one periodic line of the tile
+    for (std::uint32_t x = 0; x < T; ++x) line[x] = tile_[first + x * step];
+    for (std::uint32_t x = 0; x < T; ++x) {
+      float a = 0.0f;
+      for (int i = -R; i <= R; ++i) a += k[i + R] * line[(x + static_cast<std::uint32_t>(i + static_cast<int>(T))) & M];
+      tile_[first + x * step] = a;
+    }
+  };
+  for (std::uint32_t y = 0; y < T; ++y) blur(std::size_t{y} * T, 1);  // along the rows
+  for (std::uint32_t x = 0; x < T; ++x) blur(x, T);                   // between the rows
+  double sum = 0.0, sum2 = 0.0;
+  for (const float v : tile_) {
+    sum += v;
+    sum2 += static_cast<double>(v) * v;
+  }
+  const double n = static_cast<double>(tile_.size()), mean = sum / n;
+  const float inv = static_cast<float>(1.0 / std::sqrt(sum2 / n - mean * mean)), m = static_cast<float>(mean);
+  for (float& v : tile_) v = (v - m) * inv;
 }
 
 void StripeRenderer::stripe_shape(const StripeSample& s, const Plane& laser, float& peak, float& sigma) const {
@@ -62,11 +103,19 @@ void StripeRenderer::draw(const FrameBuffer& frame, std::uint64_t seed, double f
   const std::uint32_t W = frame.width;
   const std::uint64_t span = kNoiseTable;  // offsets in [0, span): a row of W samples always fits
   Prng rng(seed);
+  const bool grain = tile_grain_ > 0.0;
+  constexpr std::uint32_t M = kSpeckleTile - 1;
+  // The correlated pattern's offset in the tile for this frame (drawn after the rows' offsets: a grain of 0 keeps
+  // every frame as it was).
+  Prng tile_rng(seed ^ 0x7173A5EEDULL);
+  const std::uint32_t ox = static_cast<std::uint32_t>(tile_rng.below(kSpeckleTile)),
+                      oy = static_cast<std::uint32_t>(tile_rng.below(kSpeckleTile));
   for (std::uint32_t r = 0; r < frame.height; ++r) {
     Pixel* out = reinterpret_cast<Pixel*>(frame.data + static_cast<std::size_t>(r) * frame.stride);
     const float* g = noise_.data() + rng.below(span);
     const float* g2 = noise_.data() + rng.below(span);
     const float* g3 = noise_.data() + rng.below(span);
+    const float* trow = tile_.data() + static_cast<std::size_t>((r + oy) & M) * kSpeckleTile;
     for (std::uint32_t x = 0; x < W; ++x) {
       float v = amb + read * g[x];
       v = v < 0.0f ? 0.0f : (v > fs_max ? fs_max : v);
@@ -98,7 +147,7 @@ void StripeRenderer::draw(const FrameBuffer& frame, std::uint64_t seed, double f
         if (gx * gx * ginv2 < 16.0f) sgl += gpk * std::exp(-gx * gx * ginv2);
       }
       if (sgl <= 0.0f) continue;
-      sgl *= 1.0f + speckle * g2[x];
+      sgl *= 1.0f + speckle * (grain ? trow[(static_cast<std::uint32_t>(x) + ox) & M] : g2[x]);
       if (sgl > 0.0f) sgl += shot * std::sqrt(sgl) * g3[x];
       float v = amb + read * g[x] + sgl;
       v = v < 0.0f ? 0.0f : (v > fs_max ? fs_max : v);
@@ -117,6 +166,7 @@ void StripeRenderer::render(double mirror_angle_rad, std::uint64_t seed, const F
     throw Error("sim renderer: frame buffer missing or stride " + std::to_string(frame.stride) + " too small");
   if (bpp == 2 && (frame.stride % 2 != 0 || reinterpret_cast<std::uintptr_t>(frame.data) % 2 != 0))
     throw Error("sim renderer: Mono16 frames need 2-byte aligned rows (stride " + std::to_string(frame.stride) + ")");
+  if (effective_grain(options_.speckle_grain_px) != tile_grain_) build_speckle_tile();
   laser_ = scene_->calibration.laser.plane_at_mirror_angle(mirror_angle_rad);
   tracer_.trace(laser_, truth_);
   for (std::size_t r = 0; r < truth_.size(); ++r) {

@@ -38,12 +38,19 @@ struct RenderOptions {
   double sensor_noise = 1.5;          // read noise sigma, DN (whole frame)
   double shot_noise = 0.35;           // shot noise sigma = shot_noise * sqrt(signal), DN
   double speckle = 0.12;              // relative sigma of the multiplicative speckle on stripe pixels
+  // Speckle grain: the correlation length (px) of the speckle pattern, along the row and between rows (its
+  // correlation at a distance d is exp(-d^2 / (2 grain^2))). 0 = independent per pixel (the default, what
+  // every number in the README was measured with); a real laser's subjective speckle is about a pixel or more
+  // (~1.2 lambda F# (1 + M) on the sensor), correlated in both directions. Kept at most kMaxSpeckleGrainPx.
+  double speckle_grain_px = 0.0;
   double noise_scale = 1.0;           // multiplies sensor_noise, shot_noise and speckle (0 = noise-free)
   bool spurious_reflection = false;
   double reflection_gain = 0.35;      // ghost peak relative to the stripe's
   double reflection_offset_px = 18.0; // ghost column = true column + offset (toward larger u)
   double reflection_width = 2.5;      // ghost sigma relative to the stripe's
 };
+
+constexpr double kMaxSpeckleGrainPx = 8.0;
 
 class StripeRenderer {
  public:
@@ -58,6 +65,13 @@ class StripeRenderer {
 
   // Per image row of the last frame: true centre, 3D point, object id, face id (stripe_truth.hpp).
   std::span<const StripeSample> truth() const { return truth_; }
+  // The correlated speckle pattern (speckle_grain_px > 0): a periodic kSpeckleTile x kSpeckleTile field of unit
+  // variance, read at a random offset per frame (row r, column x of a frame: tile row (r + oy) mod kSpeckleTile,
+  // column (x + ox) mod kSpeckleTile). Built at construction and again by the render after the grain changed
+  // (in place, no allocation). For tests of its statistics.
+  static constexpr std::uint32_t kSpeckleTile = 512;
+  std::span<const float> speckle_tile() const { return tile_; }
+
   // Peak value (DN) and sigma (px) of the stripe drawn in each row of the last frame (0 where none).
   std::span<const float> peak() const { return peak_; }
   std::span<const float> sigma_px() const { return sigma_; }
@@ -76,6 +90,9 @@ class StripeRenderer {
   std::vector<StripeSample> truth_;
   std::vector<float> peak_, sigma_;
   std::vector<float> noise_;  // standard normal samples, read at random offsets
+  void build_speckle_tile();
+  std::vector<float> tile_;  // the correlated speckle pattern, kSpeckleTile^2
+  double tile_grain_ = 0.0;  // the grain tile_ was built for (0: not built)
   Plane laser_;
 };
 
