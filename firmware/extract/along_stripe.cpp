@@ -54,15 +54,40 @@ bool explains(const Line& l, double s2) { return l.n < 3 || l.ssr <= kChi2_99[st
 
 }  // namespace
 
-double along_stripe_sigma(std::span<const msg::StripePoint> pts) {
+double along_stripe_scale(std::span<const msg::StripePoint> pts, std::uint32_t rows) {
+  if (rows < 3) return 0.0;
+  const int H = static_cast<int>(std::min(rows, kAlongStripeMaxRows) / 2), w = 2 * H + 1;
   constexpr int kBins = 512;
-  constexpr double kBin = 0.002;  // px
+  constexpr float kInvBin = 1.0f / 0.002f;  // bins of 0.002 px
   std::uint32_t hist[kBins] = {};
   std::uint32_t count = 0;
-  for (std::size_t j = 1; j + 1 < pts.size(); ++j) {
-    if (!joined(pts[j - 1], pts[j]) || !joined(pts[j], pts[j + 1])) continue;
-    const double d2 = std::abs(static_cast<double>(pts[j - 1].col) - 2.0 * pts[j].col + pts[j + 1].col);
-    ++hist[std::min(kBins - 1, static_cast<int>(d2 * (1.0 / kBin)))];
+  // The line through the window's w points at x = 0 .. 2H: residual sum of squares from the sums of y, x y, y^2
+  // (y relative to the run's first centre), slid along the run one point at a time.
+  const double inv_w = 1.0 / w, inv_sxx = 1.0 / sxx_run(w - 1), inv_dof = 1.0 / (w - 2);
+  double s0 = 0.0, s1 = 0.0, s2 = 0.0, ref = 0.0;
+  int len = 0;  // points of the current run so far (the window holds the last min(len, w) of them)
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    if (i == 0 || !joined(pts[i - 1], pts[i])) {
+      len = 0;
+      s0 = s1 = s2 = 0.0;
+      ref = pts[i].col;
+    }
+    const double y = pts[i].col - ref;
+    if (len < w) {  // filling the first window of the run
+      s0 += y;
+      s1 += len * y;
+      s2 += y * y;
+    } else {  // drop the point w back, shift x down by one, add this one at x = 2H
+      const double old = pts[i - static_cast<std::size_t>(w)].col - ref;
+      s1 += -(s0 - old) + (w - 1) * y;
+      s0 += y - old;
+      s2 += y * y - old * old;
+    }
+    if (++len < w) continue;
+    const double c = s1 - H * s0;  // sum of (x - H) y
+    const double ssr = std::max(0.0, s2 - s0 * s0 * inv_w - c * c * inv_sxx);
+    const float sd = std::sqrt(static_cast<float>(ssr * inv_dof));
+    ++hist[std::min(kBins - 1, static_cast<int>(sd * kInvBin))];
     ++count;
   }
   if (count < 16) return 0.0;
@@ -70,8 +95,11 @@ double along_stripe_sigma(std::span<const msg::StripePoint> pts) {
   double below = 0.0;
   int b = 0;
   while (b < kBins - 1 && below + hist[b] < half) below += hist[b++];
-  const double median = (b + (hist[b] ? (half - below) / hist[b] : 0.5)) * kBin;  // interpolated in its bin
-  return 1.4826 * median / std::sqrt(6.0);  // MAD -> sigma of d2, / sqrt(6) -> one row's
+  const double median = (b + (hist[b] ? (half - below) / hist[b] : 0.5)) * 0.002;  // interpolated in its bin
+  // For independent Gaussian errors ssr / sigma^2 is chi-square with k = w - 2 degrees of freedom, whose median
+  // is ~k (1 - 2 / (9 k))^3 (Wilson-Hilferty, within 0.3 % for k >= 1).
+  const double k = w - 2, m = 1.0 - 2.0 / (9.0 * k);
+  return median / std::sqrt(m * m * m);
 }
 
 namespace {

@@ -872,7 +872,7 @@ ExtractCounts detail::extract_frame_walks(const FrameView& f, const ExtractParam
   }
   if (params.along_stripe >= 3) {
     const std::span<msg::StripePoint> pts = out.first(std::min<std::size_t>(c.points, out.size()));
-    refine_along_stripe(pts, params.along_stripe, along_stripe_sigma(pts));
+    refine_along_stripe(pts, params.along_stripe, along_stripe_scale(pts, params.along_stripe));
     // A line through the neighbours can end a little past the row's first or last pixel (a stripe along the
     // frame's edge): the centre stays inside the row, as the per-row centres do (found by the fuzz target).
     const float last = static_cast<float>(f.width) - 0.5f;

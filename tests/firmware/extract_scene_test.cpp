@@ -170,7 +170,7 @@ TEST(ExtractScene, FrameGivesTheRowByRowResults) {
 }
 
 // With the along-stripe refinement (the default), extract_frame = the row-by-row results refined by
-// refine_along_stripe with the frame's along_stripe_sigma, bit for bit.
+// refine_along_stripe with the frame's along_stripe_scale, bit for bit.
 TEST(ExtractScene, FrameIsTheRowsRefinedAlongTheStripe) {
   const sim::Scene scene = sim::load_scene(source_dir() / "hw-sim/scenes/cube.json");
   sim::StripeRenderer r(scene);
@@ -191,7 +191,7 @@ TEST(ExtractScene, FrameIsTheRowsRefinedAlongTheStripe) {
                                       static_cast<std::uint16_t>(rp.peak), static_cast<float>(rp.width)});
     }
     ASSERT_EQ(rows.size(), c.points);
-    const double sigma = fw::along_stripe_sigma(rows);
+    const double sigma = fw::along_stripe_scale(rows, p.along_stripe);
     EXPECT_GT(sigma, 0.03);  // the per-row noise of the default renderer noise (~0.075 px)
     EXPECT_LT(sigma, 0.15);
     fw::refine_along_stripe(rows, p.along_stripe, sigma);
