@@ -61,8 +61,8 @@ struct ExtractParams {
   // Software prefetch: while a row is passed, the row this many rows below it is requested from memory (every
   // cache line of it), so that a frame a camera wrote to memory arrives in the cache before the pass reaches it
   // (the hardware prefetchers follow only the pass itself, which is idle while the rows' centres are fitted).
-  // 0 = off. bench_extract BM_StreamVsMemcpy: a frame from memory 12-16 % faster at 16 rows (two blocks of rows
-  // ahead; 8 hid too little of the latency), BM_ExtractVsMemcpy: a frame already in the caches ~4 % slower.
+  // 0 = off. bench_extract BM_StreamVsMemcpy: a frame from memory 8-16 % faster at 16 rows (two blocks of rows
+  // ahead; 8 hid too little of the latency), BM_ExtractVsMemcpy: a frame already in the caches ~4-5 % slower.
   std::uint32_t prefetch_rows = 16;
 };
 
