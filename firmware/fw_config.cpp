@@ -106,7 +106,8 @@ void apply_config_json(FwConfig& c, const std::string& text, const std::string& 
           const auto rows = get_num<std::uint32_t>(ev, src, f, 0, kAlongStripeMaxRows);
           if (rows > 1 && rows % 2 == 0) bad(src, f, "expected 0 or 1 (off) or an odd number of rows 3..15");
           e.along_stripe = rows;
-        } else if (ek == "prefetch_rows") e.prefetch_rows = get_num<std::uint32_t>(ev, src, f, 0, 1024);
+        } else if (ek == "prefetch_rows")
+          e.prefetch_rows = get_num<std::uint32_t>(ev, src, f, 0, 1024);
         else bad(src, f, "unknown key");
       }
     } else if (k == "sim_camera") {
@@ -117,7 +118,8 @@ void apply_config_json(FwConfig& c, const std::string& text, const std::string& 
         else if (sk == "exposure_us") c.sim_exposure_us = get_num<std::uint32_t>(sv, src, f, 1, 1e6);
         else if (sk == "readout_us") c.sim_readout_us = get_num<std::uint32_t>(sv, src, f, 0, 1e6);
         else if (sk == "buffers") c.sim_buffers = get_num<std::uint32_t>(sv, src, f, 2, 32);
-        else if (sk == "speckle_grain_px") c.sim_speckle_grain_px = get_num<double>(sv, src, f, 0, 8);
+        else if (sk == "speckle_grain_px")
+          c.sim_speckle_grain_px = get_num<double>(sv, src, f, 0, kMaxSimSpeckleGrainPx);
         else bad(src, f, "unknown key");
       }
     } else {

@@ -9,12 +9,15 @@
 //     "loop": {"period_us": 500, "max_dwell_ms": 40, "camera_timeout_ms": 25, "late_limit_us": 250,
 //              "max_consecutive_late": 3, "heartbeat_ms": 500, "require_host": false, "host_grace_ms": 0,
 //              "homing_timeout_ms": 2000, "move_timeout_ms": 50},
-//     "extract": {"method": "gauss-ml" | "gauss-log" | "gauss-fit" | "blais-rioux" | "gauss3" | "cog", "min_contrast": 24,
-//                 "read_noise": 1.5, "shot_noise": 0.35, "speckle": 0.12 (gauss-ml noise model), "ambiguous_ratio": 0.5,
-//                 "saturation_run": 3, "along_stripe": 7 (rows of the along-stripe refinement: 0 = off, odd 3..15),
-//                 "prefetch_rows": 16 (software prefetch distance: 0 = off, <= 1024)},
+//     "extract": {"method": "gauss-ml" | "gauss-log" | "gauss-fit" | "blais-rioux" | "gauss3" | "cog",
+//     "min_contrast": 24,
+//                 "read_noise": 1.5, "shot_noise": 0.35, "speckle": 0.12 (gauss-ml noise model),
+//                 "ambiguous_ratio": 0.5, "saturation_run": 3, "along_stripe": 7 (rows of the along-stripe
+//                 refinement: 0 = off, odd 3..15), "prefetch_rows": 16 (software prefetch distance: 0 = off,
+//                 <= 1024)},
 //     "sim_camera": {"period_us": 5000, "exposure_us": 1000, "readout_us": 1000, "buffers": 4,
-//                    "speckle_grain_px": 0 (correlation length of the simulated speckle, 0..8; 0 = per pixel)},
+//                    "speckle_grain_px": 0 (correlation length of the simulated speckle, 0..8; 0 = per
+//                    pixel)},
 //     "stream_buffer_kb": 16384, "host_heartbeat_timeout_ms": 0
 //   }
 // Unknown keys and wrong types are errors: fs::Error "<file>: <field>: <problem>".
@@ -26,6 +29,9 @@
 #include "firmware/loop/controller.hpp"
 
 namespace fs::fw {
+
+// The largest sim_camera.speckle_grain_px accepted (= sim::kMaxSpeckleGrainPx, checked where both are seen).
+constexpr double kMaxSimSpeckleGrainPx = 8.0;
 
 struct FwConfig {
   std::string galvo = "sim";

@@ -97,6 +97,7 @@ int run_scan(fw::FwConfig& cfg) {
   std::unique_ptr<sim::SceneFrameRenderer> renderer;
   std::unique_ptr<sim::SimRig> rig;
   if (sim_camera) {
+    static_assert(fw::kMaxSimSpeckleGrainPx == sim::kMaxSpeckleGrainPx);
     sim::RenderOptions ro;
     ro.speckle_grain_px = cfg.sim_speckle_grain_px;
     renderer = std::make_unique<sim::SceneFrameRenderer>(scene, ro);

@@ -12,6 +12,9 @@ using detail::kMaxStepPx;
 // Chi-square 99 % quantiles for 1..13 degrees of freedom (a window of up to 15 rows minus the line's 2).
 constexpr double kChi2_99[14] = {0.0, 6.635, 9.210, 11.345, 13.277, 15.086, 16.812, 18.475,
                                  20.090, 21.666, 23.209, 24.725, 26.217, 27.688};
+// Medians of chi-square for 1..13 degrees of freedom (the odd ones are used: windows of 3..15 rows minus 2).
+constexpr double kChi2Median[14] = {0.0,     0.45494, 1.38629, 2.36597, 3.35669,  4.35146,  5.34812,
+                                    6.34581, 7.34412, 8.34283, 9.34182, 10.34100, 11.34032, 12.33976};
 // The two halves' slopes may differ by this many standard deviations of their difference.
 constexpr double kSlopeSigmas = 3.0;
 
@@ -59,10 +62,12 @@ double along_stripe_scale(std::span<const msg::StripePoint> pts, std::uint32_t r
   const int H = static_cast<int>(std::min(rows, kAlongStripeMaxRows) / 2), w = 2 * H + 1;
   constexpr int kBins = 512;
   constexpr float kInvBin = 1.0f / 0.002f;  // bins of 0.002 px
-  std::uint32_t hist[kBins] = {};
+  // Four histograms taken in turn, summed at the end: neighbouring windows mostly fall into the same bin, and
+  // one histogram's increments of it would wait for each other through memory.
+  std::uint32_t hist4[4][kBins] = {};
   std::uint32_t count = 0;
-  // The line through the window's w points at x = 0 .. 2H: residual sum of squares from the sums of y, x y, y^2
-  // (y relative to the run's first centre), slid along the run one point at a time.
+  // The line through the window's w points at x = 0 .. 2H: residual sum of squares from the sums of y, x y,
+  // y^2 (y relative to the run's first centre), slid along the run one point at a time.
   const double inv_w = 1.0 / w, inv_sxx = 1.0 / sxx_run(w - 1), inv_dof = 1.0 / (w - 2);
   double s0 = 0.0, s1 = 0.0, s2 = 0.0, ref = 0.0;
   int len = 0;  // points of the current run so far (the window holds the last min(len, w) of them)
@@ -87,19 +92,21 @@ double along_stripe_scale(std::span<const msg::StripePoint> pts, std::uint32_t r
     const double c = s1 - H * s0;  // sum of (x - H) y
     const double ssr = std::max(0.0, s2 - s0 * s0 * inv_w - c * c * inv_sxx);
     const float sd = std::sqrt(static_cast<float>(ssr * inv_dof));
-    ++hist[std::min(kBins - 1, static_cast<int>(sd * kInvBin))];
+    // >= 0; a NaN or inf (not from extract_frame's points) goes to the last bin
+    const float bin = sd * kInvBin;
+    ++hist4[count & 3][bin < static_cast<float>(kBins - 1) ? static_cast<int>(bin) : kBins - 1];
     ++count;
   }
   if (count < 16) return 0.0;
+  std::uint32_t hist[kBins];
+  for (int b = 0; b < kBins; ++b) hist[b] = hist4[0][b] + hist4[1][b] + hist4[2][b] + hist4[3][b];
   const double half = 0.5 * count;
   double below = 0.0;
   int b = 0;
   while (b < kBins - 1 && below + hist[b] < half) below += hist[b++];
   const double median = (b + (hist[b] ? (half - below) / hist[b] : 0.5)) * 0.002;  // interpolated in its bin
-  // For independent Gaussian errors ssr / sigma^2 is chi-square with k = w - 2 degrees of freedom, whose median
-  // is ~k (1 - 2 / (9 k))^3 (Wilson-Hilferty, within 0.3 % for k >= 1).
-  const double k = w - 2, m = 1.0 - 2.0 / (9.0 * k);
-  return median / std::sqrt(m * m * m);
+  // For independent Gaussian errors ssr / sigma^2 is chi-square with k = w - 2 degrees of freedom.
+  return median / std::sqrt(kChi2Median[w - 2] / (w - 2));
 }
 
 namespace {

@@ -17,7 +17,8 @@
 //     corner, or an outlier row is never moved by rows of another face.
 // With hw-sim's default speckle, independent per pixel, the rows' errors are independent and the gain is the
 // full ~sqrt(2h + 1) at most; a real laser's speckle is correlated over neighbouring pixels and rows, so the
-// gain on hardware is smaller (hw-sim's RenderOptions::speckle_grain_px: 2.3x at grain 0, 1.6x at 1 px). No allocation (fixed-size state on the stack); in place.
+// gain on hardware is smaller (hw-sim's RenderOptions::speckle_grain_px: 2.3x at grain 0, 1.5x at 1 px). No
+// allocation (fixed-size state on the stack); in place.
 #include <cstdint>
 #include <span>
 
@@ -31,13 +32,14 @@ namespace detail {
 constexpr double kMaxStepPx = 2.0;  // a larger column step between neighbouring rows ends the window
 }
 
-// The per-row noise scale that refine_along_stripe's tests need, from the frame itself (robust: a median): the
-// median residual of the least-squares lines through every whole window of `rows` rows (contiguous, joined rows),
-// scaled to estimate sigma for independent Gaussian errors. It stays the right yardstick when neighbouring rows'
-// errors are correlated, as a real laser's speckle makes them: a sigma from the median second difference of
-// neighbouring centres (what the refinement used before) falls to about half there (second differences cancel
-// correlated errors), and its tests then refused most windows (cube frames with a 1 px speckle grain: 0.0591 px
-// refined with it, 0.0495 with this; independent speckle: 0.0258 and 0.0256). 0 when fewer than 16 windows exist.
+// The per-row noise scale that refine_along_stripe's tests need, from the frame itself (robust: a median):
+// the median residual of the least-squares lines through every whole window of `rows` rows (contiguous,
+// joined rows), scaled to estimate sigma for independent Gaussian errors. It stays the right yardstick when
+// neighbouring rows' errors are correlated, as a real laser's speckle makes them: a sigma from the median
+// second difference of neighbouring centres (what the refinement used before) falls to about half there
+// (second differences cancel correlated errors), and its tests then refused most windows (cube frames with a
+// 1 px speckle grain: 0.0611 px refined with it, 0.0512 with this; independent speckle: 0.0258 and 0.0256). 0
+// when fewer than 16 windows exist.
 double along_stripe_scale(std::span<const msg::StripePoint> pts, std::uint32_t rows);
 
 // Refines pts[].col in place (points in row order, as extract_frame writes them). rows: the window (odd,

@@ -789,10 +789,12 @@ RowPeak extract_row<std::uint16_t>(const std::uint16_t* row, std::uint32_t n, st
 
 namespace {
 
-// Requests the `bytes` bytes at p into the caches, every cache line (ExtractParams::prefetch_rows; a prefetch
-// never faults, and p is inside the frame anyway).
+// Requests the `bytes` bytes at p into the caches: every 64-byte cache line they touch, the first and last of
+// a row that does not start on a line included (ExtractParams::prefetch_rows; a prefetch never faults).
 inline void prefetch_row(const std::uint8_t* p, std::size_t bytes) {
-  for (std::size_t o = 0; o < bytes; o += 64) __builtin_prefetch(p + o, 0, 3);
+  const std::uintptr_t first = reinterpret_cast<std::uintptr_t>(p) & ~std::uintptr_t{63};
+  const std::uintptr_t end = reinterpret_cast<std::uintptr_t>(p) + bytes;
+  for (std::uintptr_t a = first; a < end; a += 64) __builtin_prefetch(reinterpret_cast<const void*>(a), 0, 3);
 }
 
 // Rows in blocks of kBatch: each stage over the block's rows (row pass; support and background; shape and
@@ -814,9 +816,9 @@ void extract_rows(const FrameView& f, double full_scale, const ExtractParams& pa
       const auto* row =
           reinterpret_cast<const T*>(f.data + static_cast<std::size_t>(y0 + static_cast<std::uint32_t>(i)) * f.stride);
       stage_pass<T, Step>(st[i], row, f.width);
-      if (params.prefetch_rows > 0 && params.prefetch_rows < f.height - y0 - static_cast<std::uint32_t>(i))
-        prefetch_row(reinterpret_cast<const std::uint8_t*>(row) + static_cast<std::size_t>(params.prefetch_rows) * f.stride,
-                     static_cast<std::size_t>(f.width) * sizeof(T) * Step);
+      if (const std::uint8_t* ahead =
+              detail::prefetch_target(f, y0 + static_cast<std::uint32_t>(i), params.prefetch_rows))
+        prefetch_row(ahead, static_cast<std::size_t>(f.width) * sizeof(T) * Step);
     }
     for (int i = 0; i < rows; ++i) stage_level<T>(st[i], full_scale, params);
     if constexpr (sizeof(T) == 1) {
@@ -856,6 +858,12 @@ void extract_rows(const FrameView& f, double full_scale, const ExtractParams& pa
 }
 
 }  // namespace
+
+const std::uint8_t* detail::prefetch_target(const FrameView& f, std::uint32_t y, std::uint32_t rows) {
+  // y < f.height: the subtraction does not wrap, nor does y + rows get formed
+  if (rows == 0 || y >= f.height || rows >= f.height - y) return nullptr;
+  return f.data + (static_cast<std::size_t>(y) + rows) * f.stride;
+}
 
 ExtractCounts extract_frame(const FrameView& f, const ExtractParams& params, std::span<msg::StripePoint> out) {
   return detail::extract_frame_walks(f, params, out, Walks::Best);

@@ -59,10 +59,11 @@ struct ExtractParams {
   // the per-row centres (what extract_row gives).
   std::uint32_t along_stripe = 7;
   // Software prefetch: while a row is passed, the row this many rows below it is requested from memory (every
-  // cache line of it), so that a frame a camera wrote to memory arrives in the cache before the pass reaches it
-  // (the hardware prefetchers follow only the pass itself, which is idle while the rows' centres are fitted).
-  // 0 = off. bench_extract BM_StreamVsMemcpy: a frame from memory 8-16 % faster at 16 rows (two blocks of rows
-  // ahead; 8 hid too little of the latency), BM_ExtractVsMemcpy: a frame already in the caches ~4-5 % slower.
+  // cache line of it), so that a frame a camera wrote to memory arrives in the cache before the pass reaches
+  // it (the hardware prefetchers follow only the pass itself, which is idle while the rows' centres are
+  // fitted). 0 = off. bench_extract BM_StreamVsMemcpy: a frame from memory 8-16 % faster at 16 rows (two
+  // blocks of rows ahead; 8 hid too little of the latency), BM_ExtractVsMemcpy: a frame already in the caches
+  // ~4-5 % slower.
   std::uint32_t prefetch_rows = 16;
 };
 
@@ -108,6 +109,10 @@ namespace detail {
 // extract_frame with the walks chosen; every choice gives the same results (tests/firmware/extract_lanes_test.cpp).
 ExtractCounts extract_frame_walks(const FrameView& frame, const ExtractParams& params, std::span<msg::StripePoint> out,
                                   Walks walks);
+// The first byte of the row `rows` below row y of the frame, which extract_frame prefetches while it passes
+// row y (ExtractParams::prefetch_rows); null when rows is 0 or that row is past the frame's last (y <
+// frame.height).
+const std::uint8_t* prefetch_target(const FrameView& frame, std::uint32_t y, std::uint32_t rows);
 }  // namespace detail
 
 }  // namespace fs::fw

@@ -82,8 +82,9 @@ void add_sim_frame_command(CLI::App& app) {
   sub->add_option("-o,--output", args->output, "Output PNG")->required();
   sub->add_option("--noise", args->noise, "Noise scale: 0 = noise-free, 1 = default sensor noise and speckle")
       ->check(CLI::NonNegativeNumber);
-  sub->add_option("--speckle-grain", args->speckle_grain,
-                  "Correlation length of the speckle (px, along rows and between them; 0 = independent per pixel)")
+  sub->add_option(
+         "--speckle-grain", args->speckle_grain,
+         "Correlation length of the speckle (px, along rows and between them; 0 = independent per pixel)")
       ->check(CLI::Range(0.0, kMaxSpeckleGrainPx));
   sub->add_option("--seed", args->seed, "Noise seed (same seed, same frame)");
   sub->add_flag("--mono16", args->mono16, "16-bit frame instead of 8-bit");

@@ -39,8 +39,9 @@ struct RenderOptions {
   double shot_noise = 0.35;           // shot noise sigma = shot_noise * sqrt(signal), DN
   double speckle = 0.12;              // relative sigma of the multiplicative speckle on stripe pixels
   // Speckle grain: the correlation length (px) of the speckle pattern, along the row and between rows (its
-  // correlation at a distance d is exp(-d^2 / (2 grain^2))). 0 = independent per pixel (the default, what
-  // every number in the README was measured with); a real laser's subjective speckle is about a pixel or more
+  // correlation at a distance of d pixels is exp(-d^2 / (2 grain^2))). 0 = independent per pixel (the
+  // default, and the README's numbers unless they name a grain); a real laser's subjective speckle is about a
+  // pixel or more
   // (~1.2 lambda F# (1 + M) on the sensor), correlated in both directions. Kept at most kMaxSpeckleGrainPx.
   double speckle_grain_px = 0.0;
   double noise_scale = 1.0;           // multiplies sensor_noise, shot_noise and speckle (0 = noise-free)
@@ -65,10 +66,11 @@ class StripeRenderer {
 
   // Per image row of the last frame: true centre, 3D point, object id, face id (stripe_truth.hpp).
   std::span<const StripeSample> truth() const { return truth_; }
-  // The correlated speckle pattern (speckle_grain_px > 0): a periodic kSpeckleTile x kSpeckleTile field of unit
-  // variance, read at a random offset per frame (row r, column x of a frame: tile row (r + oy) mod kSpeckleTile,
-  // column (x + ox) mod kSpeckleTile). Built at construction and again by the render after the grain changed
-  // (in place, no allocation). For tests of its statistics.
+  // The correlated speckle pattern (speckle_grain_px > 0): a periodic kSpeckleTile x kSpeckleTile field of
+  // unit variance, read at a random offset per frame and per kSpeckleTile rows (row r, column x: tile row (r
+  // + oy) mod kSpeckleTile, column (x + ox) mod kSpeckleTile). Built at construction and again by the first
+  // render after the grain changed, in place (no allocation; ~10-30 ms here, much longer under emulation).
+  // Exposed for tests of its statistics.
   static constexpr std::uint32_t kSpeckleTile = 512;
   std::span<const float> speckle_tile() const { return tile_; }
 

@@ -1,10 +1,11 @@
 // bench_extract: stripe extraction throughput on a 1280x1024 Mono8 frame of the cube scene (scene renderer,
 // default noise) next to memcpy of the same frame in the same run. bytes_per_second = pixels per second.
-// BM_ExtractVsMemcpy (the frame hot in the caches) and BM_StreamVsMemcpy (the frame in memory, as a camera's DMA
-// leaves it): memcpy and extraction alternating in one loop, their medians and ratio (the issue's criterion), and
-// the extraction without software prefetch next to it. BM_Memcpy / BM_Extract*: one hot frame, apart.
-// BM_ScanRow: the per-row pass alone over the frame, 0 = the portable auto-vectorized loop, 1 = the path
-// extraction uses (SIMD on x86-64; label says which). BM_GaussMlBatch: the batched sub-pixel fit alone.
+// BM_ExtractVsMemcpy (the frame hot in the caches) and BM_StreamVsMemcpy (the frame in memory, as a camera's
+// DMA leaves it): memcpy and extraction alternating in one loop, their medians and ratio (the issue's
+// criterion), and the extraction without software prefetch next to it. BM_Memcpy / BM_Extract*: one hot
+// frame, apart. BM_ScanRow: the per-row pass alone over the frame, 0 = the portable auto-vectorized loop, 1 =
+// the path extraction uses (SIMD on x86-64; label says which). BM_GaussMlBatch: the batched sub-pixel fit
+// alone.
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
@@ -60,18 +61,18 @@ void BM_Memcpy(benchmark::State& state) {
 BENCHMARK(BM_Memcpy);
 
 // Issue #4's criterion in one number: memcpy of the frame and its extraction alternate in every iteration,
-// each timed by the thread's CPU clock, and the counters give their medians and the ratio (memcpy / extraction =
-// extraction's throughput as a fraction of memcpy's). Alternating makes both see the same state of this shared,
-// noisy host, where separate benchmarks seconds apart do not. Every iteration also extracts once without the
-// software prefetch (ExtractParams::prefetch_rows = 0; which of the two extractions goes first alternates): its
-// cost or gain under the same load (no_prefetch_us). Argument: the sub-pixel method.
+// each timed by the thread's CPU clock, and the counters give their medians and the ratio (memcpy /
+// extraction = extraction's throughput as a fraction of memcpy's). Alternating makes both see the same state
+// of this shared, noisy host, where separate benchmarks seconds apart do not. Every iteration also extracts
+// once without the software prefetch (ExtractParams::prefetch_rows = 0; which of the two extractions goes
+// first alternates): its cost or gain under the same load (no_prefetch_us). Argument: the sub-pixel method.
 double thread_cpu_us() { return fs::test::thread_cpu_seconds() * 1e6; }
 double median(std::vector<double> v) {
   std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
   return v[v.size() / 2];
 }
-// Writes the n bytes at p back to memory and drops them from every cache level (x86-64: CLFLUSH; false elsewhere:
-// nothing done).
+// Writes the n bytes at p back to memory and drops them from every cache level (x86-64: CLFLUSH; false
+// elsewhere: nothing done).
 bool flush_from_caches(const std::uint8_t* p, std::size_t n) {
 #if defined(__x86_64__)
   for (std::size_t i = 0; i < n; i += 64) _mm_clflush(p + i);
@@ -84,8 +85,8 @@ bool flush_from_caches(const std::uint8_t* p, std::size_t n) {
 #endif
 }
 
-// The iterations of such a benchmark on the frame f: memcpy of f, then f extracted twice. cold: f is flushed from
-// the caches before each of the three (untimed), so that each reads it from memory.
+// The iterations of such a benchmark on the frame f: memcpy of f, then f extracted twice. cold: f is flushed
+// from the caches before each of the three (untimed), so that each reads it from memory.
 void interleave_vs_memcpy(benchmark::State& state, bool cold) {
   Frame& f = frame();
   const std::size_t n = f.pixels.size();
@@ -139,7 +140,8 @@ void interleave_vs_memcpy(benchmark::State& state, bool cold) {
   state.counters["extract_us"] = me;
   state.counters["no_prefetch_us"] = median(off_us);
   state.counters["ratio"] = mc / me;
-  state.SetLabel(std::string(fs::fw::to_string(on.method)) + ", prefetch_rows " + std::to_string(on.prefetch_rows));
+  state.SetLabel(std::string(fs::fw::to_string(on.method)) + ", prefetch_rows " +
+                 std::to_string(on.prefetch_rows));
 }
 
 // The hot frame: in the caches for the memcpy and both extractions.
@@ -149,9 +151,9 @@ BENCHMARK(BM_ExtractVsMemcpy)
     ->Arg(static_cast<int>(fs::fw::SubpixelMethod::GaussLog))
     ->Arg(static_cast<int>(fs::fw::SubpixelMethod::CentreOfGravity));
 
-// A camera's frame: in memory, not in any cache, as a frame a camera's DMA wrote is when the firmware gets it, for
-// the memcpy and for each extraction. The copy's destination is one buffer, hot in the caches as a reused buffer is
-// (the demanding case for the ratio: a cold destination would add its reads to the memcpy).
+// A camera's frame: in memory, not in any cache, as a frame a camera's DMA wrote is when the firmware gets
+// it, for the memcpy and for each extraction. The copy's destination is one buffer, hot in the caches as a
+// reused buffer is (the demanding case for the ratio: a cold destination would add its reads to the memcpy).
 void BM_StreamVsMemcpy(benchmark::State& state) { interleave_vs_memcpy(state, true); }
 BENCHMARK(BM_StreamVsMemcpy)
     ->Arg(static_cast<int>(fs::fw::SubpixelMethod::GaussMl))
@@ -241,7 +243,7 @@ void BM_ExtractAlongStripe(benchmark::State& state) {
   state.SetBytesProcessed(static_cast<std::int64_t>(state.iterations() * f.pixels.size()));
   state.SetLabel(std::string(fs::fw::to_string(p.method)) + ", along_stripe " + std::to_string(p.along_stripe));
 }
-BENCHMARK(BM_ExtractAlongStripe)->Arg(0)->Arg(5)->Arg(7);
+BENCHMARK(BM_ExtractAlongStripe)->Arg(0)->Arg(5)->Arg(7)->Arg(15);
 
 }  // namespace
 

@@ -171,7 +171,8 @@ TEST(DeviceCheck, LaserConfigKeyAndCanTimeoutKeys) {
   EXPECT_EQ(c.sim_speckle_grain_px, 0.0);
   fw::apply_config_json(c, R"({"sim_camera": {"speckle_grain_px": 1.5}})", "board.json");
   EXPECT_EQ(c.sim_speckle_grain_px, 1.5);
-  const std::string grain = test::error_of([&] { fw::apply_config_json(c, R"({"sim_camera": {"speckle_grain_px": 9}})", "board.json"); });
+  const std::string grain = test::error_of(
+      [&] { fw::apply_config_json(c, R"({"sim_camera": {"speckle_grain_px": 9}})", "board.json"); });
   EXPECT_NE(grain.find("board.json: sim_camera.speckle_grain_px: out of range"), std::string::npos) << grain;
   // A number beyond a double's range is a clear error naming the file, not a foreign exception (fuzz find).
   const std::string overflow =

@@ -114,9 +114,9 @@ TEST(ExtractAlongStripe, ErrorAndEdgesOnCubeFrames) {
   }
 }
 
-// GaussLog (GaussMl's first step alone, the cheaper fit) with the default refinement on the same frames: inside
-// issue #4's 0.05 px at the default noise too. Measured per row 0.0704, refined 0.0297 px (gauss-ml 0.0599 /
-// 0.0256).
+// GaussLog (GaussMl's first step alone, the cheaper fit) with the default refinement on the same frames:
+// inside issue #4's 0.05 px at the default noise too. Measured per row 0.0704, refined 0.0297 px (gauss-ml
+// 0.0599 / 0.0256).
 TEST(ExtractAlongStripe, GaussLogMeetsTheTargetRefined) {
   const sim::Scene scene = sim::load_scene(test::source_dir() / "hw-sim/scenes/cube.json");
   const std::vector<double> steps = {80.0, 200.0, 260.0, 330.0};
@@ -137,14 +137,14 @@ TEST(ExtractAlongStripe, GaussLogMeetsTheTargetRefined) {
   EXPECT_LE(row.mean, 1.3 * ml.mean);
 }
 
-// Speckle correlated over neighbouring pixels and rows (RenderOptions::speckle_grain_px), as a real laser's is:
-// the accuracy to expect on hardware rather than on hw-sim's default per-pixel independent speckle. Prints the
-// table quoted in the README. The refinement must still never be worse than the per-row centres, all rows and
-// the edge rows alike (it assumes nothing about the noise beyond its robust sigma); correlated errors average
-// less over a window, so its gain must shrink once neighbouring pixels are correlated (a grain of 0.5 px: their
-// correlation exp(-2) = 0.14, as good as independent). Measured (gauss-ml, per row -> refined): grain 0 0.0599 ->
-// 0.0256 px, 0.5 px 0.0604 -> 0.0246, 1 px 0.0793 -> 0.0495, 2 px 0.0957 -> 0.0798 (with the noise scale of
-// second differences, before along_stripe_scale: 0.0258, 0.0257, 0.0591, 0.0889).
+// Speckle correlated over neighbouring pixels and rows (RenderOptions::speckle_grain_px), as a real laser's
+// is: the accuracy to expect on hardware rather than on hw-sim's default per-pixel independent speckle.
+// Prints the table quoted in the README. The refinement must still never be worse than the per-row centres,
+// all rows and the edge rows alike (it assumes nothing about the noise beyond its robust sigma); correlated
+// errors average less over a window, so its gain must shrink once neighbouring pixels are correlated (a grain
+// of 0.5 px: their correlation exp(-2) = 0.14, nearly independent). Measured (gauss-ml, per row -> refined):
+// grain 0 0.0599 -> 0.0256 px, 0.5 px 0.0626 -> 0.0275, 1 px 0.0784 -> 0.0512, 2 px 0.0940 -> 0.0785 (with
+// the noise scale of second differences, before along_stripe_scale: 0.0258, 0.0288, 0.0611, 0.0876).
 TEST(ExtractAlongStripe, CorrelatedSpeckle) {
   const sim::Scene scene = sim::load_scene(source_dir() / "hw-sim/scenes/cube.json");
   const std::vector<double> steps = {80.0, 200.0, 260.0, 330.0};
@@ -165,7 +165,7 @@ TEST(ExtractAlongStripe, CorrelatedSpeckle) {
       if (m != fw::SubpixelMethod::GaussMl) continue;
       if (grain == 0.0) gain0 = gain;
       if (grain == 1.0) {
-        EXPECT_LE(ref.mean, 0.053);  // 0.0495 measured; 0.0591 with a scale from second differences
+        EXPECT_LE(ref.mean, 0.055);  // 0.0512 measured; 0.0611 with a scale from second differences
       }
       if (grain >= 1.0) {
         EXPECT_LT(gain, 0.8 * gain0) << grain;
@@ -181,9 +181,9 @@ TEST(ExtractAlongStripe, CorrelatedSpeckle) {
 }
 
 // along_stripe_scale on long straight runs with known per-row noise: sigma itself for independent errors (any
-// window), and for errors correlated between neighbouring rows (AR(1), rho = 0.6, as a 1 px speckle grain gives)
-// more of it than second differences keep (sqrt((6 - 8 rho + 2 rho^2) / 6) = 0.52 of sigma), the more rows the
-// window has.
+// window), and for errors correlated between neighbouring rows (AR(1), rho = 0.6, as a 1 px speckle grain
+// gives) more of it than second differences keep (sqrt((6 - 8 rho + 2 rho^2) / 6) = 0.57 of sigma), the more
+// rows the window has.
 TEST(ExtractAlongStripe, ScaleIsThePerRowNoise) {
   std::mt19937 rng(21);
   std::normal_distribution<double> nd(0.0, 1.0);
@@ -194,8 +194,8 @@ TEST(ExtractAlongStripe, ScaleIsThePerRowNoise) {
     for (int v = 0; v < 4000; ++v) {
       if (v % 500 == 0 && v > 0) continue;  // a gap every 500 rows: runs end there
       e = rho * e + std::sqrt(1.0 - rho * rho) * sigma * nd(rng);
-      pts.push_back(msg::StripePoint{static_cast<std::uint16_t>(v % 60000), static_cast<float>(300.0 + 0.37 * (v % 500) + e),
-                                     100, 3.0f});
+      pts.push_back(msg::StripePoint{static_cast<std::uint16_t>(v % 60000),
+                                     static_cast<float>(300.0 + 0.37 * (v % 500) + e), 100, 3.0f});
     }
     double d2 = 0.0;  // the mean square second difference within the runs, for comparison
     int n2 = 0;
@@ -208,16 +208,16 @@ TEST(ExtractAlongStripe, ScaleIsThePerRowNoise) {
     const double d2_sigma = std::sqrt(d2 / n2 / 6.0);
     for (const std::uint32_t rows : {3u, 7u, 15u}) {
       const double s = fw::along_stripe_scale(pts, rows);
-      std::printf("rho %.1f, %2u rows: scale %.4f px (sigma %.4f; from second differences %.4f)\n", rho, rows, s, sigma,
-                  d2_sigma);
+      std::printf("rho %.1f, %2u rows: scale %.4f px (sigma %.4f; from second differences %.4f)\n", rho, rows,
+                  s, sigma, d2_sigma);
       if (rho == 0.0) {
         EXPECT_NEAR(s, sigma, 0.1 * sigma) << rows;
-      } else {  // measured 0.0276 / 0.0340 / 0.0398 px (3 / 7 / 15 rows), second differences 0.026
+      } else {  // measured 0.0280 / 0.0341 / 0.0398 px (3 / 7 / 15 rows), second differences 0.0274
         EXPECT_LT(s, sigma) << rows;
         EXPECT_GT(s, 0.9 * d2_sigma) << rows;  // 3 rows: about the same
         if (rows >= 7) {
           EXPECT_GT(s, 0.6 * sigma) << rows;
-          EXPECT_GT(s, 1.2 * d2_sigma) << rows;
+          EXPECT_GT(s, 1.1 * d2_sigma) << rows;
         }
       }
     }

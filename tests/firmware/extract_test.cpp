@@ -235,8 +235,26 @@ TEST(Extract, FrameFormatsAgree) {
   EXPECT_EQ(extract_frame(f8, ExtractParams{}, small).points, 2u);
 }
 
-// ExtractParams::prefetch_rows only asks the caches for rows ahead: the same points, bit for bit, at every distance
-// (up to and past the frame's height, where no row is prefetched), in every format and with padded strides.
+// Where extract_frame prefetches (ExtractParams::prefetch_rows rows below the row it passes): that row's
+// first byte while it is in the frame, else nothing, at every distance up to the type's limit (no
+// wrap-around).
+TEST(Extract, PrefetchTargetsTheRowAheadInsideTheFrame) {
+  std::vector<std::uint8_t> buf(124 * 37);
+  const FrameView f{buf.data(), 100, 37, 124, PixelFormat::Mono8, 0, 0, 0};
+  EXPECT_EQ(detail::prefetch_target(f, 0, 16), buf.data() + 16 * 124);
+  EXPECT_EQ(detail::prefetch_target(f, 20, 16), buf.data() + 36 * 124);  // the last row
+  EXPECT_EQ(detail::prefetch_target(f, 21, 16), nullptr);
+  EXPECT_EQ(detail::prefetch_target(f, 0, 36), buf.data() + 36 * 124);
+  EXPECT_EQ(detail::prefetch_target(f, 0, 37), nullptr);
+  EXPECT_EQ(detail::prefetch_target(f, 36, 1), nullptr);
+  EXPECT_EQ(detail::prefetch_target(f, 5, 0), nullptr);  // off
+  EXPECT_EQ(detail::prefetch_target(f, 5, 0xffffffffu), nullptr);
+  EXPECT_EQ(detail::prefetch_target(f, 0xfffffff0u, 32), nullptr);  // a row past the frame: nothing
+}
+
+// ExtractParams::prefetch_rows only asks the caches for rows ahead: the same points, bit for bit, at every
+// distance (up to and past the frame's height, where no row is prefetched), in every format and with padded
+// strides.
 TEST(Extract, PrefetchLeavesThePointsAsTheyAre) {
   std::mt19937 rng(11);
   const std::uint32_t w = 200, h = 37, pad = 24;
@@ -251,10 +269,10 @@ TEST(Extract, PrefetchLeavesThePointsAsTheyAre) {
       yuyv[y * (2 * w + pad) + 2 * x + 1] = 128;
     }
   }
-  const FrameView frames[] = {
-      {mono8.data(), w, h, w + pad, PixelFormat::Mono8, 0, 0, 0},
-      {reinterpret_cast<const std::uint8_t*>(mono16.data()), w, h, 2 * (w + pad), PixelFormat::Mono16, 0, 0, 0},
-      {yuyv.data(), w, h, 2 * w + pad, PixelFormat::Yuyv, 0, 0, 0}};
+  const FrameView frames[] = {{mono8.data(), w, h, w + pad, PixelFormat::Mono8, 0, 0, 0},
+                              {reinterpret_cast<const std::uint8_t*>(mono16.data()), w, h, 2 * (w + pad),
+                               PixelFormat::Mono16, 0, 0, 0},
+                              {yuyv.data(), w, h, 2 * w + pad, PixelFormat::Yuyv, 0, 0, 0}};
   for (const FrameView& f : frames) {
     ExtractParams off;
     off.prefetch_rows = 0;
@@ -273,7 +291,8 @@ TEST(Extract, PrefetchLeavesThePointsAsTheyAre) {
         EXPECT_EQ(out[i].row, ref[i].row) << at;
         EXPECT_EQ(std::bit_cast<std::uint32_t>(out[i].col), std::bit_cast<std::uint32_t>(ref[i].col)) << at;
         EXPECT_EQ(out[i].peak, ref[i].peak) << at;
-        EXPECT_EQ(std::bit_cast<std::uint32_t>(out[i].width), std::bit_cast<std::uint32_t>(ref[i].width)) << at;
+        EXPECT_EQ(std::bit_cast<std::uint32_t>(out[i].width), std::bit_cast<std::uint32_t>(ref[i].width))
+            << at;
       }
     }
   }

@@ -270,24 +270,18 @@ TEST(StripeRenderer, RenderDoesNotAllocateAfterConstruction) {
   EXPECT_EQ(g_allocations.load(), 0);
 }
 
-// The correlated speckle pattern (RenderOptions::speckle_grain_px): unit variance, zero mean, and the
-// correlation exp(-d^2 / (2 grain^2)) at distance d along the row and between rows.
+// The correlated speckle pattern (RenderOptions::speckle_grain_px, normalized to unit variance): the
+// correlation exp(-d^2 / (2 grain^2)) at distance d along the row and between rows, small grains included
+// (0.5 px: 0.135 at lag 1, which a sampled Gaussian blur misses).
 TEST(StripeRenderer, SpeckleGrainHasTheConfiguredCorrelation) {
   const auto s = load("cube");
   constexpr std::uint32_t T = fs::sim::StripeRenderer::kSpeckleTile;
-  for (const double grain : {1.0, 2.0, 4.0}) {
+  for (const double grain : {0.5, 1.0, 2.0, 4.0}) {
     fs::sim::RenderOptions opt;
     opt.speckle_grain_px = grain;
     const fs::sim::StripeRenderer r(s, opt);
     const auto t = r.speckle_tile();
     ASSERT_EQ(t.size(), std::size_t{T} * T);
-    double sum = 0.0, sum2 = 0.0;
-    for (const float v : t) {
-      sum += v;
-      sum2 += static_cast<double>(v) * v;
-    }
-    EXPECT_NEAR(sum / t.size(), 0.0, 1e-4) << grain;
-    EXPECT_NEAR(sum2 / t.size(), 1.0, 1e-3) << grain;
     for (const std::uint32_t d : {1u, 2u, 3u}) {
       double along = 0.0, across = 0.0;
       for (std::uint32_t y = 0; y < T; ++y)
@@ -296,17 +290,17 @@ TEST(StripeRenderer, SpeckleGrainHasTheConfiguredCorrelation) {
           across += static_cast<double>(t[y * T + x]) * t[((y + d) % T) * T + x];
         }
       const double expected = std::exp(-0.5 * d * d / (grain * grain));
-      // The tile holds ~(512 / grain)^2 grains: the sample correlation's spread is ~grain / 512 * 3.
-      const double tol = 0.02 + 0.01 * grain;
+      // The tile holds ~(512 / grain)^2 grains: the sample correlation's spread is ~3 grain / 512.
+      const double tol = 0.01 + 0.01 * grain;
       EXPECT_NEAR(along / t.size(), expected, tol) << "grain " << grain << ", d " << d;
       EXPECT_NEAR(across / t.size(), expected, tol) << "grain " << grain << ", d " << d;
     }
   }
 }
 
-// In a rendered frame (speckle alone: no read or shot noise, Mono16 against rounding), the relative deviation of
-// the stripe's pixels from the noise-free profile is the speckle: correlated between neighbouring pixels and
-// rows with a grain, not without one; and a grain of 0 renders the frames it always did.
+// In a rendered frame (speckle alone: no read or shot noise, Mono16 against rounding), the relative deviation
+// of the stripe's pixels from the noise-free profile is the speckle: correlated between neighbouring pixels
+// and rows with a grain, not without one; and a grain of 0 renders the frames it always did.
 TEST(StripeRenderer, RenderedSpeckleIsCorrelatedWithAGrain) {
   const auto s = load("cube");
   const auto deviations = [&](double grain, double step, std::vector<double>& dev, std::vector<int>& col) {
@@ -323,12 +317,14 @@ TEST(StripeRenderer, RenderedSpeckleIsCorrelatedWithAGrain) {
       const auto& t = r.truth()[row];
       if (!t.valid() || r.peak()[row] < 60.0f) continue;
       const int c = static_cast<int>(std::lround(t.column));
+      if (c < 1 || c + 1 >= static_cast<int>(f.fb.width)) continue;
       col[row] = c;
       for (int k = 0; k < 3; ++k) {  // the pixels c - 1, c, c + 1: near the peak, the speckle dominates
         const int x = c - 1 + k;
         const double dx = x - t.column, sg = r.sigma_px()[row];
         const double clean = r.peak()[row] * std::exp(-0.5 * dx * dx / (sg * sg));
-        dev[row * 3 + static_cast<std::size_t>(k)] = (f.at(row, static_cast<std::uint32_t>(x)) / 257.0 - opt.ambient) / clean - 1.0;
+        dev[row * 3 + static_cast<std::size_t>(k)] =
+            (f.at(row, static_cast<std::uint32_t>(x)) / 257.0 - opt.ambient) / clean - 1.0;
       }
     }
   };
@@ -358,8 +354,9 @@ TEST(StripeRenderer, RenderedSpeckleIsCorrelatedWithAGrain) {
     ASSERT_GT(left.size(), 500u);
     ASSERT_GT(up.size(), 100u);
     const double c_row = correlation(left, right), c_rows = correlation(up, down);
-    std::printf("speckle grain %.1f px: correlation of neighbouring pixels %.3f, of rows %.3f (%zu, %zu pairs)\n",
-                grain, c_row, c_rows, left.size(), up.size());
+    std::printf(
+        "speckle grain %.1f px: correlation of neighbouring pixels %.3f, of rows %.3f (%zu, %zu pairs)\n",
+        grain, c_row, c_rows, left.size(), up.size());
     if (grain == 0.0) {
       EXPECT_LT(std::abs(c_row), 0.1);
       EXPECT_LT(std::abs(c_rows), 0.15);
@@ -369,8 +366,7 @@ TEST(StripeRenderer, RenderedSpeckleIsCorrelatedWithAGrain) {
       EXPECT_NEAR(c_rows, expected, 0.1);
     }
   }
-  // A grain of 0 draws the per-pixel speckle as before: the same frame as a renderer whose grain was set and
-  // then cleared (the correlated path leaves nothing behind).
+  // A grain set and cleared leaves nothing behind: the same frame as a renderer that never had one.
   fs::sim::StripeRenderer plain(s), cleared(s, [] {
     fs::sim::RenderOptions o;
     o.speckle_grain_px = 2.0;
