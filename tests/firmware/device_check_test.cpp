@@ -5,6 +5,9 @@
 #ifdef FACETSCAN_HAVE_BACKENDS
 #include <unistd.h>
 
+#include <sstream>
+#include <string>
+
 #include "common/error.hpp"
 #include "support/error_of.hpp"
 #include "firmware/backends/device_check.hpp"
@@ -139,41 +142,34 @@ TEST(DeviceCheck, LaserConfigKeyAndCanTimeoutKeys) {
   EXPECT_EQ(c.loop.extract.shot_noise, 0.5);
   EXPECT_EQ(c.loop.extract.speckle, 0.2);
   EXPECT_THROW(fw::apply_config_json(c, R"({"extract": {"speckle": -1}})", "board.json"), Error);
-  // The along-stripe refinement: on by default (7 rows), 0 / 1 = off, odd 3..15.
-  EXPECT_EQ(c.loop.extract.along_stripe, 7u);
-  fw::apply_config_json(c, R"({"extract": {"along_stripe": 5}})", "board.json");
-  EXPECT_EQ(c.loop.extract.along_stripe, 5u);
-  fw::apply_config_json(c, R"({"extract": {"along_stripe": 0}})", "board.json");
-  EXPECT_EQ(c.loop.extract.along_stripe, 0u);
-  for (const char* bad : {R"({"extract": {"along_stripe": 4}})", R"({"extract": {"along_stripe": 17}})",
-                          R"({"extract": {"along_stripe": 2.5}})", R"({"extract": {"along_stripe": "on"}})"}) {
-    try {
-      fw::apply_config_json(c, bad, "board.json");
-      ADD_FAILURE() << bad << " must be refused";
-    } catch (const Error& e) {
-      EXPECT_NE(std::string(e.what()).find("board.json: extract.along_stripe: "), std::string::npos) << e.what();
+  // A numeric key: its default, values it takes, and values refused with an error naming the file and the field
+  // that leave the last value in place.
+  const auto expect_key = [&](const std::string& section, const std::string& key, auto get, auto dflt,
+                              std::initializer_list<decltype(dflt)> good, std::initializer_list<const char*> bad) {
+    const auto json = [&](const std::string& v) { return "{\"" + section + "\": {\"" + key + "\": " + v + "}}"; };
+    EXPECT_EQ(get(), dflt) << key;
+    for (const auto v : good) {
+      std::ostringstream text;
+      text << v;
+      fw::apply_config_json(c, json(text.str()), "board.json");
+      EXPECT_EQ(get(), v) << key;
     }
-  }
-  EXPECT_EQ(c.loop.extract.along_stripe, 0u);  // unchanged by the refused values
+    const auto last = get();
+    for (const char* v : bad) {
+      const std::string e = test::error_of([&] { fw::apply_config_json(c, json(v), "board.json"); });
+      EXPECT_NE(e.find("board.json: " + section + "." + key + ": "), std::string::npos) << v << ": " << e;
+    }
+    EXPECT_EQ(get(), last) << key << ": unchanged by the refused values";
+  };
+  // The along-stripe refinement: on by default (7 rows), 0 / 1 = off, odd 3..15.
+  expect_key("extract", "along_stripe", [&] { return c.loop.extract.along_stripe; }, 7u, {5u, 0u},
+             {"4", "17", "2.5", "\"on\""});
   // The software prefetch distance: 16 rows by default, 0 = off, at most 1024.
-  EXPECT_EQ(c.loop.extract.prefetch_rows, 16u);
-  fw::apply_config_json(c, R"({"extract": {"prefetch_rows": 0}})", "board.json");
-  EXPECT_EQ(c.loop.extract.prefetch_rows, 0u);
-  fw::apply_config_json(c, R"({"extract": {"prefetch_rows": 32}})", "board.json");
-  EXPECT_EQ(c.loop.extract.prefetch_rows, 32u);
-  for (const char* bad : {R"({"extract": {"prefetch_rows": 1025}})", R"({"extract": {"prefetch_rows": -1}})",
-                          R"({"extract": {"prefetch_rows": 1.5}})"}) {
-    const std::string e = test::error_of([&] { fw::apply_config_json(c, bad, "board.json"); });
-    EXPECT_NE(e.find("board.json: extract.prefetch_rows: "), std::string::npos) << bad << ": " << e;
-  }
-  EXPECT_EQ(c.loop.extract.prefetch_rows, 32u);  // unchanged by the refused values
+  expect_key("extract", "prefetch_rows", [&] { return c.loop.extract.prefetch_rows; }, 16u, {0u, 32u},
+             {"1025", "-1", "1.5"});
   // The simulated camera's speckle grain: 0 (per pixel) by default, 0..8 px.
-  EXPECT_EQ(c.sim_speckle_grain_px, 0.0);
-  fw::apply_config_json(c, R"({"sim_camera": {"speckle_grain_px": 1.5}})", "board.json");
-  EXPECT_EQ(c.sim_speckle_grain_px, 1.5);
-  const std::string grain = test::error_of(
-      [&] { fw::apply_config_json(c, R"({"sim_camera": {"speckle_grain_px": 9}})", "board.json"); });
-  EXPECT_NE(grain.find("board.json: sim_camera.speckle_grain_px: out of range"), std::string::npos) << grain;
+  expect_key("sim_camera", "speckle_grain_px", [&] { return c.sim_speckle_grain_px; }, 0.0, {1.5, 8.0},
+             {"9", "-0.5", "\"fine\""});
   // A number beyond a double's range is a clear error naming the file, not a foreign exception (fuzz find).
   const std::string overflow =
       test::error_of([&] { fw::apply_config_json(c, R"({"sim_":4,"period_us":500e7777})", "board.json"); });
