@@ -12,7 +12,7 @@
 //     "extract": {"method": "gauss-ml" | "gauss-log" | "gauss-fit" | "blais-rioux" | "gauss3" | "cog",
 //     "min_contrast": 24,
 //                 "read_noise": 1.5, "shot_noise": 0.35, "speckle": 0.12 (gauss-ml noise model),
-//                 "ambiguous_ratio": 0.5, "saturation_run": 3, "along_stripe": 7 (rows of the along-stripe
+//                 "ambiguous_ratio": 0.5, "saturation_run": 3, "along_stripe": 15 (rows of the along-stripe
 //                 refinement: 0 = off, odd 3..15), "prefetch_rows": 16 (software prefetch distance: 0 = off,
 //                 <= 1024)},
 //     "sim_camera": {"period_us": 5000, "exposure_us": 1000, "readout_us": 1000, "buffers": 4,

@@ -57,7 +57,7 @@ struct ExtractParams {
   // Along-stripe refinement (along_stripe.hpp): each row's centre from a robust line fit over this many
   // neighbouring rows (odd, 3..15) of the same straight stretch of stripe, in extract_frame; 0 or 1 = off,
   // the per-row centres (what extract_row gives).
-  std::uint32_t along_stripe = 7;
+  std::uint32_t along_stripe = 15;
   // Software prefetch: while a row is passed, the row this many rows below it is requested from memory (every
   // cache line of it), so that a frame a camera wrote to memory arrives in the cache before the pass reaches
   // it (the hardware prefetchers follow only the pass itself, which is idle while the rows' centres are

@@ -161,8 +161,8 @@ TEST(DeviceCheck, LaserConfigKeyAndCanTimeoutKeys) {
     }
     EXPECT_EQ(get(), last) << key << ": unchanged by the refused values";
   };
-  // The along-stripe refinement: on by default (7 rows), 0 / 1 = off, odd 3..15.
-  expect_key("extract", "along_stripe", [&] { return c.loop.extract.along_stripe; }, 7u, {5u, 0u},
+  // The along-stripe refinement: on by default (15 rows), 0 / 1 = off, odd 3..15.
+  expect_key("extract", "along_stripe", [&] { return c.loop.extract.along_stripe; }, 15u, {5u, 0u},
              {"4", "17", "2.5", "\"on\""});
   // The software prefetch distance: 16 rows by default, 0 = off, at most 1024.
   expect_key("extract", "prefetch_rows", [&] { return c.loop.extract.prefetch_rows; }, 16u, {0u, 32u},

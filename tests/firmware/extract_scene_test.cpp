@@ -179,7 +179,7 @@ TEST(ExtractScene, FrameIsTheRowsRefinedAlongTheStripe) {
   std::vector<std::uint8_t> img(static_cast<std::size_t>(w) * h);
   std::vector<msg::StripePoint> out(h), rows;
   const fw::ExtractParams p;
-  ASSERT_EQ(p.along_stripe, 7u);
+  ASSERT_EQ(p.along_stripe, 15u);
   for (double step : {30.0, 250.0, 470.0}) {
     r.render_step(step, 3, sim::FrameBuffer{img.data(), w, h, w, sim::FrameFormat::Mono8});
     const fw::ExtractCounts c = fw::extract_frame(fw::FrameView{img.data(), w, h, w, fw::PixelFormat::Mono8, 0, 0, 0}, p, out);
