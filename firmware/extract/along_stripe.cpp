@@ -101,7 +101,7 @@ double along_stripe_scale(std::span<const msg::StripePoint> pts, std::uint32_t r
     ++hist4[count & 3][bin < static_cast<float>(kBins - 1) ? static_cast<int>(bin) : kBins - 1];
     ++count;
   }
-  if (count < 16) return 0.0;
+  if (count < 4) return 0.0;
   std::uint32_t hist[kBins];
   for (int b = 0; b < kBins; ++b) hist[b] = hist4[0][b] + hist4[1][b] + hist4[2][b] + hist4[3][b];
   const double half = 0.5 * count;

@@ -39,7 +39,7 @@ constexpr double kMaxStepPx = 2.0;  // a larger column step between neighbouring
 // second difference of neighbouring centres (what the refinement used before) falls to about half there
 // (second differences cancel correlated errors), and its tests then refused most windows (cube frames with a
 // 1 px speckle grain: 0.0611 px refined with it, 0.0512 with this; independent speckle: 0.0258 and 0.0256). 0
-// when fewer than 16 windows exist.
+// when fewer than 4 windows are sampled (every 4th of a run: ~16 whole windows).
 double along_stripe_scale(std::span<const msg::StripePoint> pts, std::uint32_t rows);
 
 // Refines pts[].col in place (points in row order, as extract_frame writes them). rows: the window (odd,
