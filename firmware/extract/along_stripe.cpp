@@ -122,7 +122,7 @@ namespace {
 constexpr int kChunk = 64;
 
 template <int H>
-void refine(std::span<msg::StripePoint> pts, double sigma) {
+[[gnu::always_inline]] inline void refine(std::span<msg::StripePoint> pts, double sigma) {
   constexpr int kW = 2 * H + 1;
   const double s2 = sigma * sigma;
   // The full window's constants (x = -H .. H; halves x = -H .. 0 and 0 .. H).
@@ -206,6 +206,38 @@ void refine(std::span<msg::StripePoint> pts, double sigma) {
 
 }  // namespace
 
+namespace {
+
+// The default window (15 rows, the hot case) compiled for AVX2 as well, chosen at run time: its chunk loop runs 8
+// points a vector instead of SSE2's 4. The same operations in the same order, no FMA: the same bits.
+void refine7_portable(std::span<msg::StripePoint> pts, double sigma) { refine<7>(pts, sigma); }
+#if defined(__x86_64__)
+__attribute__((target("avx2"))) void refine7_avx2(std::span<msg::StripePoint> pts, double sigma) {
+  refine<7>(pts, sigma);
+}
+bool has_avx2() {
+  static const bool yes = [] {
+    __builtin_cpu_init();
+    return __builtin_cpu_supports("avx2");
+  }();
+  return yes;
+}
+#endif
+void refine7(std::span<msg::StripePoint> pts, double sigma) {
+#if defined(__x86_64__)
+  if (has_avx2()) return refine7_avx2(pts, sigma);
+#endif
+  refine7_portable(pts, sigma);
+}
+
+}  // namespace
+
+void detail::refine_along_stripe_portable(std::span<msg::StripePoint> pts, std::uint32_t rows, double sigma) {
+  if (rows < 3 || pts.size() < 3 || !(sigma > 0.0)) return;
+  if (std::min(rows, kAlongStripeMaxRows) / 2 >= 7) return refine7_portable(pts, sigma);
+  refine_along_stripe(pts, rows, sigma);  // the other windows have one build
+}
+
 void refine_along_stripe(std::span<msg::StripePoint> pts, std::uint32_t rows, double sigma) {
   if (rows < 3 || pts.size() < 3 || !(sigma > 0.0)) return;
   switch (std::min(rows, kAlongStripeMaxRows) / 2) {
@@ -215,7 +247,7 @@ void refine_along_stripe(std::span<msg::StripePoint> pts, std::uint32_t rows, do
     case 4: refine<4>(pts, sigma); break;
     case 5: refine<5>(pts, sigma); break;
     case 6: refine<6>(pts, sigma); break;
-    default: refine<7>(pts, sigma); break;
+    default: refine7(pts, sigma); break;
   }
 }
 
