@@ -4,6 +4,8 @@
 #include <cmath>
 #include <cstddef>
 
+#include "firmware/extract/row_scan.hpp"
+
 namespace fs::fw {
 namespace {
 
@@ -204,10 +206,6 @@ template <int H>
   }
 }
 
-}  // namespace
-
-namespace {
-
 // The default window (15 rows, the hot case) compiled for AVX2 as well, chosen at run time: its chunk loop runs 8
 // points a vector instead of SSE2's 4. The same operations in the same order, no FMA: the same bits.
 void refine7_portable(std::span<msg::StripePoint> pts, double sigma) { refine<7>(pts, sigma); }
@@ -215,17 +213,10 @@ void refine7_portable(std::span<msg::StripePoint> pts, double sigma) { refine<7>
 __attribute__((target("avx2"))) void refine7_avx2(std::span<msg::StripePoint> pts, double sigma) {
   refine<7>(pts, sigma);
 }
-bool has_avx2() {
-  static const bool yes = [] {
-    __builtin_cpu_init();
-    return __builtin_cpu_supports("avx2");
-  }();
-  return yes;
-}
 #endif
 void refine7(std::span<msg::StripePoint> pts, double sigma) {
 #if defined(__x86_64__)
-  if (has_avx2()) return refine7_avx2(pts, sigma);
+  if (detail::cpu_has_avx2()) return refine7_avx2(pts, sigma);
 #endif
   refine7_portable(pts, sigma);
 }

@@ -714,7 +714,7 @@ inline bool masks_supported() {
     // LZCNT (ABM): CPUID 0x80000001 ECX bit 5 (clang's __builtin_cpu_supports has no "lzcnt")
     unsigned a = 0, b = 0, c = 0, d = 0;
     const bool lzcnt = __get_cpuid(0x80000001u, &a, &b, &c, &d) && (c & (1u << 5));
-    return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("bmi") && lzcnt;
+    return detail::cpu_has_avx2() && __builtin_cpu_supports("bmi") && lzcnt;
   }();
   return ok;
 #else
