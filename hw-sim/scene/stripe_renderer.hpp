@@ -69,8 +69,8 @@ class StripeRenderer {
   // The correlated speckle pattern (speckle_grain_px > 0): a periodic kSpeckleTile x kSpeckleTile field of
   // unit variance, read at a random offset per frame and per kSpeckleTile rows (row r, column x: tile row (r
   // + oy) mod kSpeckleTile, column (x + ox) mod kSpeckleTile). Built at construction and again by the first
-  // render after the grain changed, in place (no allocation; ~10-30 ms here, much longer under emulation).
-  // Exposed for tests of its statistics.
+  // render after the grain changed, in place (no allocation; it filters the 512^2 samples along both axes: a
+  // pause, much longer under emulation). Exposed for tests of its statistics.
   static constexpr std::uint32_t kSpeckleTile = 512;
   std::span<const float> speckle_tile() const { return tile_; }
 

@@ -55,6 +55,15 @@ TEST(SimFrameCli, WritesPngAndTruth) {
                fs::Error);
   // Missing required option: CLI11's parse error.
   EXPECT_THROW(run_cli({"sim-frame", "--scene", scene}), CLI::ParseError);
+  // The speckle grain: another frame than per-pixel speckle; out of range or not a number refused.
+  run_cli({"sim-frame", "--scene", scene, "--step", "250", "-o", (dir / "e.png").string(), "--seed", "3",
+           "--speckle-grain", "1.5"});
+  EXPECT_NE(slurp(dir / "e.png"), a) << "a speckle grain changes the frame";
+  for (const char* bad : {"9", "-1", "fine"})
+    EXPECT_THROW(run_cli({"sim-frame", "--scene", scene, "--step", "250", "-o", (dir / "f.png").string(),
+                          "--speckle-grain", bad}),
+                 CLI::ParseError)
+        << bad;
   fsys::remove_all(dir);
 }
 
