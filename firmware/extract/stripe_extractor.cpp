@@ -794,6 +794,8 @@ namespace {
 inline void prefetch_row(const std::uint8_t* p, std::size_t bytes) {
   const std::uintptr_t first = reinterpret_cast<std::uintptr_t>(p) & ~std::uintptr_t{63};
   const std::uintptr_t end = reinterpret_cast<std::uintptr_t>(p) + bytes;
+  // 4 lines an iteration: one loop test per 4 prefetches (a 1280-byte row: 21 lines, ~45 instructions fewer)
+#pragma GCC unroll 4
   for (std::uintptr_t a = first; a < end; a += 64) __builtin_prefetch(reinterpret_cast<const void*>(a), 0, 3);
 }
 
