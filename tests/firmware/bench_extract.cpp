@@ -176,7 +176,8 @@ BENCHMARK(BM_StreamVsMemcpy)
 void BM_StreamPrefetch(benchmark::State& state) {
   interleave_vs_memcpy(state, true, static_cast<std::uint32_t>(state.range(1)));
 }
-BENCHMARK(BM_StreamPrefetch)->ArgsProduct({{static_cast<int>(fs::fw::ExtractParams{}.method)}, {8, 16, 32, 64, 128}});
+BENCHMARK(BM_StreamPrefetch)
+    ->ArgsProduct({{static_cast<int>(fs::fw::ExtractParams{}.method)}, {8, 16, 32, 64, 128}});
 
 void BM_Extract(benchmark::State& state) {
   Frame& f = frame();

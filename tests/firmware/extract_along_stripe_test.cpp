@@ -182,11 +182,12 @@ TEST(ExtractAlongStripe, CorrelatedSpeckle) {
   }
 }
 
-// Every sub-pixel method per row and with the default refinement, at the default noise and with a 1 px speckle
-// grain: what a cheaper method than the default would cost in accuracy (issue #4's speed target against its
-// 0.05 px; the README's table of methods). Prints the table. Per row, no method reaches 0.05 px at the default
-// noise (the per-row Cramer-Rao bound is 0.058 px): only rows combined along the stripe do. The refinement never
-// makes a method worse, and the default (gauss-ml) is the most accurate refined at both grains.
+// Every sub-pixel method per row and with the default refinement, at the default noise and with a 1 px
+// speckle grain: what a cheaper method than the default would cost in accuracy (issue #4's speed target
+// against its 0.05 px; the README's table of methods). Prints the table. Per row, no method reaches 0.05 px at
+// the default noise (the per-row Cramer-Rao bound is 0.058 px): only rows combined along the stripe do. The
+// refinement never makes a method worse, and the default (gauss-ml) is the most accurate refined at both
+// grains.
 TEST(ExtractAlongStripe, EveryMethodPerRowAndRefined) {
   const sim::Scene scene = sim::load_scene(source_dir() / "hw-sim/scenes/cube.json");
   const std::vector<double> steps = {80.0, 200.0, 260.0, 330.0};
