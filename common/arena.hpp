@@ -97,11 +97,11 @@ class Arena final : public std::pmr::memory_resource {
     return static_cast<std::size_t>(-1) / sizeof(T);
   }
   ArenaExhausted exhausted(std::size_t bytes, std::size_t align) const {
-    return ArenaExhausted("arena '" + name_ + "' exhausted: request of " +
-                          (bytes == static_cast<std::size_t>(-1) ? std::string("(overflowing size)")
-                                                                 : std::to_string(bytes)) +
-                          " bytes (alignment " + std::to_string(align) + ") with " + std::to_string(used_) +
-                          " of " + std::to_string(capacity_) + " bytes used");
+    return ArenaExhausted(
+        "arena '" + name_ + "' exhausted: request of " +
+        (bytes == static_cast<std::size_t>(-1) ? std::string("(overflowing size)") : std::to_string(bytes)) +
+        " bytes (alignment " + std::to_string(align) + ") with " + std::to_string(used_) + " of " +
+        std::to_string(capacity_) + " bytes used");
   }
   void* do_allocate(std::size_t bytes, std::size_t align) override {
     void* p;

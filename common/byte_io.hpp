@@ -27,11 +27,24 @@ constexpr U byteswap_if_big(U v) {
     return v;
   }
 }
-template <std::size_t N> struct uint_of;
-template <> struct uint_of<1> { using type = std::uint8_t; };
-template <> struct uint_of<2> { using type = std::uint16_t; };
-template <> struct uint_of<4> { using type = std::uint32_t; };
-template <> struct uint_of<8> { using type = std::uint64_t; };
+template <std::size_t N>
+struct uint_of;
+template <>
+struct uint_of<1> {
+  using type = std::uint8_t;
+};
+template <>
+struct uint_of<2> {
+  using type = std::uint16_t;
+};
+template <>
+struct uint_of<4> {
+  using type = std::uint32_t;
+};
+template <>
+struct uint_of<8> {
+  using type = std::uint64_t;
+};
 }  // namespace detail
 
 // Store / load one arithmetic value little-endian at p (no bounds check; the classes below check).
@@ -40,8 +53,10 @@ inline void store_le(std::uint8_t* p, T v) {
   static_assert(std::is_arithmetic_v<T> || std::is_enum_v<T>);
   using U = typename detail::uint_of<sizeof(T)>::type;
   U u;
-  if constexpr (std::is_enum_v<T>) u = static_cast<U>(v);
-  else u = std::bit_cast<U>(v);
+  if constexpr (std::is_enum_v<T>)
+    u = static_cast<U>(v);
+  else
+    u = std::bit_cast<U>(v);
   u = detail::byteswap_if_big(u);
   std::memcpy(p, &u, sizeof(U));
 }
@@ -80,7 +95,10 @@ class ByteWriter {
   std::size_t position() const { return pos_; }
   std::span<std::uint8_t> written() const { return out_.first(pos_); }
   std::span<std::uint8_t> rest() const { return out_.subspan(pos_); }
-  void skip(std::size_t n) { need(n); pos_ += n; }
+  void skip(std::size_t n) {
+    need(n);
+    pos_ += n;
+  }
 
  private:
   void need(std::size_t n) const {

@@ -52,7 +52,7 @@ struct LaserModel {
   Vec3 normal_at_zero = Vec3::UnitX();
   double optical_gain = 2.0;
   double mirror_angle_at_step0 = 0.0;  // rad
-  double rad_per_step = 1e-4;           // mirror rad per galvo step
+  double rad_per_step = 1e-4;          // mirror rad per galvo step
 
   double mirror_angle(double step) const { return mirror_angle_at_step0 + step * rad_per_step; }
   Plane plane_at_mirror_angle(double mirror_angle_rad) const;

@@ -115,7 +115,9 @@ namespace {
 std::atomic<bool> g_use_hw{crc32c_hw_available()};
 }
 
-void crc32c_use_hw(bool enable) { g_use_hw.store(enable && crc32c_hw_available(), std::memory_order_relaxed); }
+void crc32c_use_hw(bool enable) {
+  g_use_hw.store(enable && crc32c_hw_available(), std::memory_order_relaxed);
+}
 bool crc32c_using_hw() { return g_use_hw.load(std::memory_order_relaxed); }
 
 std::uint32_t crc32c(std::span<const std::uint8_t> data, std::uint32_t crc) {

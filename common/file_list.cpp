@@ -6,9 +6,9 @@
 
 namespace fs {
 
-std::vector<std::filesystem::path> collect_files(const std::vector<std::string>& inputs,
-                                                 const std::function<bool(const std::filesystem::path&)>& accept,
-                                                 const std::string& kinds) {
+std::vector<std::filesystem::path> collect_files(
+    const std::vector<std::string>& inputs, const std::function<bool(const std::filesystem::path&)>& accept,
+    const std::string& kinds) {
   namespace stdfs = std::filesystem;
   std::vector<stdfs::path> files;
   for (const auto& in : inputs) {

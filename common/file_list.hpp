@@ -9,8 +9,8 @@
 namespace fs {
 
 // Throws fs::Error for a missing path or a directory with no accepted file.
-std::vector<std::filesystem::path> collect_files(const std::vector<std::string>& inputs,
-                                                 const std::function<bool(const std::filesystem::path&)>& accept,
-                                                 const std::string& kinds);
+std::vector<std::filesystem::path> collect_files(
+    const std::vector<std::string>& inputs, const std::function<bool(const std::filesystem::path&)>& accept,
+    const std::string& kinds);
 
 }  // namespace fs

@@ -155,10 +155,13 @@ class FixedVector {
     ++size_;
     return *p;
   }
-  [[noreturn]] static void overflow() { throw Error("FixedVector capacity " + std::to_string(N) + " exceeded"); }
+  [[noreturn]] static void overflow() {
+    throw Error("FixedVector capacity " + std::to_string(N) + " exceeded");
+  }
   void check_index(size_type i) const {
     if (i >= size_)
-      throw Error("FixedVector index " + std::to_string(i) + " out of range (size " + std::to_string(size_) + ")");
+      throw Error("FixedVector index " + std::to_string(i) + " out of range (size " + std::to_string(size_) +
+                  ")");
   }
 
   alignas(T) std::byte storage_[sizeof(T) * (N == 0 ? 1 : N)];

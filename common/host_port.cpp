@@ -6,8 +6,8 @@
 
 namespace fs {
 
-void split_host_port(const std::string& spec, std::string_view what, std::string_view form, std::uint16_t min_port,
-                     std::string& host, std::uint16_t& port) {
+void split_host_port(const std::string& spec, std::string_view what, std::string_view form,
+                     std::uint16_t min_port, std::string& host, std::uint16_t& port) {
   const std::string prefix = std::string(what) + " '" + spec + "': ";
   const std::size_t colon = spec.rfind(':');
   if (colon == std::string::npos || colon == 0 || colon + 1 == spec.size())

@@ -11,9 +11,9 @@
 namespace fs {
 
 struct Mesh {
-  std::string name;                                 // file stem by default
+  std::string name;  // file stem by default
   std::vector<Vec3> vertices;
-  std::vector<std::vector<std::uint32_t>> faces;    // polygons, indices into vertices
+  std::vector<std::vector<std::uint32_t>> faces;  // polygons, indices into vertices
 };
 
 // Reads a mesh by file extension (.off .obj .stl .ply, case-insensitive).

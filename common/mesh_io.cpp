@@ -3,13 +3,13 @@
 #include <algorithm>
 #include <array>
 #include <bit>
+#include <cctype>
 #include <charconv>
 #include <cmath>
 #include <cstring>
 #include <fstream>
 #include <iterator>
 #include <limits>
-#include <cctype>
 #include <map>
 #include <optional>
 #include <unordered_map>
@@ -170,7 +170,8 @@ Mesh parse_off(std::string_view text, const std::string& src) {
       first = 0;
     }
   }
-  if (tok.size() < first + 2) throw error_at_line(src, lines.number(), "expected 'vertex_count face_count [edge_count]'");
+  if (tok.size() < first + 2)
+    throw error_at_line(src, lines.number(), "expected 'vertex_count face_count [edge_count]'");
   const auto nv = to_int(tok[first]);
   const auto nf = to_int(tok[first + 1]);
   if (!nv || *nv < 0) throw error_at_line(src, lines.number(), "bad vertex count " + quote(tok[first]));
@@ -180,41 +181,53 @@ Mesh parse_off(std::string_view text, const std::string& src) {
   // Each vertex needs >= 6 bytes ("0 0 0\n"), each face >= 8: counts beyond that cannot be in the file.
   const auto remaining = static_cast<long long>(text.size() - lines.position());
   if (*nv > remaining / 6 + 1)
-    throw error_at_line(src, lines.number(), "vertex count " + std::to_string(*nv) + " exceeds what the file can hold");
+    throw error_at_line(src, lines.number(),
+                        "vertex count " + std::to_string(*nv) + " exceeds what the file can hold");
   if (*nf > remaining / 8 + 1)
-    throw error_at_line(src, lines.number(), "face count " + std::to_string(*nf) + " exceeds what the file can hold");
+    throw error_at_line(src, lines.number(),
+                        "face count " + std::to_string(*nf) + " exceeds what the file can hold");
   m.vertices.reserve(static_cast<std::size_t>(*nv));
   m.faces.reserve(static_cast<std::size_t>(*nf));
   for (long long i = 0; i < *nv; ++i) {
     if (!next_content())
-      throw error_at_line(src, lines.number(), "file ends after " + std::to_string(i) + " of " + std::to_string(*nv) + " vertices");
-    if (tok.size() < 3) throw error_at_line(src, lines.number(), "vertex " + std::to_string(i) + " needs 3 coordinates");
+      throw error_at_line(
+          src, lines.number(),
+          "file ends after " + std::to_string(i) + " of " + std::to_string(*nv) + " vertices");
+    if (tok.size() < 3)
+      throw error_at_line(src, lines.number(), "vertex " + std::to_string(i) + " needs 3 coordinates");
     Vec3 v;
     for (int k = 0; k < 3; ++k) {
       const auto d = to_double(tok[static_cast<std::size_t>(k)]);
-      if (!d) throw error_at_line(src, lines.number(), "bad coordinate " + quote(tok[static_cast<std::size_t>(k)]));
+      if (!d)
+        throw error_at_line(src, lines.number(), "bad coordinate " + quote(tok[static_cast<std::size_t>(k)]));
       v[k] = *d;
     }
-    if (auto e = check_vertex(v); !e.empty()) throw error_at_line(src, lines.number(), "vertex " + std::to_string(i) + ": " + e);
+    if (auto e = check_vertex(v); !e.empty())
+      throw error_at_line(src, lines.number(), "vertex " + std::to_string(i) + ": " + e);
     m.vertices.push_back(v);
   }
   FaceCheck check;
   for (long long f = 0; f < *nf; ++f) {
     if (!next_content())
-      throw error_at_line(src, lines.number(), "file ends after " + std::to_string(f) + " of " + std::to_string(*nf) + " faces");
+      throw error_at_line(src, lines.number(),
+                          "file ends after " + std::to_string(f) + " of " + std::to_string(*nf) + " faces");
     const auto n = to_int(tok[0]);
     if (!n || *n < 0) throw error_at_line(src, lines.number(), "bad face vertex count " + quote(tok[0]));
     if (static_cast<long long>(tok.size()) - 1 < *n)
-      throw error_at_line(src, lines.number(), "face " + std::to_string(f) + " declares " + std::to_string(*n) +
-                                                   " vertices but lists " + std::to_string(tok.size() - 1));
+      throw error_at_line(src, lines.number(),
+                          "face " + std::to_string(f) + " declares " + std::to_string(*n) +
+                              " vertices but lists " + std::to_string(tok.size() - 1));
     std::vector<std::uint32_t> face;
     face.reserve(static_cast<std::size_t>(*n));
     for (long long k = 1; k <= *n; ++k) {
       const auto idx = to_int(tok[static_cast<std::size_t>(k)]);
-      if (!idx) throw error_at_line(src, lines.number(), "bad vertex index " + quote(tok[static_cast<std::size_t>(k)]));
+      if (!idx)
+        throw error_at_line(src, lines.number(),
+                            "bad vertex index " + quote(tok[static_cast<std::size_t>(k)]));
       if (*idx < 0 || *idx >= *nv)
-        throw error_at_line(src, lines.number(), "vertex index " + std::to_string(*idx) + " out of range (" +
-                                                     std::to_string(*nv) + " vertices)");
+        throw error_at_line(
+            src, lines.number(),
+            "vertex index " + std::to_string(*idx) + " out of range (" + std::to_string(*nv) + " vertices)");
       face.push_back(static_cast<std::uint32_t>(*idx));
     }
     if (auto e = check(face, m.vertices.size()); !e.empty())
@@ -243,10 +256,13 @@ Mesh parse_obj(std::string_view text, const std::string& src) {
       Vec3 v;
       for (int k = 0; k < 3; ++k) {
         const auto d = to_double(tok[static_cast<std::size_t>(k + 1)]);
-        if (!d) throw error_at_line(src, lines.number(), "bad coordinate " + quote(tok[static_cast<std::size_t>(k + 1)]));
+        if (!d)
+          throw error_at_line(src, lines.number(),
+                              "bad coordinate " + quote(tok[static_cast<std::size_t>(k + 1)]));
         v[k] = *d;
       }
-      if (auto e = check_vertex(v); !e.empty()) throw error_at_line(src, lines.number(), "vertex " + std::to_string(m.vertices.size()) + ": " + e);
+      if (auto e = check_vertex(v); !e.empty())
+        throw error_at_line(src, lines.number(), "vertex " + std::to_string(m.vertices.size()) + ": " + e);
       m.vertices.push_back(v);
     } else if (tok[0] == "f") {
       std::vector<std::uint32_t> face;
@@ -256,9 +272,11 @@ Mesh parse_obj(std::string_view text, const std::string& src) {
         if (!idx || *idx == 0) throw error_at_line(src, lines.number(), "bad vertex index " + quote(tok[k]));
         long long zero_based = *idx > 0 ? *idx - 1 : static_cast<long long>(m.vertices.size()) + *idx;
         if (zero_based < 0)
-          throw error_at_line(src, lines.number(), "relative vertex index " + std::to_string(*idx) + " out of range (" +
-                                                       std::to_string(m.vertices.size()) + " vertices so far)");
-        if (zero_based > 0xFFFFFFF0LL) throw error_at_line(src, lines.number(), "vertex index " + std::to_string(*idx) + " out of range");
+          throw error_at_line(src, lines.number(),
+                              "relative vertex index " + std::to_string(*idx) + " out of range (" +
+                                  std::to_string(m.vertices.size()) + " vertices so far)");
+        if (zero_based > 0xFFFFFFF0LL)
+          throw error_at_line(src, lines.number(), "vertex index " + std::to_string(*idx) + " out of range");
         if (zero_based + 1 > max_index_seen) {
           max_index_seen = zero_based + 1;
           max_index_line = lines.number();
@@ -266,14 +284,16 @@ Mesh parse_obj(std::string_view text, const std::string& src) {
         face.push_back(static_cast<std::uint32_t>(zero_based));
       }
       if (face.size() < 3)
-        throw error_at_line(src, lines.number(), "face has " + std::to_string(face.size()) + " vertices (need at least 3)");
+        throw error_at_line(src, lines.number(),
+                            "face has " + std::to_string(face.size()) + " vertices (need at least 3)");
       m.faces.push_back(std::move(face));
       face_lines.push_back(lines.number());
     }
   }
   if (max_index_seen > static_cast<long long>(m.vertices.size()))
-    throw error_at_line(src, max_index_line, "vertex index " + std::to_string(max_index_seen) + " out of range (" +
-                                                 std::to_string(m.vertices.size()) + " vertices)");
+    throw error_at_line(src, max_index_line,
+                        "vertex index " + std::to_string(max_index_seen) + " out of range (" +
+                            std::to_string(m.vertices.size()) + " vertices)");
   for (std::size_t f = 0; f < m.faces.size(); ++f)
     if (auto e = check(m.faces[f], m.vertices.size()); !e.empty()) throw error_at_line(src, face_lines[f], e);
   return m;
@@ -322,12 +342,14 @@ float read_lef32(const unsigned char* p) { return std::bit_cast<float>(read_le32
 Mesh parse_stl_binary(std::string_view bytes, const std::string& src) {
   Mesh m;
   const auto* p = reinterpret_cast<const unsigned char*>(bytes.data());
-  if (bytes.size() < 84) throw error_at_offset(src, bytes.size(), "binary STL shorter than its 84-byte header");
+  if (bytes.size() < 84)
+    throw error_at_offset(src, bytes.size(), "binary STL shorter than its 84-byte header");
   const std::uint32_t n = read_le32(p + 80);
   const std::uint64_t need = 84ULL + 50ULL * n;
   if (need != bytes.size())
-    throw error_at_offset(src, 80, "binary STL declares " + std::to_string(n) + " triangles (" + std::to_string(need) +
-                                       " bytes) but the file has " + std::to_string(bytes.size()) + " bytes");
+    throw error_at_offset(src, 80,
+                          "binary STL declares " + std::to_string(n) + " triangles (" + std::to_string(need) +
+                              " bytes) but the file has " + std::to_string(bytes.size()) + " bytes");
   if (n == 0) throw error_at_offset(src, 80, "binary STL has no triangles");
   Welder weld(m);
   m.vertices.reserve(n / 2 + 3);
@@ -337,7 +359,8 @@ Mesh parse_stl_binary(std::string_view bytes, const std::string& src) {
     std::array<Vec3, 3> tri;
     for (int k = 0; k < 3; ++k) {
       const std::size_t vo = off + 12 + 12 * static_cast<std::size_t>(k);
-      tri[static_cast<std::size_t>(k)] = Vec3(read_lef32(p + vo), read_lef32(p + vo + 4), read_lef32(p + vo + 8));
+      tri[static_cast<std::size_t>(k)] =
+          Vec3(read_lef32(p + vo), read_lef32(p + vo + 4), read_lef32(p + vo + 8));
       if (auto e = check_vertex(tri[static_cast<std::size_t>(k)]); !e.empty())
         throw error_at_offset(src, vo, "triangle " + std::to_string(t) + ": " + e);
     }
@@ -356,7 +379,8 @@ Mesh parse_stl_ascii(std::string_view text, const std::string& src) {
   std::string_view tok;
   auto expect = [&](std::string_view word) {
     if (!t.next(tok)) throw error_at_line(src, t.line(), "file ends, expected '" + std::string(word) + "'");
-    if (lower(tok) != word) throw error_at_line(src, t.line(), "expected '" + std::string(word) + "', found " + quote(tok));
+    if (lower(tok) != word)
+      throw error_at_line(src, t.line(), "expected '" + std::string(word) + "', found " + quote(tok));
   };
   auto number = [&]() {
     if (!t.next(tok)) throw error_at_line(src, t.line(), "file ends, expected a number");
@@ -372,7 +396,8 @@ Mesh parse_stl_ascii(std::string_view text, const std::string& src) {
       ended = true;
       break;
     }
-    if (w != "facet") throw error_at_line(src, t.line(), "expected 'facet' or 'endsolid', found " + quote(tok));
+    if (w != "facet")
+      throw error_at_line(src, t.line(), "expected 'facet' or 'endsolid', found " + quote(tok));
     expect("normal");
     for (int k = 0; k < 3; ++k) number();
     expect("outer");
@@ -406,8 +431,10 @@ Mesh parse_stl(std::string_view bytes, const std::string& src) {
   while (i < bytes.size() && (is_space(bytes[i]) || bytes[i] == '\n')) ++i;
   // Binary files may start with "solid" too: ASCII needs the keywords and no NUL bytes.
   if (bytes.size() - i >= 5 && lower(bytes.substr(i, 5)) == "solid" &&
-      (bytes.size() < 84 || (bytes.find('\0') == std::string_view::npos &&
-                             lower(bytes.substr(0, std::min<std::size_t>(bytes.size(), 4096))).find("facet") != std::string::npos)))
+      (bytes.size() < 84 ||
+       (bytes.find('\0') == std::string_view::npos &&
+        lower(bytes.substr(0, std::min<std::size_t>(bytes.size(), 4096))).find("facet") !=
+            std::string::npos)))
     return parse_stl_ascii(bytes.substr(i), src);
   if (bytes.empty()) throw Error(src + ": empty STL file");
   return parse_stl_binary(bytes, src);  // reports the size mismatch
@@ -420,10 +447,12 @@ enum class PlyType { I8, U8, I16, U16, I32, U32, F32, F64 };
 
 std::optional<PlyType> ply_type(std::string_view s) {
   static const std::map<std::string, PlyType, std::less<>> types{
-      {"char", PlyType::I8},   {"int8", PlyType::I8},     {"uchar", PlyType::U8},   {"uint8", PlyType::U8},
-      {"short", PlyType::I16}, {"int16", PlyType::I16},   {"ushort", PlyType::U16}, {"uint16", PlyType::U16},
-      {"int", PlyType::I32},   {"int32", PlyType::I32},   {"uint", PlyType::U32},   {"uint32", PlyType::U32},
-      {"float", PlyType::F32}, {"float32", PlyType::F32}, {"double", PlyType::F64}, {"float64", PlyType::F64}};
+      {"char", PlyType::I8},    {"int8", PlyType::I8},     {"uchar", PlyType::U8},
+      {"uint8", PlyType::U8},   {"short", PlyType::I16},   {"int16", PlyType::I16},
+      {"ushort", PlyType::U16}, {"uint16", PlyType::U16},  {"int", PlyType::I32},
+      {"int32", PlyType::I32},  {"uint", PlyType::U32},    {"uint32", PlyType::U32},
+      {"float", PlyType::F32},  {"float32", PlyType::F32}, {"double", PlyType::F64},
+      {"float64", PlyType::F64}};
   const auto it = types.find(s);
   if (it == types.end()) return std::nullopt;
   return it->second;
@@ -431,10 +460,18 @@ std::optional<PlyType> ply_type(std::string_view s) {
 
 std::size_t ply_size(PlyType t) {
   switch (t) {
-    case PlyType::I8: case PlyType::U8: return 1;
-    case PlyType::I16: case PlyType::U16: return 2;
-    case PlyType::I32: case PlyType::U32: case PlyType::F32: return 4;
-    case PlyType::F64: return 8;
+    case PlyType::I8:
+    case PlyType::U8:
+      return 1;
+    case PlyType::I16:
+    case PlyType::U16:
+      return 2;
+    case PlyType::I32:
+    case PlyType::U32:
+    case PlyType::F32:
+      return 4;
+    case PlyType::F64:
+      return 8;
   }
   return 1;
 }
@@ -459,7 +496,8 @@ enum class PlyFormat { Ascii, BinaryLE, BinaryBE };
 // Reads one scalar from the body; ASCII by tokens, binary by bytes.
 class PlyBody {
  public:
-  PlyBody(std::string_view body, std::size_t base, std::uint64_t first_line, PlyFormat fmt, const std::string& src)
+  PlyBody(std::string_view body, std::size_t base, std::uint64_t first_line, PlyFormat fmt,
+          const std::string& src)
       : body_(body), base_(base), tokens_(body, first_line), fmt_(fmt), src_(src) {}
 
   double read(PlyType t) {
@@ -482,14 +520,40 @@ class PlyBody {
     if (fmt_ == PlyFormat::BinaryBE) std::reverse(b, b + n);
     pos_ += n;
     switch (t) {
-      case PlyType::I8: return static_cast<std::int8_t>(b[0]);
-      case PlyType::U8: return b[0];
-      case PlyType::I16: { std::int16_t v; std::memcpy(&v, b, 2); return v; }
-      case PlyType::U16: { std::uint16_t v; std::memcpy(&v, b, 2); return v; }
-      case PlyType::I32: { std::int32_t v; std::memcpy(&v, b, 4); return v; }
-      case PlyType::U32: { std::uint32_t v; std::memcpy(&v, b, 4); return v; }
-      case PlyType::F32: { float v; std::memcpy(&v, b, 4); return v; }
-      case PlyType::F64: { double v; std::memcpy(&v, b, 8); return v; }
+      case PlyType::I8:
+        return static_cast<std::int8_t>(b[0]);
+      case PlyType::U8:
+        return b[0];
+      case PlyType::I16: {
+        std::int16_t v;
+        std::memcpy(&v, b, 2);
+        return v;
+      }
+      case PlyType::U16: {
+        std::uint16_t v;
+        std::memcpy(&v, b, 2);
+        return v;
+      }
+      case PlyType::I32: {
+        std::int32_t v;
+        std::memcpy(&v, b, 4);
+        return v;
+      }
+      case PlyType::U32: {
+        std::uint32_t v;
+        std::memcpy(&v, b, 4);
+        return v;
+      }
+      case PlyType::F32: {
+        float v;
+        std::memcpy(&v, b, 4);
+        return v;
+      }
+      case PlyType::F64: {
+        double v;
+        std::memcpy(&v, b, 8);
+        return v;
+      }
     }
     return 0.0;
   }
@@ -514,7 +578,8 @@ Mesh parse_ply(std::string_view bytes, const std::string& src) {
   Lines lines(bytes);
   std::string_view line;
   std::vector<std::string_view> tok;
-  if (!lines.next(line) || split(line, tok, 0) != 1 || tok[0] != "ply") throw error_at_line(src, 1, "not a PLY file (no 'ply' magic)");
+  if (!lines.next(line) || split(line, tok, 0) != 1 || tok[0] != "ply")
+    throw error_at_line(src, 1, "not a PLY file (no 'ply' magic)");
   std::optional<PlyFormat> fmt;
   std::vector<PlyElement> elements;
   bool header_done = false;
@@ -527,10 +592,14 @@ Mesh parse_ply(std::string_view bytes, const std::string& src) {
     }
     if (tok[0] == "format") {
       if (tok.size() != 3) throw error_at_line(src, lines.number(), "expected 'format <type> 1.0'");
-      if (tok[1] == "ascii") fmt = PlyFormat::Ascii;
-      else if (tok[1] == "binary_little_endian") fmt = PlyFormat::BinaryLE;
-      else if (tok[1] == "binary_big_endian") fmt = PlyFormat::BinaryBE;
-      else throw error_at_line(src, lines.number(), "unknown PLY format " + quote(tok[1]));
+      if (tok[1] == "ascii")
+        fmt = PlyFormat::Ascii;
+      else if (tok[1] == "binary_little_endian")
+        fmt = PlyFormat::BinaryLE;
+      else if (tok[1] == "binary_big_endian")
+        fmt = PlyFormat::BinaryBE;
+      else
+        throw error_at_line(src, lines.number(), "unknown PLY format " + quote(tok[1]));
     } else if (tok[0] == "element") {
       if (tok.size() != 3) throw error_at_line(src, lines.number(), "expected 'element <name> <count>'");
       const auto n = to_int(tok[2]);
@@ -542,7 +611,8 @@ Mesh parse_ply(std::string_view bytes, const std::string& src) {
       if (tok.size() == 5 && tok[1] == "list") {
         const auto ct = ply_type(tok[2]);
         const auto it = ply_type(tok[3]);
-        if (!ct || !ply_is_integer(*ct)) throw error_at_line(src, lines.number(), "bad list count type " + quote(tok[2]));
+        if (!ct || !ply_is_integer(*ct))
+          throw error_at_line(src, lines.number(), "bad list count type " + quote(tok[2]));
         if (!it) throw error_at_line(src, lines.number(), "unknown property type " + quote(tok[3]));
         p.is_list = true;
         p.count_type = *ct;
@@ -554,7 +624,8 @@ Mesh parse_ply(std::string_view bytes, const std::string& src) {
         p.type = *t;
         p.name = tok[2];
       } else {
-        throw error_at_line(src, lines.number(), "expected 'property <type> <name>' or 'property list <t> <t> <name>'");
+        throw error_at_line(src, lines.number(),
+                            "expected 'property <type> <name>' or 'property list <t> <t> <name>'");
       }
       elements.back().props.push_back(std::move(p));
     } else {
@@ -574,7 +645,8 @@ Mesh parse_ply(std::string_view bytes, const std::string& src) {
     // Each row takes at least one byte (binary) or two (ascii: a digit and a separator) per property.
     const std::uint64_t min_row = std::max<std::size_t>(1, el.props.size()) * (body.binary() ? 1 : 2);
     if (el.count > body.remaining() / min_row + 1)
-      throw body.error("element '" + el.name + "' count " + std::to_string(el.count) + " exceeds what the file can hold");
+      throw body.error("element '" + el.name + "' count " + std::to_string(el.count) +
+                       " exceeds what the file can hold");
     const bool is_vertex = el.name == "vertex";
     const bool is_face = el.name == "face";
     int ix = -1, iy = -1, iz = -1, iface = -1;
@@ -583,7 +655,8 @@ Mesh parse_ply(std::string_view bytes, const std::string& src) {
       if (is_vertex && !p.is_list && p.name == "x") ix = static_cast<int>(k);
       if (is_vertex && !p.is_list && p.name == "y") iy = static_cast<int>(k);
       if (is_vertex && !p.is_list && p.name == "z") iz = static_cast<int>(k);
-      if (is_face && p.is_list && (p.name == "vertex_indices" || p.name == "vertex_index")) iface = static_cast<int>(k);
+      if (is_face && p.is_list && (p.name == "vertex_indices" || p.name == "vertex_index"))
+        iface = static_cast<int>(k);
     }
     if (is_vertex) {
       if (ix < 0 || iy < 0 || iz < 0) throw body.error("element 'vertex' lacks scalar properties x, y, z");
@@ -635,7 +708,8 @@ Mesh parse_ply(std::string_view bytes, const std::string& src) {
   if (!have_vertex) throw Error(src + ": PLY has no 'vertex' element");
   if (!have_face) throw Error(src + ": PLY has no 'face' element");
   for (std::size_t f = 0; f < m.faces.size(); ++f)
-    if (auto e = check(m.faces[f], m.vertices.size()); !e.empty()) throw Error(src + ": face " + std::to_string(f) + ": " + e);
+    if (auto e = check(m.faces[f], m.vertices.size()); !e.empty())
+      throw Error(src + ": face " + std::to_string(f) + ": " + e);
   return m;
 }
 
@@ -650,14 +724,23 @@ MeshFormat mesh_format_from_path(const std::filesystem::path& path) {
   throw Error(path.string() + ": unknown mesh format '" + ext + "' (expected .off, .obj, .stl or .ply)");
 }
 
-Mesh parse_mesh(std::string_view bytes, MeshFormat format, const std::string& source, const std::string& name) {
+Mesh parse_mesh(std::string_view bytes, MeshFormat format, const std::string& source,
+                const std::string& name) {
   if (bytes.empty()) throw Error(source + ": empty file");
   Mesh m;
   switch (format) {
-    case MeshFormat::Off: m = parse_off(bytes, source); break;
-    case MeshFormat::Obj: m = parse_obj(bytes, source); break;
-    case MeshFormat::Stl: m = parse_stl(bytes, source); break;
-    case MeshFormat::Ply: m = parse_ply(bytes, source); break;
+    case MeshFormat::Off:
+      m = parse_off(bytes, source);
+      break;
+    case MeshFormat::Obj:
+      m = parse_obj(bytes, source);
+      break;
+    case MeshFormat::Stl:
+      m = parse_stl(bytes, source);
+      break;
+    case MeshFormat::Ply:
+      m = parse_ply(bytes, source);
+      break;
   }
   check_not_empty(m, source);
   m.name = name;
@@ -685,8 +768,9 @@ std::string check_closed_manifold(const Mesh& mesh) {
     for (std::size_t k = 0; k < face.size(); ++k) {
       const std::uint32_t a = face[k], b = face[(k + 1) % face.size()];
       if (++directed[{a, b}] > 1)
-        return "edge " + std::to_string(a) + "-" + std::to_string(b) + " is used twice in the same direction (face " +
-               std::to_string(f) + "): inconsistent orientation or non-manifold";
+        return "edge " + std::to_string(a) + "-" + std::to_string(b) +
+               " is used twice in the same direction (face " + std::to_string(f) +
+               "): inconsistent orientation or non-manifold";
     }
   }
   for (const auto& [e, n] : directed) {

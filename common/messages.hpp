@@ -18,29 +18,29 @@ inline constexpr std::uint32_t kMaxStripePoints = 8192;
 
 struct ScanBegin {
   std::uint64_t scan_id = 0;
-  std::string scanner_model;          // <= kMaxModelName bytes
-  ScannerCalibration calibration;     // camera intrinsics + distortion + pose, laser/galvo, steps
-  std::uint8_t pixel_bits = 8;        // 8 or 16
-  std::string units = "mm";           // lengths in the calibration
+  std::string scanner_model;       // <= kMaxModelName bytes
+  ScannerCalibration calibration;  // camera intrinsics + distortion + pose, laser/galvo, steps
+  std::uint8_t pixel_bits = 8;     // 8 or 16
+  std::string units = "mm";        // lengths in the calibration
   std::int64_t start_time_ns = 0;
 };
 
 // One image row's stripe peak.
 struct StripePoint {
-  std::uint16_t row = 0;      // image row
-  float col = 0.0f;           // sub-pixel column of the stripe centre (distorted pixel coordinates)
-  std::uint16_t peak = 0;     // peak intensity (raw sensor units)
-  float width = 0.0f;         // stripe width in pixels (full width at half maximum)
+  std::uint16_t row = 0;   // image row
+  float col = 0.0f;        // sub-pixel column of the stripe centre (distorted pixel coordinates)
+  std::uint16_t peak = 0;  // peak intensity (raw sensor units)
+  float width = 0.0f;      // stripe width in pixels (full width at half maximum)
 };
 
 struct StripeHeader {
   std::uint64_t scan_id = 0;
-  std::uint32_t step_index = 0;        // galvo step k
-  double commanded_angle = 0.0;        // mirror angle commanded for step k (rad)
-  double measured_position = 0.0;      // galvo position read back (steps)
-  std::int64_t capture_time_ns = 0;    // exposure timestamp (scanner's monotonic clock)
-  std::uint32_t frame_sequence = 0;    // camera frame sequence number
-  std::uint32_t flags = 0;             // bit 0: saturated rows present, bit 1: ambiguous rows present
+  std::uint32_t step_index = 0;      // galvo step k
+  double commanded_angle = 0.0;      // mirror angle commanded for step k (rad)
+  double measured_position = 0.0;    // galvo position read back (steps)
+  std::int64_t capture_time_ns = 0;  // exposure timestamp (scanner's monotonic clock)
+  std::uint32_t frame_sequence = 0;  // camera frame sequence number
+  std::uint32_t flags = 0;           // bit 0: saturated rows present, bit 1: ambiguous rows present
 };
 
 // A stripe whose points live in caller-provided memory (decoding never allocates).
@@ -61,23 +61,23 @@ struct ScanEnd {
   std::uint64_t scan_id = 0;
   std::uint32_t stripes_sent = 0;
   std::uint32_t frames_captured = 0;
-  std::uint32_t frames_dropped = 0;     // camera sequence gaps + timeouts
-  std::uint32_t stripes_dropped = 0;    // lost while the host was disconnected (bounded buffer overflow)
+  std::uint32_t frames_dropped = 0;   // camera sequence gaps + timeouts
+  std::uint32_t stripes_dropped = 0;  // lost while the host was disconnected (bounded buffer overflow)
   std::uint32_t fault_count = 0;
   std::uint32_t last_fault_code = 0;
-  std::uint8_t completed = 0;           // 1 = all steps scanned, 0 = aborted
+  std::uint8_t completed = 0;  // 1 = all steps scanned, 0 = aborted
   LoopStats loop;
 };
 
 struct Heartbeat {
   std::int64_t time_ns = 0;
   std::uint64_t counter = 0;
-  std::uint8_t state = 0;               // firmware state machine state
+  std::uint8_t state = 0;  // firmware state machine state
 };
 
 struct Fault {
   std::uint32_t code = 0;
-  std::string text;                     // <= kMaxFaultText bytes
+  std::string text;  // <= kMaxFaultText bytes
 };
 
 }  // namespace fs::msg

@@ -34,8 +34,8 @@ void write_png(const std::filesystem::path& path, std::uint32_t width, std::uint
     throw Error(path.string() + ": libpng write error");
   }
   png_init_io(png, f.get());
-  png_set_IHDR(png, info, width, height, bit_depth, color_type, PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT,
-               PNG_FILTER_TYPE_DEFAULT);
+  png_set_IHDR(png, info, width, height, bit_depth, color_type, PNG_INTERLACE_NONE,
+               PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
   png_write_info(png, info);
   if (bit_depth == 16) png_set_swap(png);  // PNG is big-endian; our samples are little-endian
   for (std::uint32_t y = 0; y < height; ++y) png_write_row(png, row(y));
@@ -69,9 +69,8 @@ void write_png_gray16(const std::filesystem::path& path, std::uint32_t width, st
 void write_png_rgb8(const std::filesystem::path& path, std::uint32_t width, std::uint32_t height,
                     std::span<const std::uint8_t> rgb) {
   check_size(path, rgb.size(), std::size_t(width) * height * 3);
-  write_png(path, width, height, 8, PNG_COLOR_TYPE_RGB, [&](std::uint32_t y) {
-    return const_cast<png_bytep>(rgb.data() + std::size_t(y) * width * 3);
-  });
+  write_png(path, width, height, 8, PNG_COLOR_TYPE_RGB,
+            [&](std::uint32_t y) { return const_cast<png_bytep>(rgb.data() + std::size_t(y) * width * 3); });
 }
 
 }  // namespace fs

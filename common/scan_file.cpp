@@ -18,8 +18,9 @@ void encode_scan_file_header(std::span<std::uint8_t, kScanFileHeaderSize> out) {
 
 std::uint32_t parse_scan_file_header(std::span<const std::uint8_t> b, const std::string& source) {
   if (b.size() < kScanFileHeaderSize)
-    throw error_at_offset(source, b.size(), "truncated .fscan file header: " + std::to_string(b.size()) + " of " +
-                                                std::to_string(kScanFileHeaderSize) + " bytes");
+    throw error_at_offset(source, b.size(),
+                          "truncated .fscan file header: " + std::to_string(b.size()) + " of " +
+                              std::to_string(kScanFileHeaderSize) + " bytes");
   for (std::size_t i = 0; i < kScanFileMagic.size(); ++i)
     if (b[i] != kScanFileMagic[i])
       throw error_at_offset(source, i, "not a .fscan file (bad file magic, expected \"FSCAN\\r\\n\\x1a\")");
@@ -27,17 +28,20 @@ std::uint32_t parse_scan_file_header(std::span<const std::uint8_t> b, const std:
   const auto minor = load_le<std::uint16_t>(b.data() + 10);
   if (major != kScanFileMajor)
     throw error_at_offset(source, 8,
-                          "unsupported .fscan format version " + std::to_string(major) + "." + std::to_string(minor) +
-                              " (this reader reads major version " + std::to_string(kScanFileMajor) + ")");
+                          "unsupported .fscan format version " + std::to_string(major) + "." +
+                              std::to_string(minor) + " (this reader reads major version " +
+                              std::to_string(kScanFileMajor) + ")");
   const auto size = load_le<std::uint32_t>(b.data() + 12);
   if (size < kScanFileHeaderSize || size > kScanFileMaxHeaderSize)
-    throw error_at_offset(source, 12, "bad .fscan header size " + std::to_string(size) + " (expected " +
-                                          std::to_string(kScanFileHeaderSize) + ".." +
-                                          std::to_string(kScanFileMaxHeaderSize) + ")");
+    throw error_at_offset(source, 12,
+                          "bad .fscan header size " + std::to_string(size) + " (expected " +
+                              std::to_string(kScanFileHeaderSize) + ".." +
+                              std::to_string(kScanFileMaxHeaderSize) + ")");
   return size;
 }
 
-// ---- writer -------------------------------------------------------------------------------------------------
+// ---- writer
+// -------------------------------------------------------------------------------------------------
 
 ScanFileWriter::ScanFileWriter(const std::filesystem::path& path) : path_(path) {
   f_ = std::fopen(path.c_str(), "wb");
@@ -72,7 +76,8 @@ void ScanFileWriter::close() {
     throw error_at_offset(path_.string(), written_, std::string("close failed: ") + std::strerror(errno));
 }
 
-// ---- reader -------------------------------------------------------------------------------------------------
+// ---- reader
+// -------------------------------------------------------------------------------------------------
 
 namespace {
 constexpr std::size_t kChunk = 64 * 1024;
@@ -128,7 +133,8 @@ void ScanFileReader::open_header() {
   while (skip > 0) {
     const std::size_t k = read_chunk(std::span<std::uint8_t>(scratch.data(), std::min(skip, scratch.size())));
     if (k == 0)
-      throw error_at_offset(name_, file_pos_, "truncated .fscan file header (header size " + std::to_string(size) + ")");
+      throw error_at_offset(name_, file_pos_,
+                            "truncated .fscan file header (header size " + std::to_string(size) + ")");
     skip -= k;
   }
   dec_.reset(size);

@@ -28,7 +28,8 @@ inline constexpr std::uint32_t kScanFileMaxHeaderSize = 4096;
 
 // Encodes the file header into out (>= kScanFileHeaderSize bytes).
 void encode_scan_file_header(std::span<std::uint8_t, kScanFileHeaderSize> out);
-// Validates a file header; returns the offset of the first frame. Throws fs::Error naming `source` and offset.
+// Validates a file header; returns the offset of the first frame. Throws fs::Error naming `source` and
+// offset.
 std::uint32_t parse_scan_file_header(std::span<const std::uint8_t> bytes, const std::string& source);
 
 // Writes a .fscan file. It is a wire::FrameSink: use it with wire::FrameWriter (encode messages) or write raw
@@ -53,13 +54,14 @@ class ScanFileWriter final : public wire::FrameSink {
 };
 
 // Reads a .fscan file (or an in-memory image of one) message by message. Errors (bad header, unknown
-// version, bad magic, bad CRC, truncation, malformed payloads) are fs::Error "<path>: at byte N: ..." with the
-// file offset. Reading allocates only at construction.
+// version, bad magic, bad CRC, truncation, malformed payloads) are fs::Error "<path>: at byte N: ..." with
+// the file offset. Reading allocates only at construction.
 class ScanFileReader {
  public:
   explicit ScanFileReader(const std::filesystem::path& path, wire::FrameDecoder::Limits limits = {});
   // A file image in memory (not copied; must outlive the reader). `name` labels errors.
-  ScanFileReader(std::span<const std::uint8_t> image, std::string name, wire::FrameDecoder::Limits limits = {});
+  ScanFileReader(std::span<const std::uint8_t> image, std::string name,
+                 wire::FrameDecoder::Limits limits = {});
   ~ScanFileReader();
   ScanFileReader(const ScanFileReader&) = delete;
   ScanFileReader& operator=(const ScanFileReader&) = delete;

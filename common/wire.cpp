@@ -12,18 +12,24 @@ namespace fs::wire {
 
 const char* type_name(msg::Type t) {
   switch (t) {
-    case msg::Type::ScanBegin: return "ScanBegin";
-    case msg::Type::Stripe: return "Stripe";
-    case msg::Type::ScanEnd: return "ScanEnd";
-    case msg::Type::Heartbeat: return "Heartbeat";
-    case msg::Type::Fault: return "Fault";
+    case msg::Type::ScanBegin:
+      return "ScanBegin";
+    case msg::Type::Stripe:
+      return "Stripe";
+    case msg::Type::ScanEnd:
+      return "ScanEnd";
+    case msg::Type::Heartbeat:
+      return "Heartbeat";
+    case msg::Type::Fault:
+      return "Fault";
   }
   return "unknown";
 }
 
 bool is_known_type(std::uint8_t t) { return t >= 1 && t <= 5; }
 
-// ---- payload field lists -------------------------------------------------------------------------------------
+// ---- payload field lists
+// -------------------------------------------------------------------------------------
 
 namespace {
 
@@ -36,13 +42,15 @@ void put_vec3(ByteWriter& w, const Vec3& v) {
 double get_finite(ByteReader& r, const char* field) {
   const std::uint64_t at = r.offset();
   const double v = r.get<double>(field);
-  if (!std::isfinite(v)) throw r.fail_at(at, std::string("ScanBegin.") + field + " is not finite (" + std::to_string(v) + ")");
+  if (!std::isfinite(v))
+    throw r.fail_at(at, std::string("ScanBegin.") + field + " is not finite (" + std::to_string(v) + ")");
   return v;
 }
 double get_positive(ByteReader& r, const char* field) {
   const std::uint64_t at = r.offset();
   const double v = get_finite(r, field);
-  if (!(v > 0.0)) throw r.fail_at(at, std::string("ScanBegin.") + field + " must be > 0, is " + std::to_string(v));
+  if (!(v > 0.0))
+    throw r.fail_at(at, std::string("ScanBegin.") + field + " must be > 0, is " + std::to_string(v));
   return v;
 }
 std::uint32_t get_in_range(ByteReader& r, const char* field, std::uint32_t lo, std::uint32_t hi) {
@@ -178,11 +186,26 @@ void put_payload(ByteWriter& w, const msg::Fault& m) {
 
 template <class M>
 msg::Type type_of();
-template <> msg::Type type_of<msg::ScanBegin>() { return msg::Type::ScanBegin; }
-template <> msg::Type type_of<msg::Stripe>() { return msg::Type::Stripe; }
-template <> msg::Type type_of<msg::ScanEnd>() { return msg::Type::ScanEnd; }
-template <> msg::Type type_of<msg::Heartbeat>() { return msg::Type::Heartbeat; }
-template <> msg::Type type_of<msg::Fault>() { return msg::Type::Fault; }
+template <>
+msg::Type type_of<msg::ScanBegin>() {
+  return msg::Type::ScanBegin;
+}
+template <>
+msg::Type type_of<msg::Stripe>() {
+  return msg::Type::Stripe;
+}
+template <>
+msg::Type type_of<msg::ScanEnd>() {
+  return msg::Type::ScanEnd;
+}
+template <>
+msg::Type type_of<msg::Heartbeat>() {
+  return msg::Type::Heartbeat;
+}
+template <>
+msg::Type type_of<msg::Fault>() {
+  return msg::Type::Fault;
+}
 
 template <class M>
 std::size_t encode_frame(std::span<std::uint8_t> out, std::uint32_t sequence, const M& m) {
@@ -213,21 +236,24 @@ struct PayloadReader : ByteReader {
   }
   void done() const {
     if (remaining() != 0 && frame.header.minor <= kProtocolMinor)
-      throw fail(std::to_string(remaining()) + " unexpected trailing bytes in " + type_name(frame.header.type) +
-                 " payload (protocol " + std::to_string(frame.header.major) + "." +
-                 std::to_string(frame.header.minor) + ")");
+      throw fail(std::to_string(remaining()) + " unexpected trailing bytes in " +
+                 type_name(frame.header.type) + " payload (protocol " + std::to_string(frame.header.major) +
+                 "." + std::to_string(frame.header.minor) + ")");
   }
   const FrameView& frame;
 };
 
 }  // namespace
 
-// ---- sizes and encode ---------------------------------------------------------------------------------------
+// ---- sizes and encode
+// ---------------------------------------------------------------------------------------
 
 std::size_t payload_size(const msg::ScanBegin& m) {
   return kScanBeginFixedSize + m.scanner_model.size() + m.units.size();
 }
-std::size_t payload_size(const msg::Stripe& m) { return kStripeHeaderSize + kStripePointSize * m.points.size(); }
+std::size_t payload_size(const msg::Stripe& m) {
+  return kStripeHeaderSize + kStripePointSize * m.points.size();
+}
 std::size_t payload_size(const msg::ScanEnd&) { return kScanEndSize; }
 std::size_t payload_size(const msg::Heartbeat&) { return kHeartbeatSize; }
 std::size_t payload_size(const msg::Fault& m) { return 4 + 2 + m.text.size(); }
@@ -251,7 +277,8 @@ std::size_t encode(std::span<std::uint8_t> out, std::uint32_t seq, const msg::Fa
 FrameWriter::FrameWriter(FrameSink& sink, std::uint32_t first_sequence, std::size_t max_frame)
     : sink_(sink), buffer_(max_frame), seq_(first_sequence) {}
 
-// ---- decode payloads -----------------------------------------------------------------------------------------
+// ---- decode payloads
+// -----------------------------------------------------------------------------------------
 
 void decode(const FrameView& f, msg::ScanBegin& m, const std::string& source) {
   PayloadReader r(f, source, msg::Type::ScanBegin);
@@ -267,7 +294,8 @@ void decode(const FrameView& f, msg::ScanBegin& m, const std::string& source) {
   r.done();
 }
 
-void decode(const FrameView& f, msg::Stripe& m, std::span<msg::StripePoint> storage, const std::string& source) {
+void decode(const FrameView& f, msg::Stripe& m, std::span<msg::StripePoint> storage,
+            const std::string& source) {
   PayloadReader r(f, source, msg::Type::Stripe);
   msg::StripeHeader& h = m.header;
   h.scan_id = r.get<std::uint64_t>("Stripe.scan_id");
@@ -349,27 +377,40 @@ void decode(const FrameView& f, DecodedMessage& out, const std::string& source) 
   out.sequence = f.header.sequence;
   out.offset = f.offset;
   switch (f.header.type) {
-    case msg::Type::ScanBegin: decode(f, out.scan_begin, source); return;
-    case msg::Type::Stripe: decode(f, out.stripe, out.point_storage, source); return;
-    case msg::Type::ScanEnd: decode(f, out.scan_end, source); return;
-    case msg::Type::Heartbeat: decode(f, out.heartbeat, source); return;
-    case msg::Type::Fault: decode(f, out.fault, source); return;
+    case msg::Type::ScanBegin:
+      decode(f, out.scan_begin, source);
+      return;
+    case msg::Type::Stripe:
+      decode(f, out.stripe, out.point_storage, source);
+      return;
+    case msg::Type::ScanEnd:
+      decode(f, out.scan_end, source);
+      return;
+    case msg::Type::Heartbeat:
+      decode(f, out.heartbeat, source);
+      return;
+    case msg::Type::Fault:
+      decode(f, out.fault, source);
+      return;
   }
   throw error_at_offset(source, f.offset + 6, "unknown message type");
 }
 
-// ---- frame header and incremental decoder --------------------------------------------------------------------
+// ---- frame header and incremental decoder
+// --------------------------------------------------------------------
 
 FrameHeader parse_header(std::span<const std::uint8_t> b, std::size_t max_payload, const std::string& source,
                          std::uint64_t offset) {
   if (b.size() < kFrameHeaderSize)
-    throw error_at_offset(source, offset, "truncated frame header: " + std::to_string(b.size()) + " of " +
-                                              std::to_string(kFrameHeaderSize) + " bytes");
+    throw error_at_offset(source, offset,
+                          "truncated frame header: " + std::to_string(b.size()) + " of " +
+                              std::to_string(kFrameHeaderSize) + " bytes");
   for (std::size_t i = 0; i < kMagic.size(); ++i)
     if (b[i] != kMagic[i]) {
       char what[96];
-      std::snprintf(what, sizeof what, "bad frame magic %02x %02x %02x %02x (expected \"FSWF\"; byte %zu differs)",
-                    b[0], b[1], b[2], b[3], i);
+      std::snprintf(what, sizeof what,
+                    "bad frame magic %02x %02x %02x %02x (expected \"FSWF\"; byte %zu differs)", b[0], b[1],
+                    b[2], b[3], i);
       throw error_at_offset(source, offset + i, what);
     }
   FrameHeader h;
@@ -377,8 +418,9 @@ FrameHeader parse_header(std::span<const std::uint8_t> b, std::size_t max_payloa
   h.minor = b[5];
   if (h.major != kProtocolMajor)
     throw error_at_offset(source, offset + 4,
-                          "unsupported protocol version " + std::to_string(h.major) + "." + std::to_string(h.minor) +
-                              " (this reader speaks major version " + std::to_string(kProtocolMajor) + ")");
+                          "unsupported protocol version " + std::to_string(h.major) + "." +
+                              std::to_string(h.minor) + " (this reader speaks major version " +
+                              std::to_string(kProtocolMajor) + ")");
   if (!is_known_type(b[6]))
     throw error_at_offset(source, offset + 6, "unknown message type " + std::to_string(b[6]));
   h.type = static_cast<msg::Type>(b[6]);
@@ -420,8 +462,10 @@ void FrameDecoder::compact() {
 }
 
 std::size_t FrameDecoder::feed(std::span<const std::uint8_t> bytes) {
-  if (end_ == buf_.size()) compact();
-  else if (buf_.size() - end_ < bytes.size() && start_ > 0) compact();
+  if (end_ == buf_.size())
+    compact();
+  else if (buf_.size() - end_ < bytes.size() && start_ > 0)
+    compact();
   const std::size_t n = std::min(bytes.size(), buf_.size() - end_);
   if (n > 0) std::memcpy(buf_.data() + end_, bytes.data(), n);
   end_ += n;
@@ -464,8 +508,9 @@ bool FrameDecoder::next(FrameView& out) {
   const std::uint32_t got = crc32c({p, kFrameHeaderSize + h.payload_length});
   if (want != got) {
     char msg[96];
-    std::snprintf(msg, sizeof msg, "bad CRC-32C: frame says 0x%08x, computed 0x%08x (%s frame of %u payload bytes)",
-                  want, got, type_name(h.type), h.payload_length);
+    std::snprintf(msg, sizeof msg,
+                  "bad CRC-32C: frame says 0x%08x, computed 0x%08x (%s frame of %u payload bytes)", want, got,
+                  type_name(h.type), h.payload_length);
     fail(offset() + kFrameHeaderSize + h.payload_length, msg);
   }
   out.header = h;
@@ -485,10 +530,11 @@ void FrameDecoder::finish() {
   if (avail == 0) return;
   if (avail < kFrameHeaderSize)
     fail(offset(), "truncated frame: stream ends " + std::to_string(avail) + " bytes into a frame header");
-  const FrameHeader h = parse_header({buf_.data() + start_, kFrameHeaderSize}, limits_.max_payload, source_, offset());
+  const FrameHeader h =
+      parse_header({buf_.data() + start_, kFrameHeaderSize}, limits_.max_payload, source_, offset());
   const std::size_t total = kFrameHeaderSize + h.payload_length + kFrameCrcSize;
-  fail(offset(), "truncated frame: " + std::string(type_name(h.type)) + " frame needs " + std::to_string(total) +
-                     " bytes, stream ends after " + std::to_string(avail));
+  fail(offset(), "truncated frame: " + std::string(type_name(h.type)) + " frame needs " +
+                     std::to_string(total) + " bytes, stream ends after " + std::to_string(avail));
 }
 
 std::size_t FrameDecoder::resync() {
@@ -498,7 +544,9 @@ std::size_t FrameDecoder::resync() {
   std::size_t i = start_ + 1;
   for (; i < end_; ++i) {
     const std::size_t k = std::min<std::size_t>(kMagic.size(), end_ - i);
-    if (std::equal(kMagic.begin(), kMagic.begin() + static_cast<std::ptrdiff_t>(k), buf_.begin() + static_cast<std::ptrdiff_t>(i))) break;
+    if (std::equal(kMagic.begin(), kMagic.begin() + static_cast<std::ptrdiff_t>(k),
+                   buf_.begin() + static_cast<std::ptrdiff_t>(i)))
+      break;
   }
   const std::size_t skipped = i - start_;
   start_ = i;

@@ -36,11 +36,12 @@ inline constexpr std::size_t kFrameCrcSize = 4;
 inline constexpr std::size_t kFrameOverhead = kFrameHeaderSize + kFrameCrcSize;
 
 // Fixed payload sizes of this protocol version.
-inline constexpr std::size_t kStripeHeaderSize = 48;   // StripeHeader fields + u32 point count
-inline constexpr std::size_t kStripePointSize = 12;    // u16 row, f32 col, u16 peak, f32 width
+inline constexpr std::size_t kStripeHeaderSize = 48;  // StripeHeader fields + u32 point count
+inline constexpr std::size_t kStripePointSize = 12;   // u16 row, f32 col, u16 peak, f32 width
 inline constexpr std::size_t kMaxUnitsLength = 16;
 // ScanBegin without the bytes of its two strings.
-inline constexpr std::size_t kScanBeginFixedSize = 8 + 2 + 8 + 8 * 9 + 8 * 9 + 8 * 3 + 8 * 12 + 4 + 4 + 8 * 4 + 1 + 2 + 8;
+inline constexpr std::size_t kScanBeginFixedSize =
+    8 + 2 + 8 + 8 * 9 + 8 * 9 + 8 * 3 + 8 * 12 + 4 + 4 + 8 * 4 + 1 + 2 + 8;
 inline constexpr std::size_t kScanEndSize = 8 + 4 * 6 + 1 + 8 * 5 + 4 + 8 * 2;
 inline constexpr std::size_t kHeartbeatSize = 8 + 8 + 1;
 // The largest payload this version produces (a ScanBegin with maximal strings, a Stripe of
@@ -53,7 +54,8 @@ inline constexpr std::size_t kMaxConfigurablePayload = std::size_t{64} << 20;
 const char* type_name(msg::Type t);
 bool is_known_type(std::uint8_t t);
 
-// ---- sinks -------------------------------------------------------------------------------------------------
+// ---- sinks
+// -------------------------------------------------------------------------------------------------
 
 // Where encoded bytes go: a TCP socket, a .fscan file, a buffer. write() writes all bytes or throws.
 class FrameSink {
@@ -65,7 +67,9 @@ class FrameSink {
 // Appends to a std::vector (tests, tools; allocates as the vector grows).
 class VectorSink final : public FrameSink {
  public:
-  void write(std::span<const std::uint8_t> bytes) override { data.insert(data.end(), bytes.begin(), bytes.end()); }
+  void write(std::span<const std::uint8_t> bytes) override {
+    data.insert(data.end(), bytes.begin(), bytes.end());
+  }
   std::vector<std::uint8_t> data;
 };
 
@@ -83,7 +87,8 @@ class TeeSink final : public FrameSink {
   FrameSink& b_;
 };
 
-// ---- encoding ----------------------------------------------------------------------------------------------
+// ---- encoding
+// ----------------------------------------------------------------------------------------------
 
 // Payload sizes (bytes) of a message.
 std::size_t payload_size(const msg::ScanBegin& m);
@@ -108,7 +113,8 @@ std::size_t encode(std::span<std::uint8_t> out, std::uint32_t sequence, const ms
 // each frame to the sink. No allocation per frame.
 class FrameWriter {
  public:
-  explicit FrameWriter(FrameSink& sink, std::uint32_t first_sequence = 0, std::size_t max_frame = kMaxFrameSize);
+  explicit FrameWriter(FrameSink& sink, std::uint32_t first_sequence = 0,
+                       std::size_t max_frame = kMaxFrameSize);
   template <class M>
   void send(const M& m) {
     const std::size_t n = encode(buffer_, seq_, m);
@@ -124,7 +130,8 @@ class FrameWriter {
   std::uint32_t seq_;
 };
 
-// ---- decoding ----------------------------------------------------------------------------------------------
+// ---- decoding
+// ----------------------------------------------------------------------------------------------
 
 struct FrameHeader {
   std::uint8_t major = kProtocolMajor;
@@ -143,8 +150,8 @@ struct FrameView {
 
 // Parse a frame header (the first kFrameHeaderSize bytes); validates magic, major version, type and length.
 // `offset` and `source` only label errors.
-FrameHeader parse_header(std::span<const std::uint8_t> bytes, std::size_t max_payload, const std::string& source,
-                         std::uint64_t offset);
+FrameHeader parse_header(std::span<const std::uint8_t> bytes, std::size_t max_payload,
+                         const std::string& source, std::uint64_t offset);
 
 // Decode a frame's payload into a message. The frame type must match (else fs::Error). Strings are assigned
 // (no allocation when the target's capacity suffices, e.g. after DecodedMessage reserved them).
@@ -152,8 +159,8 @@ void decode(const FrameView& f, msg::ScanBegin& out, const std::string& source =
 void decode(const FrameView& f, msg::ScanEnd& out, const std::string& source = "stream");
 void decode(const FrameView& f, msg::Heartbeat& out, const std::string& source = "stream");
 void decode(const FrameView& f, msg::Fault& out, const std::string& source = "stream");
-// Stripe points are decoded into `storage`; out.points = the filled prefix. The point count is checked against
-// kMaxStripePoints, storage.size() and the payload length before any point is read.
+// Stripe points are decoded into `storage`; out.points = the filled prefix. The point count is checked
+// against kMaxStripePoints, storage.size() and the payload length before any point is read.
 void decode(const FrameView& f, msg::Stripe& out, std::span<msg::StripePoint> storage,
             const std::string& source = "stream");
 
@@ -164,7 +171,7 @@ struct DecodedMessage {
   std::uint32_t sequence = 0;
   std::uint64_t offset = 0;  // of the frame in the stream / file
   msg::ScanBegin scan_begin;
-  msg::Stripe stripe;        // stripe.points views `point_storage`
+  msg::Stripe stripe;  // stripe.points views `point_storage`
   msg::ScanEnd scan_end;
   msg::Heartbeat heartbeat;
   msg::Fault fault;
@@ -187,7 +194,8 @@ struct DecoderLimits {
 class FrameDecoder {
  public:
   using Limits = DecoderLimits;
-  explicit FrameDecoder(std::string source = "stream", Limits limits = Limits{}, std::uint64_t base_offset = 0);
+  explicit FrameDecoder(std::string source = "stream", Limits limits = Limits{},
+                        std::uint64_t base_offset = 0);
 
   // Copies up to the free buffer space from `bytes`; returns how many bytes were taken (0 only when a whole
   // frame is waiting to be popped by next()).

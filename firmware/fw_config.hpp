@@ -36,10 +36,10 @@ constexpr double kMaxSimSpeckleGrainPx = 8.0;
 struct FwConfig {
   std::string galvo = "sim";
   std::string camera = "sim";
-  std::string laser;                 // "gpio:CHIP:line=L[,active_low=1]"; empty: the galvo's laser= line / the twin
-  std::string scene;                 // empty: the shipped default scene
-  std::string stream;                // HOST:PORT
-  std::string record;                // .fscan path
+  std::string laser;   // "gpio:CHIP:line=L[,active_low=1]"; empty: the galvo's laser= line / the twin
+  std::string scene;   // empty: the shipped default scene
+  std::string stream;  // HOST:PORT
+  std::string record;  // .fscan path
   bool rt = false;
   int rt_priority = 80;
   int rt_cpu = -1;

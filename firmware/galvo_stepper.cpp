@@ -5,7 +5,9 @@
 namespace fs::fw {
 
 StepperGalvo::StepperGalvo(GpioLines& lines, StepperGalvoParams params)
-    : lines_(lines), p_(params), min_interval_(static_cast<Nanos>(std::ceil(1e9 / std::max(1.0, params.max_step_rate)))) {}
+    : lines_(lines),
+      p_(params),
+      min_interval_(static_cast<Nanos>(std::ceil(1e9 / std::max(1.0, params.max_step_rate)))) {}
 
 void StepperGalvo::enable(Nanos now) {
   lines_.set_enable(true, now);
@@ -60,7 +62,8 @@ void StepperGalvo::pulse(bool up, Nanos now) {
 GalvoStatus StepperGalvo::poll(Nanos now) {
   const bool can_pulse = enabled_ && fault_ == GalvoFault::None && now - last_pulse_ >= min_interval_;
   switch (phase_) {
-    case Phase::Idle: break;
+    case Phase::Idle:
+      break;
     case Phase::Moving:
       if (position_ == target_) {
         phase_ = Phase::Idle;

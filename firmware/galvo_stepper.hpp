@@ -16,12 +16,12 @@
 namespace fs::fw {
 
 struct StepperGalvoParams {
-  double max_step_rate = 20'000.0;       // steps per second
-  Nanos settle_time = 1'000'000;         // after the last pulse of a move
-  std::int32_t home_position = -20;      // step value at the home switch
-  std::int32_t home_range = 2000;        // steps searched before HomeNotFound
+  double max_step_rate = 20'000.0;   // steps per second
+  Nanos settle_time = 1'000'000;     // after the last pulse of a move
+  std::int32_t home_position = -20;  // step value at the home switch
+  std::int32_t home_range = 2000;    // steps searched before HomeNotFound
   std::int32_t home_backoff = 5;
-  double position_tolerance = 0.5;       // steps
+  double position_tolerance = 0.5;  // steps
 };
 
 class StepperGalvo final : public Galvo {

@@ -3,11 +3,11 @@
 //   facetscan-fw --galvo sim-can --record scan.fscan --fault camera.drop@frame=40
 //   facetscan-fw --galvo gpio:gpiochip0:step=17,dir=27,en=22,home=23,laser=24 --camera v4l2:/dev/video0
 //                --stream 192.168.1.10:5555 --rt   (one command line)
-//   facetscan-fw --galvo can:can0:node=1 --camera v4l2:/dev/video0 --laser gpio:gpiochip0:line=24 --record s.fscan
-//   facetscan-fw --check --galvo can:can0 --camera v4l2:/dev/video0 --laser gpio:gpiochip0:line=24
+//   facetscan-fw --galvo can:can0:node=1 --camera v4l2:/dev/video0 --laser gpio:gpiochip0:line=24 --record
+//   s.fscan facetscan-fw --check --galvo can:can0 --camera v4l2:/dev/video0 --laser gpio:gpiochip0:line=24
 //   facetscan-fw sim-frame --scene hw-sim/scenes/default.json --step 250 -o f.png
-#include <CLI/CLI.hpp>
 #include <fmt/core.h>
+#include <CLI/CLI.hpp>
 
 #include <cstdio>
 #include <filesystem>
@@ -82,8 +82,8 @@ int run_scan(fw::FwConfig& cfg) {
     }
     if (!cfg.steps_given) cfg.loop.steps = cal.step_count;
     cfg.loop.first_step = cal.first_step;
-    std::fprintf(stderr, "facetscan-fw: scene %s (%zu objects), %u steps\n", path.c_str(), scene.objects.size(),
-                 cfg.loop.steps);
+    std::fprintf(stderr, "facetscan-fw: scene %s (%zu objects), %u steps\n", path.c_str(),
+                 scene.objects.size(), cfg.loop.steps);
   }
   cfg.loop.max_rows = cal.camera.height;
 
@@ -106,7 +106,8 @@ int run_scan(fw::FwConfig& cfg) {
     throw Error("--fault needs the simulated devices (--galvo sim --camera sim)");
   }
   if (sim_camera && !cfg.laser.empty())
-    throw Error("--laser '" + cfg.laser + "': the simulated camera sees the simulated laser; use --laser with --camera v4l2:...");
+    throw Error("--laser '" + cfg.laser +
+                "': the simulated camera sees the simulated laser; use --laser with --camera v4l2:...");
 
   fw::MonotonicClock mono;
   fw::Clock* clock = rig ? static_cast<fw::Clock*>(&rig->clock) : &mono;
@@ -138,13 +139,15 @@ int run_scan(fw::FwConfig& cfg) {
     }
     galvo = galvo_owned.get();
     if (!sim_camera) {
-      if (!starts_with(cfg.camera, "v4l2:")) throw Error("--camera '" + cfg.camera + "': expected sim or v4l2:...");
+      if (!starts_with(cfg.camera, "v4l2:"))
+        throw Error("--camera '" + cfg.camera + "': expected sim or v4l2:...");
       camera_owned = fw::make_v4l2_camera(cfg.camera);
       camera = camera_owned.get();
     }
     if (!cfg.laser.empty()) {
       if (laser_owned)
-        throw Error("--laser '" + cfg.laser + "': the --galvo gpio spec already has a laser= line; give only one");
+        throw Error("--laser '" + cfg.laser +
+                    "': the --galvo gpio spec already has a laser= line; give only one");
       if (!starts_with(cfg.laser, "gpio:"))
         throw Error("--laser '" + cfg.laser + "': expected gpio:CHIP:line=L[,active_low=1]");
       laser_owned = fw::make_gpio_laser(cfg.laser);
@@ -154,7 +157,8 @@ int run_scan(fw::FwConfig& cfg) {
     throw Error("--galvo '" + cfg.galvo + "': this build has no device backends");
 #endif
   }
-  if (!laser) throw Error("no laser line: give --laser gpio:CHIP:line=L (or laser=LINE in the --galvo gpio spec)");
+  if (!laser)
+    throw Error("no laser line: give --laser gpio:CHIP:line=L (or laser=LINE in the --galvo gpio spec)");
 
   // Output: recording and/or stream.
   std::unique_ptr<ScanFileWriter> file;
@@ -200,20 +204,22 @@ int run_scan(fw::FwConfig& cfg) {
     std::fprintf(stderr, "facetscan-fw: warning: the host did not take the last frames within 2 s\n");
 
   const msg::LoopStats s = rep.stats();
-  std::fprintf(stderr,
-               "facetscan-fw: %s%s%s | stripes %u/%u, frames captured %u, dropped %u, stale %u, stripes dropped %u\n"
-               "  loop (%s time, period %.0f us, %llu ticks): lateness min %.1f us, median %.1f us, p99 %.1f us, "
-               "p99.9 %.1f us, max %.1f us, overruns %u\n"
-               "  extraction: mean %.1f us, max %.1f us per frame (%u frames)\n",
-               fw::to_string(rep.state), rep.fault != fw::FaultCode::None ? ": " : "",
-               rep.fault != fw::FaultCode::None ? fw::to_string(rep.fault) : "", rep.stripes_sent, cfg.loop.steps,
-               rep.frames_captured, rep.frames_dropped, rep.frames_stale, rep.stripes_dropped,
-               virtual_time ? "virtual" : "real", cfg.loop.period / 1e3,
-               static_cast<unsigned long long>(rep.ticks), s.lateness_min_ns / 1e3, s.lateness_median_ns / 1e3,
-               s.lateness_p99_ns / 1e3, s.lateness_p999_ns / 1e3, s.lateness_max_ns / 1e3, s.overruns,
-               s.extraction_mean_ns / 1e3, s.extraction_max_ns / 1e3, rep.extractions);
-  if (file) std::fprintf(stderr, "  recorded %s (%llu bytes)\n", cfg.record.c_str(),
-                         static_cast<unsigned long long>(file->bytes_written()));
+  std::fprintf(
+      stderr,
+      "facetscan-fw: %s%s%s | stripes %u/%u, frames captured %u, dropped %u, stale %u, stripes dropped %u\n"
+      "  loop (%s time, period %.0f us, %llu ticks): lateness min %.1f us, median %.1f us, p99 %.1f us, "
+      "p99.9 %.1f us, max %.1f us, overruns %u\n"
+      "  extraction: mean %.1f us, max %.1f us per frame (%u frames)\n",
+      fw::to_string(rep.state), rep.fault != fw::FaultCode::None ? ": " : "",
+      rep.fault != fw::FaultCode::None ? fw::to_string(rep.fault) : "", rep.stripes_sent, cfg.loop.steps,
+      rep.frames_captured, rep.frames_dropped, rep.frames_stale, rep.stripes_dropped,
+      virtual_time ? "virtual" : "real", cfg.loop.period / 1e3, static_cast<unsigned long long>(rep.ticks),
+      s.lateness_min_ns / 1e3, s.lateness_median_ns / 1e3, s.lateness_p99_ns / 1e3, s.lateness_p999_ns / 1e3,
+      s.lateness_max_ns / 1e3, s.overruns, s.extraction_mean_ns / 1e3, s.extraction_max_ns / 1e3,
+      rep.extractions);
+  if (file)
+    std::fprintf(stderr, "  recorded %s (%llu bytes)\n", cfg.record.c_str(),
+                 static_cast<unsigned long long>(file->bytes_written()));
   return rep.state == fw::State::Done ? 0 : 2;
 }
 
@@ -226,21 +232,30 @@ int main(int argc, char** argv) {
   std::string config_path;
   std::uint32_t steps = 0;
   bool realtime = false, virtual_time = false, check = false;
-  app.add_option("--config", config_path, "JSON configuration file (flags override it)")->check(CLI::ExistingFile);
-  app.add_option("--galvo", cfg.galvo, "sim | sim-can[:node=N,...] | gpio:CHIP:step=L,dir=L,en=L,home=L[,laser=L] | can:IFACE[:...]");
+  app.add_option("--config", config_path, "JSON configuration file (flags override it)")
+      ->check(CLI::ExistingFile);
+  app.add_option(
+      "--galvo", cfg.galvo,
+      "sim | sim-can[:node=N,...] | gpio:CHIP:step=L,dir=L,en=L,home=L[,laser=L] | can:IFACE[:...]");
   app.add_option("--camera", cfg.camera, "sim | v4l2:/dev/videoN[:fmt=GREY,...]");
-  app.add_option("--laser", cfg.laser, "gpio:CHIP:line=L[,active_low=1] (a laser on its own line, e.g. with --galvo can:...)");
-  app.add_option("--scene", cfg.scene, "scene JSON for the simulated camera (default: the shipped default scene)");
+  app.add_option("--laser", cfg.laser,
+                 "gpio:CHIP:line=L[,active_low=1] (a laser on its own line, e.g. with --galvo can:...)");
+  app.add_option("--scene", cfg.scene,
+                 "scene JSON for the simulated camera (default: the shipped default scene)");
   app.add_option("--steps", steps, "number of galvo steps of the scan")->check(CLI::Range(1, 100000));
   app.add_option("--stream", cfg.stream, "stream to the host HOST:PORT (reconnects with backoff)");
   app.add_option("--record", cfg.record, "record the scan to a .fscan file");
-  app.add_flag("--rt", cfg.rt, "SCHED_FIFO + mlockall + CPU affinity for the loop (warns when not permitted)");
-  app.add_option("--fault", cfg.faults, "inject a fault into the twins, e.g. galvo.stall@step=120 (repeatable)");
-  app.add_flag("--check", check,
-               "probe the configured devices (GPIO chip/lines, CAN drive, camera formats), print what is found and "
-               "what is missing; exit 0 only when everything is there (3 otherwise)");
+  app.add_flag("--rt", cfg.rt,
+               "SCHED_FIFO + mlockall + CPU affinity for the loop (warns when not permitted)");
+  app.add_option("--fault", cfg.faults,
+                 "inject a fault into the twins, e.g. galvo.stall@step=120 (repeatable)");
+  app.add_flag(
+      "--check", check,
+      "probe the configured devices (GPIO chip/lines, CAN drive, camera formats), print what is found and "
+      "what is missing; exit 0 only when everything is there (3 otherwise)");
   auto* rt_opt = app.add_flag("--realtime", realtime, "run the twins in real time");
-  app.add_flag("--virtual-time", virtual_time, "run the twins on virtual time (default with sim devices)")->excludes(rt_opt);
+  app.add_flag("--virtual-time", virtual_time, "run the twins on virtual time (default with sim devices)")
+      ->excludes(rt_opt);
   fs::sim::add_sim_frame_command(app);
   app.require_subcommand(0, 1);
   try {
@@ -265,7 +280,8 @@ int main(int argc, char** argv) {
       if (app.count("--stream")) fromfile.stream = flags.stream;
       if (app.count("--record")) fromfile.record = flags.record;
       if (app.count("--rt")) fromfile.rt = true;
-      if (app.count("--fault")) fromfile.faults.insert(fromfile.faults.end(), flags.faults.begin(), flags.faults.end());
+      if (app.count("--fault"))
+        fromfile.faults.insert(fromfile.faults.end(), flags.faults.begin(), flags.faults.end());
       cfg = fromfile;
     }
     if (app.count("--steps")) {
@@ -282,7 +298,8 @@ int main(int argc, char** argv) {
         std::printf("facetscan-fw --check: all %zu checks passed\n", r.items.size());
         return 0;
       }
-      std::printf("facetscan-fw --check: %zu of %zu checks failed (MISS above)\n", r.failed(), r.items.size());
+      std::printf("facetscan-fw --check: %zu of %zu checks failed (MISS above)\n", r.failed(),
+                  r.items.size());
       return 3;
 #else
       throw fs::Error("--check: this build has no device backends");

@@ -5,10 +5,14 @@
 namespace fs::sim {
 
 SceneFrameRenderer::SceneFrameRenderer(const Scene& scene, const RenderOptions& options)
-    : scene_(scene), renderer_(scene, options), tracer_(scene), base_peak_(options.laser_peak),
+    : scene_(scene),
+      renderer_(scene, options),
+      tracer_(scene),
+      base_peak_(options.laser_peak),
       rows_(scene.calibration.camera.height) {}
 
-void SceneFrameRenderer::render(const RenderRequest& req, std::span<std::uint8_t> pixels, std::uint32_t stride) {
+void SceneFrameRenderer::render(const RenderRequest& req, std::span<std::uint8_t> pixels,
+                                std::uint32_t stride) {
   renderer_.options().laser_peak = base_peak_ * std::clamp(req.laser_fraction, 0.0, 1.0) * req.gain;
   FrameBuffer fb;
   fb.data = pixels.data();

@@ -28,7 +28,8 @@ void SimCamera::stop() noexcept {
 }
 
 std::uint32_t SimCamera::held() const {
-  return static_cast<std::uint32_t>(std::count_if(slots_.begin(), slots_.end(), [](const Slot& s) { return s.held; }));
+  return static_cast<std::uint32_t>(
+      std::count_if(slots_.begin(), slots_.end(), [](const Slot& s) { return s.held; }));
 }
 
 void SimCamera::advance_to(fw::Nanos now) {
@@ -42,7 +43,8 @@ void SimCamera::advance_to(fw::Nanos now) {
       ++dropped_;
       continue;
     }
-    auto free = std::find_if(slots_.begin(), slots_.end(), [](const Slot& s) { return !s.queued && !s.held; });
+    auto free =
+        std::find_if(slots_.begin(), slots_.end(), [](const Slot& s) { return !s.queued && !s.held; });
     if (free == slots_.end()) {  // no buffer: the driver drops the frame
       ++dropped_;
       continue;

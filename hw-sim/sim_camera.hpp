@@ -13,18 +13,18 @@
 #include <vector>
 
 #include "firmware/device/camera.hpp"
+#include "hw-sim/frame_renderer.hpp"
 #include "hw-sim/sim_faults.hpp"
 #include "hw-sim/sim_laser.hpp"
 #include "hw-sim/sim_mirror.hpp"
-#include "hw-sim/frame_renderer.hpp"
 
 namespace fs::sim {
 
 struct CameraTwinParams {
   fw::Nanos frame_period = 10'000'000;  // 100 fps
   fw::Nanos exposure = 2'000'000;
-  fw::Nanos readout = 1'000'000;       // end of exposure -> frame dequeueable
-  fw::Nanos phase = 0;                 // first exposure starts at start(now) + phase
+  fw::Nanos readout = 1'000'000;  // end of exposure -> frame dequeueable
+  fw::Nanos phase = 0;            // first exposure starts at start(now) + phase
   std::uint32_t buffers = 4;
 };
 
@@ -32,8 +32,8 @@ struct CameraTwinParams {
 struct FrameRecord {
   std::uint32_t sequence = 0;
   fw::Nanos exposure_start = 0;
-  double mirror_step = 0.0;      // at mid-exposure
-  double mirror_travel = 0.0;    // |position(end) - position(start)| during the exposure
+  double mirror_step = 0.0;    // at mid-exposure
+  double mirror_travel = 0.0;  // |position(end) - position(start)| during the exposure
   double laser_fraction = 0.0;
   bool saturated = false;
 };

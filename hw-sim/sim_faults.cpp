@@ -11,13 +11,20 @@ namespace fs::sim {
 
 const char* to_string(FaultKind k) {
   switch (k) {
-    case FaultKind::GalvoMissedSteps: return "galvo.missed-steps";
-    case FaultKind::GalvoStall: return "galvo.stall";
-    case FaultKind::GalvoHomeStuck: return "galvo.home-stuck";
-    case FaultKind::CameraTimeout: return "camera.timeout";
-    case FaultKind::CameraDrop: return "camera.drop";
-    case FaultKind::CameraSaturate: return "camera.saturate";
-    case FaultKind::LaserStuck: return "laser.stuck";
+    case FaultKind::GalvoMissedSteps:
+      return "galvo.missed-steps";
+    case FaultKind::GalvoStall:
+      return "galvo.stall";
+    case FaultKind::GalvoHomeStuck:
+      return "galvo.home-stuck";
+    case FaultKind::CameraTimeout:
+      return "camera.timeout";
+    case FaultKind::CameraDrop:
+      return "camera.drop";
+    case FaultKind::CameraSaturate:
+      return "camera.saturate";
+    case FaultKind::LaserStuck:
+      return "laser.stuck";
   }
   return "unknown";
 }
@@ -28,11 +35,13 @@ namespace {
   throw Error(fmt::format("fault spec '{}': {}", spec, what));
 }
 
-std::int64_t parse_int(std::string_view spec, std::string_view key, std::string_view v, bool allow_negative = false) {
+std::int64_t parse_int(std::string_view spec, std::string_view key, std::string_view v,
+                       bool allow_negative = false) {
   std::int64_t x = 0;
   const auto [p, ec] = std::from_chars(v.data(), v.data() + v.size(), x);
   if (ec != std::errc() || p != v.data() + v.size() || (x < 0 && !allow_negative))
-    bad(spec, fmt::format("'{}' needs {} integer, got '{}'", key, allow_negative ? "an" : "a non-negative", v));
+    bad(spec,
+        fmt::format("'{}' needs {} integer, got '{}'", key, allow_negative ? "an" : "a non-negative", v));
   return x;
 }
 
@@ -56,16 +65,25 @@ FaultSpec parse_fault_spec(std::string_view spec) {
   rest = comma == std::string_view::npos ? std::string_view() : rest.substr(comma + 1);
   const std::size_t atpos = head.find('@');
   const std::string_view name = head.substr(0, atpos);
-  if (name == "galvo.missed-steps") f.kind = FaultKind::GalvoMissedSteps;
-  else if (name == "galvo.stall") f.kind = FaultKind::GalvoStall;
-  else if (name == "galvo.home-stuck") f.kind = FaultKind::GalvoHomeStuck;
-  else if (name == "camera.timeout") f.kind = FaultKind::CameraTimeout;
-  else if (name == "camera.drop") f.kind = FaultKind::CameraDrop;
-  else if (name == "camera.saturate") f.kind = FaultKind::CameraSaturate;
-  else if (name == "laser.stuck") f.kind = FaultKind::LaserStuck;
+  if (name == "galvo.missed-steps")
+    f.kind = FaultKind::GalvoMissedSteps;
+  else if (name == "galvo.stall")
+    f.kind = FaultKind::GalvoStall;
+  else if (name == "galvo.home-stuck")
+    f.kind = FaultKind::GalvoHomeStuck;
+  else if (name == "camera.timeout")
+    f.kind = FaultKind::CameraTimeout;
+  else if (name == "camera.drop")
+    f.kind = FaultKind::CameraDrop;
+  else if (name == "camera.saturate")
+    f.kind = FaultKind::CameraSaturate;
+  else if (name == "laser.stuck")
+    f.kind = FaultKind::LaserStuck;
   else
-    bad(spec, fmt::format("unknown fault '{}' (galvo.missed-steps|stall|home-stuck, camera.timeout|drop|saturate, "
-                          "laser.stuck)", name));
+    bad(spec,
+        fmt::format("unknown fault '{}' (galvo.missed-steps|stall|home-stuck, camera.timeout|drop|saturate, "
+                    "laser.stuck)",
+                    name));
   f.level = f.kind == FaultKind::LaserStuck;
   if (atpos != std::string_view::npos) {
     const std::string_view trig = head.substr(atpos + 1);
@@ -76,11 +94,14 @@ FaultSpec parse_fault_spec(std::string_view spec) {
       f.trigger = FaultTrigger::Time;
       f.at = parse_seconds(spec, k, v);
     } else if (k == "step" || k == "frame" || k == "on") {
-      const bool ok = (k == "step" && f.kind <= FaultKind::GalvoHomeStuck) ||
-                      (k == "frame" && f.kind >= FaultKind::CameraTimeout && f.kind <= FaultKind::CameraSaturate) ||
-                      (k == "on" && f.kind == FaultKind::LaserStuck);
+      const bool ok =
+          (k == "step" && f.kind <= FaultKind::GalvoHomeStuck) ||
+          (k == "frame" && f.kind >= FaultKind::CameraTimeout && f.kind <= FaultKind::CameraSaturate) ||
+          (k == "on" && f.kind == FaultKind::LaserStuck);
       if (!ok) bad(spec, fmt::format("trigger '{}' does not apply to {}", k, name));
-      f.trigger = k == "step" ? FaultTrigger::Step : k == "frame" ? FaultTrigger::Frame : FaultTrigger::LaserOn;
+      f.trigger = k == "step"    ? FaultTrigger::Step
+                  : k == "frame" ? FaultTrigger::Frame
+                                 : FaultTrigger::LaserOn;
       f.at = parse_int(spec, k, v, k == "step");
     } else {
       bad(spec, fmt::format("unknown trigger '{}' (t, step, frame, on)", k));
@@ -98,9 +119,12 @@ FaultSpec parse_fault_spec(std::string_view spec) {
     } else if (k == "for") {
       f.duration = parse_seconds(spec, k, v);
     } else if (k == "level") {
-      if (v == "on") f.level = true;
-      else if (v == "off") f.level = false;
-      else bad(spec, fmt::format("'level' must be on or off, got '{}'", v));
+      if (v == "on")
+        f.level = true;
+      else if (v == "off")
+        f.level = false;
+      else
+        bad(spec, fmt::format("'level' must be on or off, got '{}'", v));
     } else {
       bad(spec, fmt::format("unknown option '{}' (count, for, level)", k));
     }
@@ -120,11 +144,19 @@ bool FaultScript::active(std::size_t i, fw::Nanos now, std::int64_t index) {
   if (!s.armed) {
     bool go = false;
     switch (f.trigger) {
-      case FaultTrigger::Always: go = true; break;
-      case FaultTrigger::Time: go = now - t0_ >= f.at; break;
-      case FaultTrigger::Step: go = index == f.at; break;
+      case FaultTrigger::Always:
+        go = true;
+        break;
+      case FaultTrigger::Time:
+        go = now - t0_ >= f.at;
+        break;
+      case FaultTrigger::Step:
+        go = index == f.at;
+        break;
       case FaultTrigger::Frame:
-      case FaultTrigger::LaserOn: go = index >= f.at; break;
+      case FaultTrigger::LaserOn:
+        go = index >= f.at;
+        break;
     }
     if (!go) return false;
     s.armed = true;

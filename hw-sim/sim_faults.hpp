@@ -3,9 +3,10 @@
 //
 // A fault spec (CLI --fault, config "faults", tests) reads
 //   DEVICE.KIND[@TRIGGER][,count=N][,for=SECONDS][,level=on|off]
-// with TRIGGER one of  t=SECONDS (virtual time since the twins' start), step=N (galvo: when a step pulse moves
-// the motor up (the scan direction) to step N; homing passes do not count), frame=N (camera: frame sequence N), on=N (laser: the N-th switch-on,
-// 0-based). Without a trigger the fault is active from the start.
+// with TRIGGER one of  t=SECONDS (virtual time since the twins' start), step=N (galvo: when a step pulse
+// moves the motor up (the scan direction) to step N; homing passes do not count), frame=N (camera: frame
+// sequence N), on=N (laser: the N-th switch-on, 0-based). Without a trigger the fault is active from the
+// start.
 //   galvo.missed-steps   count (default 3) step pulses are lost by the motor
 //   galvo.stall          the mirror stops following the step pulses (for SECONDS, default: forever)
 //   galvo.home-stuck     the home switch reads `level` (default off) whatever the mirror does
@@ -39,11 +40,11 @@ enum class FaultTrigger : std::uint8_t { Always, Time, Step, Frame, LaserOn };
 struct FaultSpec {
   FaultKind kind = FaultKind::GalvoStall;
   FaultTrigger trigger = FaultTrigger::Always;
-  std::int64_t at = 0;            // ns for Time (relative to the script's start), index otherwise
-  std::int64_t count = -1;        // pulses / frames; -1 = the kind's default
-  fw::Nanos duration = -1;        // ns; -1 = forever
-  bool level = false;             // home-stuck / laser-stuck level
-  std::string text;               // the spec as given
+  std::int64_t at = 0;      // ns for Time (relative to the script's start), index otherwise
+  std::int64_t count = -1;  // pulses / frames; -1 = the kind's default
+  fw::Nanos duration = -1;  // ns; -1 = forever
+  bool level = false;       // home-stuck / laser-stuck level
+  std::string text;         // the spec as given
 };
 
 // Throws fs::Error("fault spec 'X': ...") naming the offending part.

@@ -9,8 +9,10 @@ SimLaser::SimLaser(FaultScript* faults, std::size_t log_capacity) : faults_(faul
 }
 
 void SimLaser::record(fw::Nanos t, bool forced) noexcept {
-  if (log_.size() < capacity_) log_.push_back(LaserEvent{t, commanded_, emitting_, forced});
-  else overflow_ = true;
+  if (log_.size() < capacity_)
+    log_.push_back(LaserEvent{t, commanded_, emitting_, forced});
+  else
+    overflow_ = true;
 }
 
 void SimLaser::set(bool on, fw::Nanos now) {
@@ -19,7 +21,8 @@ void SimLaser::set(bool on, fw::Nanos now) {
   commanded_ = on;
   bool stuck = false;
   emitting_ = on;
-  if (faults_ && faults_->laser_stuck(now, static_cast<std::int64_t>(switch_ons_) - 1, stuck)) emitting_ = stuck;
+  if (faults_ && faults_->laser_stuck(now, static_cast<std::int64_t>(switch_ons_) - 1, stuck))
+    emitting_ = stuck;
   record(now, false);
 }
 
@@ -27,20 +30,23 @@ void SimLaser::force_off() noexcept {
   commanded_ = false;
   bool stuck = false;
   emitting_ = false;
-  if (faults_ && faults_->laser_stuck(last_t_, static_cast<std::int64_t>(switch_ons_) - 1, stuck)) emitting_ = stuck;
+  if (faults_ && faults_->laser_stuck(last_t_, static_cast<std::int64_t>(switch_ons_) - 1, stuck))
+    emitting_ = stuck;
   record(last_t_, true);
 }
 
 bool SimLaser::emitting_at(fw::Nanos t) const {
   // Last event at or before t.
-  auto it = std::upper_bound(log_.begin(), log_.end(), t, [](fw::Nanos v, const LaserEvent& e) { return v < e.t; });
+  auto it =
+      std::upper_bound(log_.begin(), log_.end(), t, [](fw::Nanos v, const LaserEvent& e) { return v < e.t; });
   if (it == log_.begin()) return false;
   return std::prev(it)->emitting;
 }
 
 double SimLaser::on_fraction(fw::Nanos t0, fw::Nanos t1) const {
   if (t1 <= t0) return emitting_at(t0) ? 1.0 : 0.0;
-  auto it = std::upper_bound(log_.begin(), log_.end(), t0, [](fw::Nanos v, const LaserEvent& e) { return v < e.t; });
+  auto it = std::upper_bound(log_.begin(), log_.end(), t0,
+                             [](fw::Nanos v, const LaserEvent& e) { return v < e.t; });
   bool on = it == log_.begin() ? false : std::prev(it)->emitting;
   fw::Nanos t = t0, lit = 0;
   for (; it != log_.end() && it->t < t1; ++it) {

@@ -27,7 +27,8 @@ class SimMirror {
   // The last commanded target.
   double target() const { return seg_[head_].target; }
   fw::Nanos last_command_time() const { return seg_[head_].t0; }
-  // Whether |position - target| <= tol from time t on (monotone once true, as the response does not overshoot).
+  // Whether |position - target| <= tol from time t on (monotone once true, as the response does not
+  // overshoot).
   bool settled_at(fw::Nanos t, double tol) const;
   // Time after which the response from the last command stays within tol of its target.
   fw::Nanos settle_time(double tol) const;

@@ -16,11 +16,12 @@ SimRig::SimRig(FrameRenderer& renderer, RigConfig cfg)
       faults(make_script(cfg.faults, clock.now())),
       mirror(static_cast<double>(cfg.stepper.start_position), cfg.mirror_tau),
       lines(mirror, &faults, cfg.stepper),
-      galvo(lines, [&] {
-        fw::StepperGalvoParams g = cfg.galvo;
-        g.home_position = static_cast<std::int32_t>(cfg.stepper.home_position);
-        return g;
-      }()),
+      galvo(lines,
+            [&] {
+              fw::StepperGalvoParams g = cfg.galvo;
+              g.home_position = static_cast<std::int32_t>(cfg.stepper.home_position);
+              return g;
+            }()),
       laser(&faults),
       camera(clock, mirror, laser, renderer, &faults, cfg.camera) {}
 

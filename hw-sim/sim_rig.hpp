@@ -9,13 +9,13 @@
 
 #include "common/calibration.hpp"
 #include "firmware/galvo_stepper.hpp"
+#include "hw-sim/frame_renderer.hpp"
 #include "hw-sim/sim_camera.hpp"
 #include "hw-sim/sim_clock.hpp"
 #include "hw-sim/sim_faults.hpp"
 #include "hw-sim/sim_laser.hpp"
 #include "hw-sim/sim_mirror.hpp"
 #include "hw-sim/sim_stepper.hpp"
-#include "hw-sim/frame_renderer.hpp"
 
 namespace fs::sim {
 

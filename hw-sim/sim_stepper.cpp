@@ -25,11 +25,15 @@ void SimStepperLines::set_step(bool level, fw::Nanos now) {
   if (!lost && faults_) {
     // Step triggers fire on the way up (the scan direction), not while homing passes by.
     const std::int64_t trig = dir_ ? target : std::numeric_limits<std::int64_t>::min();
-    if (faults_->galvo_stalled(now, trig)) lost = true;
-    else if (faults_->galvo_pulse_lost(now, trig)) lost = true;
+    if (faults_->galvo_stalled(now, trig))
+      lost = true;
+    else if (faults_->galvo_pulse_lost(now, trig))
+      lost = true;
   }
-  if (log_.size() < p_.edge_log_capacity) log_.push_back(StepEdge{now, static_cast<std::int8_t>(lost ? 0 : (dir_ ? 1 : -1))});
-  else log_overflow_ = true;
+  if (log_.size() < p_.edge_log_capacity)
+    log_.push_back(StepEdge{now, static_cast<std::int8_t>(lost ? 0 : (dir_ ? 1 : -1))});
+  else
+    log_overflow_ = true;
   if (lost) {
     ++lost_steps_;
     return;
@@ -55,7 +59,7 @@ void SimStepperLines::update_home(fw::Nanos now) {
   home_closed_ = closed;
   bool stuck_level = false;
   if (faults_ && faults_->home_stuck(now, position_, stuck_level)) return;  // a stuck switch makes no edges
-  if (edge_count_ == edges_.size()) {  // overwrite the oldest event
+  if (edge_count_ == edges_.size()) {                                       // overwrite the oldest event
     edge_head_ = (edge_head_ + 1) % edges_.size();
     --edge_count_;
   }

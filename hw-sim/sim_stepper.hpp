@@ -8,8 +8,8 @@
 // position with its settling dynamics. The home switch is closed (read_home() true) while the motor
 // position is <= home_position; each change produces an edge event for next_home_edge().
 #include <array>
-#include <limits>
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 #include "firmware/device/gpio_lines.hpp"
@@ -23,7 +23,7 @@ struct StepperTwinParams {
   std::int64_t home_position = -20;      // switch closed at motor positions <= this
   std::int64_t start_position = 37;      // where the motor is at power-up (unknown to the firmware)
   std::size_t edge_log_capacity = 1 << 16;
-  bool position_sensor = true;           // the mirror's position detector (1/64 step resolution)
+  bool position_sensor = true;  // the mirror's position detector (1/64 step resolution)
 };
 
 struct StepEdge {

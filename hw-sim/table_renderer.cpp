@@ -61,7 +61,8 @@ void TableStripeRenderer::truth(double mirror_step, std::span<double> out) {
   }
 }
 
-void TableStripeRenderer::render(const RenderRequest& req, std::span<std::uint8_t> pixels, std::uint32_t stride) {
+void TableStripeRenderer::render(const RenderRequest& req, std::span<std::uint8_t> pixels,
+                                 std::uint32_t stride) {
   const std::uint32_t w = width(), h = height();
   const std::size_t n = static_cast<std::size_t>(w) * h;
   const std::size_t offset = static_cast<std::size_t>((req.seed * 2654435761ull) % n);

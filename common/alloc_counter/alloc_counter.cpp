@@ -17,8 +17,9 @@
 
 #if defined(FS_ASAN)
 // From <sanitizer/allocator_interface.h> (not shipped with every compiler's headers).
-extern "C" int __sanitizer_install_malloc_and_free_hooks(void (*malloc_hook)(const volatile void*, std::size_t),
-                                                        void (*free_hook)(const volatile void*));
+extern "C" int __sanitizer_install_malloc_and_free_hooks(void (*malloc_hook)(const volatile void*,
+                                                                             std::size_t),
+                                                         void (*free_hook)(const volatile void*));
 #elif defined(__GLIBC__)
 #define FS_INTERPOSE_MALLOC 1
 extern "C" {
@@ -111,7 +112,8 @@ inline void delete_impl(void* p) {
 
 }  // namespace
 
-// ---- malloc family (glibc, non-ASan) -------------------------------------------------------------------------
+// ---- malloc family (glibc, non-ASan)
+// -------------------------------------------------------------------------
 
 #if defined(FS_INTERPOSE_MALLOC)
 extern "C" {
@@ -162,7 +164,8 @@ int posix_memalign(void** out, std::size_t align, std::size_t n) {
 }
 #endif
 
-// ---- operator new / delete -----------------------------------------------------------------------------------
+// ---- operator new / delete
+// -----------------------------------------------------------------------------------
 
 void* operator new(std::size_t n) {
   void* p = new_impl(n);
@@ -205,7 +208,8 @@ void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { delete
 void operator delete(void* p, std::align_val_t, const std::nothrow_t&) noexcept { delete_impl(p); }
 void operator delete[](void* p, std::align_val_t, const std::nothrow_t&) noexcept { delete_impl(p); }
 
-// ---- AllocCounter ----------------------------------------------------------------------------------------------
+// ---- AllocCounter
+// ----------------------------------------------------------------------------------------------
 
 namespace fs {
 

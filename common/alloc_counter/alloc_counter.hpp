@@ -19,8 +19,8 @@ namespace fs {
 struct AllocStats {
   std::uint64_t allocations = 0;  // malloc-family + operator new calls that returned memory
   std::uint64_t deallocations = 0;
-  std::uint64_t bytes = 0;        // bytes requested by those allocations
-  std::uint64_t new_calls = 0;    // of which operator new / new[]
+  std::uint64_t bytes = 0;      // bytes requested by those allocations
+  std::uint64_t new_calls = 0;  // of which operator new / new[]
 };
 
 class AllocCounter {

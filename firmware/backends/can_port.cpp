@@ -37,8 +37,14 @@ CanPort::CanPort(int fd, bool owns) : fd_(fd), owns_(owns) {
 }
 
 CanPort::CanPort(CanPort&& o) noexcept
-    : fd_(std::exchange(o.fd_, -1)), owns_(o.owns_), queue_(o.queue_), head_(o.head_), tail_(o.tail_),
-      tx_dropped_(o.tx_dropped_), tx_errors_(o.tx_errors_), rx_errors_(o.rx_errors_) {}
+    : fd_(std::exchange(o.fd_, -1)),
+      owns_(o.owns_),
+      queue_(o.queue_),
+      head_(o.head_),
+      tail_(o.tail_),
+      tx_dropped_(o.tx_dropped_),
+      tx_errors_(o.tx_errors_),
+      rx_errors_(o.rx_errors_) {}
 
 CanPort::~CanPort() {
   if (owns_ && fd_ >= 0) ::close(fd_);
@@ -72,7 +78,8 @@ CanPort CanPort::open_raw(const std::string& iface, std::span<const can_filter> 
 
 std::array<int, 2> CanPort::socketpair_fds() {
   int sv[2];
-  if (::socketpair(AF_UNIX, SOCK_SEQPACKET | SOCK_CLOEXEC, 0, sv) < 0) throw sys_error("socketpair(SEQPACKET)");
+  if (::socketpair(AF_UNIX, SOCK_SEQPACKET | SOCK_CLOEXEC, 0, sv) < 0)
+    throw sys_error("socketpair(SEQPACKET)");
   return {sv[0], sv[1]};
 }
 

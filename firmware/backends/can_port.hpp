@@ -33,8 +33,8 @@ class CanPort {
   void flush();
   void drop_queue() { head_ = tail_ = 0; }
   bool tx_pending() const { return head_ != tail_; }
-  // Reads one frame. False when none is pending. kernel_ts = receive time on CLOCK_MONOTONIC from the socket's
-  // timestamp, or 0 when the fd gives none (socketpair).
+  // Reads one frame. False when none is pending. kernel_ts = receive time on CLOCK_MONOTONIC from the
+  // socket's timestamp, or 0 when the fd gives none (socketpair).
   bool recv(can_frame& f, Nanos& kernel_ts);
 
   int fd() const { return fd_; }

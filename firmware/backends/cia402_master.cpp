@@ -49,7 +49,8 @@ void Cia402Master::queue_sdo(const SdoOp& op) {
 void Cia402Master::send_sdo(Nanos now) {
   if (sdo_in_flight_ || sdo_head_ == sdo_tail_ || diag_.bus_off) return;
   const SdoOp& op = sdo_[sdo_head_ % sdo_.size()];
-  port_.send(op.read ? sdo_read(cfg_.node, op.index, op.sub) : sdo_write(cfg_.node, op.index, op.sub, op.value, op.size));
+  port_.send(op.read ? sdo_read(cfg_.node, op.index, op.sub)
+                     : sdo_write(cfg_.node, op.index, op.sub, op.value, op.size));
   ++diag_.frames_tx;
   sdo_in_flight_ = true;
   sdo_attempts_ = 1;
@@ -79,7 +80,8 @@ void Cia402Master::fault(GalvoFault f, Nanos now) {
   pending_move_ = false;
   sdo_head_ = sdo_tail_ = 0;
   sdo_in_flight_ = false;
-  if (f == GalvoFault::Stall || f == GalvoFault::HomeNotFound) set_cw(kCwSwitchOn);  // disable operation: stop
+  if (f == GalvoFault::Stall || f == GalvoFault::HomeNotFound)
+    set_cw(kCwSwitchOn);  // disable operation: stop
 }
 
 void Cia402Master::move_to(std::int32_t step, Nanos now) {
@@ -113,7 +115,8 @@ void Cia402Master::start_homing(Nanos now) {
 
 void Cia402Master::reset_fault(Nanos now) {
   switch (fault_) {
-    case GalvoFault::None: return;
+    case GalvoFault::None:
+      return;
     case GalvoFault::BusOff:
       if (diag_.bus_off) {
         recover_after_restart_ = true;  // re-initialise once the controller is back on the bus
@@ -314,17 +317,27 @@ void Cia402Master::step(Nanos now) {
       }
       std::uint16_t want = cw_;
       switch (diag_.drive_state) {
-        case DriveState::SwitchOnDisabled: want = kCwShutdown; break;
-        case DriveState::ReadyToSwitchOn: want = kCwSwitchOn; break;
-        case DriveState::SwitchedOn: want = kCwEnableOperation; break;
-        case DriveState::QuickStopActive: want = kCwDisableVoltage; break;
+        case DriveState::SwitchOnDisabled:
+          want = kCwShutdown;
+          break;
+        case DriveState::ReadyToSwitchOn:
+          want = kCwSwitchOn;
+          break;
+        case DriveState::SwitchedOn:
+          want = kCwEnableOperation;
+          break;
+        case DriveState::QuickStopActive:
+          want = kCwDisableVoltage;
+          break;
         case DriveState::OperationEnabled:
           phase_ = Phase::Ready;
           target_ = position_;
           if (cw_ != kCwEnableOperation) set_cw(kCwEnableOperation);
           if (pending_move_) issue_setpoint(pending_target_, now);
           break;
-        default: want = kCwShutdown; break;
+        default:
+          want = kCwShutdown;
+          break;
       }
       if (phase_ == Phase::Enabling && (want != cw_ || now - cw_sent_ > 100'000'000)) {
         target_ = position_;  // never let an old target start a motion on enable
@@ -374,7 +387,8 @@ void Cia402Master::step(Nanos now) {
       }
       break;
     }
-    default: break;
+    default:
+      break;
   }
 }
 
@@ -395,12 +409,14 @@ GalvoStatus Cia402Master::poll(Nanos now) {
   st.measured_step = position_;
   st.homed = homed_;
   st.fault = fault_;
-  const bool homing = phase_ == Phase::HomingConfig || phase_ == Phase::Homing || phase_ == Phase::HomingRestore;
+  const bool homing =
+      phase_ == Phase::HomingConfig || phase_ == Phase::Homing || phase_ == Phase::HomingRestore;
   st.enabled = fault_ == GalvoFault::None && (phase_ == Phase::Ready || homing) &&
                diag_.drive_state == DriveState::OperationEnabled;
-  st.moving = homing || (phase_ == Phase::Ready && (sp_ != SetPoint::Idle || pending_move_ || !(sw & kSwTargetReached)));
-  st.in_position = phase_ == Phase::Ready && sp_ == SetPoint::Idle && !pending_move_ && (sw & kSwTargetReached) &&
-                   std::abs(position_ - target_) <= cfg_.position_window;
+  st.moving = homing || (phase_ == Phase::Ready &&
+                         (sp_ != SetPoint::Idle || pending_move_ || !(sw & kSwTargetReached)));
+  st.in_position = phase_ == Phase::Ready && sp_ == SetPoint::Idle && !pending_move_ &&
+                   (sw & kSwTargetReached) && std::abs(position_ - target_) <= cfg_.position_window;
   return st;
 }
 

@@ -29,30 +29,30 @@ constexpr std::uint8_t kStateBoot = 0x00, kStateStopped = 0x04, kStateOperationa
                        kStatePreOperational = 0x7F;
 
 // Objects.
-constexpr std::uint16_t kHeartbeatProducer = 0x1017;  // u16 ms
-constexpr std::uint16_t kTpdo1Comm = 0x1800;          // sub 5: event timer u16 ms
-constexpr std::uint16_t kErrorCode = 0x603F;          // u16
-constexpr std::uint16_t kControlword = 0x6040;        // u16
-constexpr std::uint16_t kStatusword = 0x6041;         // u16
-constexpr std::uint16_t kModesOfOperation = 0x6060;   // i8
-constexpr std::uint16_t kModesDisplay = 0x6061;       // i8
-constexpr std::uint16_t kPositionActual = 0x6064;     // i32
-constexpr std::uint16_t kTargetPosition = 0x607A;     // i32
-constexpr std::uint16_t kHomeOffset = 0x607C;         // i32
-constexpr std::uint16_t kProfileVelocity = 0x6081;    // u32
+constexpr std::uint16_t kHeartbeatProducer = 0x1017;    // u16 ms
+constexpr std::uint16_t kTpdo1Comm = 0x1800;            // sub 5: event timer u16 ms
+constexpr std::uint16_t kErrorCode = 0x603F;            // u16
+constexpr std::uint16_t kControlword = 0x6040;          // u16
+constexpr std::uint16_t kStatusword = 0x6041;           // u16
+constexpr std::uint16_t kModesOfOperation = 0x6060;     // i8
+constexpr std::uint16_t kModesDisplay = 0x6061;         // i8
+constexpr std::uint16_t kPositionActual = 0x6064;       // i32
+constexpr std::uint16_t kTargetPosition = 0x607A;       // i32
+constexpr std::uint16_t kHomeOffset = 0x607C;           // i32
+constexpr std::uint16_t kProfileVelocity = 0x6081;      // u32
 constexpr std::uint16_t kProfileAcceleration = 0x6083;  // u32
 constexpr std::uint16_t kProfileDeceleration = 0x6084;  // u32
-constexpr std::uint16_t kHomingMethod = 0x6098;       // i8
+constexpr std::uint16_t kHomingMethod = 0x6098;         // i8
 
 constexpr std::int8_t kModeProfilePosition = 1;
 constexpr std::int8_t kModeHoming = 6;
 constexpr std::int8_t kHomingOnCurrentPosition = 37;
 
 // SDO command specifiers (expedited).
-constexpr std::uint8_t kSdoWriteReq = 0x20;       // | (4-n)<<2 | 0x03
+constexpr std::uint8_t kSdoWriteReq = 0x20;  // | (4-n)<<2 | 0x03
 constexpr std::uint8_t kSdoWriteResp = 0x60;
 constexpr std::uint8_t kSdoReadReq = 0x40;
-constexpr std::uint8_t kSdoReadResp = 0x40;       // 0x43 / 0x47 / 0x4B / 0x4F
+constexpr std::uint8_t kSdoReadResp = 0x40;  // 0x43 / 0x47 / 0x4B / 0x4F
 constexpr std::uint8_t kSdoAbort = 0x80;
 constexpr std::uint32_t kAbortNoObject = 0x06020000;
 constexpr std::uint32_t kAbortReadOnly = 0x06010002;
@@ -65,7 +65,8 @@ constexpr std::uint16_t kCwShutdown = 0x0006;
 constexpr std::uint16_t kCwSwitchOn = 0x0007;
 constexpr std::uint16_t kCwEnableOperation = 0x000F;
 constexpr std::uint16_t kCwDisableVoltage = 0x0000;
-constexpr std::uint16_t kCwNewSetPoint = 1u << 4;   // profile position; = homing operation start in homing mode
+constexpr std::uint16_t kCwNewSetPoint = 1u
+                                         << 4;  // profile position; = homing operation start in homing mode
 constexpr std::uint16_t kCwChangeImmediately = 1u << 5;
 constexpr std::uint16_t kCwRelative = 1u << 6;
 constexpr std::uint16_t kCwFaultReset = 1u << 7;
@@ -82,12 +83,18 @@ constexpr std::uint16_t kSwSwitchOnDisabled = 1u << 6;
 constexpr std::uint16_t kSwWarning = 1u << 7;
 constexpr std::uint16_t kSwRemote = 1u << 9;
 constexpr std::uint16_t kSwTargetReached = 1u << 10;
-constexpr std::uint16_t kSwSetPointAck = 1u << 12;   // homing mode: homing attained
+constexpr std::uint16_t kSwSetPointAck = 1u << 12;     // homing mode: homing attained
 constexpr std::uint16_t kSwFollowingError = 1u << 13;  // homing mode: homing error
 
 enum class DriveState : std::uint8_t {
-  NotReadyToSwitchOn, SwitchOnDisabled, ReadyToSwitchOn, SwitchedOn, OperationEnabled, QuickStopActive,
-  FaultReactionActive, Fault,
+  NotReadyToSwitchOn,
+  SwitchOnDisabled,
+  ReadyToSwitchOn,
+  SwitchedOn,
+  OperationEnabled,
+  QuickStopActive,
+  FaultReactionActive,
+  Fault,
 };
 
 inline DriveState decode_state(std::uint16_t sw) {
@@ -104,26 +111,38 @@ inline DriveState decode_state(std::uint16_t sw) {
 
 inline const char* to_string(DriveState s) {
   switch (s) {
-    case DriveState::NotReadyToSwitchOn: return "not-ready-to-switch-on";
-    case DriveState::SwitchOnDisabled: return "switch-on-disabled";
-    case DriveState::ReadyToSwitchOn: return "ready-to-switch-on";
-    case DriveState::SwitchedOn: return "switched-on";
-    case DriveState::OperationEnabled: return "operation-enabled";
-    case DriveState::QuickStopActive: return "quick-stop-active";
-    case DriveState::FaultReactionActive: return "fault-reaction-active";
-    case DriveState::Fault: return "fault";
+    case DriveState::NotReadyToSwitchOn:
+      return "not-ready-to-switch-on";
+    case DriveState::SwitchOnDisabled:
+      return "switch-on-disabled";
+    case DriveState::ReadyToSwitchOn:
+      return "ready-to-switch-on";
+    case DriveState::SwitchedOn:
+      return "switched-on";
+    case DriveState::OperationEnabled:
+      return "operation-enabled";
+    case DriveState::QuickStopActive:
+      return "quick-stop-active";
+    case DriveState::FaultReactionActive:
+      return "fault-reaction-active";
+    case DriveState::Fault:
+      return "fault";
   }
   return "?";
 }
 
 // Little-endian helpers.
-inline void put_u16(std::uint8_t* p, std::uint16_t v) { p[0] = v & 0xFF; p[1] = v >> 8; }
+inline void put_u16(std::uint8_t* p, std::uint16_t v) {
+  p[0] = v & 0xFF;
+  p[1] = v >> 8;
+}
 inline void put_u32(std::uint8_t* p, std::uint32_t v) {
   for (int i = 0; i < 4; ++i) p[i] = static_cast<std::uint8_t>(v >> (8 * i));
 }
 inline std::uint16_t get_u16(const std::uint8_t* p) { return static_cast<std::uint16_t>(p[0] | (p[1] << 8)); }
 inline std::uint32_t get_u32(const std::uint8_t* p) {
-  return std::uint32_t(p[0]) | std::uint32_t(p[1]) << 8 | std::uint32_t(p[2]) << 16 | std::uint32_t(p[3]) << 24;
+  return std::uint32_t(p[0]) | std::uint32_t(p[1]) << 8 | std::uint32_t(p[2]) << 16 |
+         std::uint32_t(p[3]) << 24;
 }
 
 inline can_frame make_frame(std::uint32_t id, std::uint8_t len) {

@@ -9,10 +9,10 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <fmt/core.h>
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
-#include <fmt/core.h>
 
 #include "common/error.hpp"
 #include "firmware/backends/cia402_protocol.hpp"
@@ -89,19 +89,27 @@ const char* cia402_state(std::uint16_t sw) {
 
 const char* nmt_state(std::uint8_t s) {
   switch (s & 0x7F) {
-    case cia402::kStateBoot: return "boot-up";
-    case cia402::kStateStopped: return "stopped";
-    case cia402::kStateOperational: return "operational";
-    case 0x7F: return "pre-operational";
-    default: return "unknown";
+    case cia402::kStateBoot:
+      return "boot-up";
+    case cia402::kStateStopped:
+      return "stopped";
+    case cia402::kStateOperational:
+      return "operational";
+    case 0x7F:
+      return "pre-operational";
+    default:
+      return "unknown";
   }
 }
 
 std::uint32_t fourcc_of(V4l2Fourcc f) {
   switch (f) {
-    case V4l2Fourcc::Y16: return V4L2_PIX_FMT_Y16;
-    case V4l2Fourcc::Yuyv: return V4L2_PIX_FMT_YUYV;
-    case V4l2Fourcc::Grey: break;
+    case V4l2Fourcc::Y16:
+      return V4L2_PIX_FMT_Y16;
+    case V4l2Fourcc::Yuyv:
+      return V4L2_PIX_FMT_YUYV;
+    case V4l2Fourcc::Grey:
+      break;
   }
   return V4L2_PIX_FMT_GREY;
 }
@@ -160,12 +168,14 @@ void check_gpio(CheckReport& r, const std::string& device, const std::string& ch
         fmt::format("{} '{}' ({}), {} lines", path, cstr(info.label, sizeof info.label),
                     cstr(info.name, sizeof info.name), info.lines));
   for (const auto& [role, ref] : lines) {
-    const std::string lwhat = fmt::format("line {} = {}", role, ref.offset >= 0 ? std::to_string(ref.offset) : "'" + ref.name + "'");
+    const std::string lwhat = fmt::format(
+        "line {} = {}", role, ref.offset >= 0 ? std::to_string(ref.offset) : "'" + ref.name + "'");
     int offset = -1;
     gpioline_info li{};
     if (ref.offset >= 0) {
       if (static_cast<std::uint32_t>(ref.offset) >= info.lines) {
-        r.add(device, lwhat, false, fmt::format("offset {} out of range: {} has {} lines", ref.offset, path, info.lines));
+        r.add(device, lwhat, false,
+              fmt::format("offset {} out of range: {} has {} lines", ref.offset, path, info.lines));
         continue;
       }
       li.line_offset = static_cast<std::uint32_t>(ref.offset);
@@ -227,14 +237,16 @@ void check_can_drive(CheckReport& r, const std::string& device, const std::strin
         if (id != cia402::kSdoTx + node || f.can_dlc < 8) continue;
         const std::uint16_t idx = static_cast<std::uint16_t>(f.data[1] | (f.data[2] << 8));
         if (idx != index || f.data[3] != 0) continue;
-        const std::uint32_t v = static_cast<std::uint32_t>(f.data[4]) | (static_cast<std::uint32_t>(f.data[5]) << 8) |
-                                (static_cast<std::uint32_t>(f.data[6]) << 16) | (static_cast<std::uint32_t>(f.data[7]) << 24);
+        const std::uint32_t v =
+            static_cast<std::uint32_t>(f.data[4]) | (static_cast<std::uint32_t>(f.data[5]) << 8) |
+            (static_cast<std::uint32_t>(f.data[6]) << 16) | (static_cast<std::uint32_t>(f.data[7]) << 24);
         if (f.data[0] == cia402::kSdoAbort) {
           err = fmt::format("SDO read of {:04X}h aborted with code {:08X}h", index, v);
           return false;
         }
         if ((f.data[0] & 0xE0) != cia402::kSdoReadResp || (f.data[0] & 0x03) != 0x03) {
-          err = fmt::format("SDO read of {:04X}h: unexpected response command byte {:02X}h", index, f.data[0]);
+          err =
+              fmt::format("SDO read of {:04X}h: unexpected response command byte {:02X}h", index, f.data[0]);
           return false;
         }
         const int size = 4 - ((f.data[0] >> 2) & 3);
@@ -245,8 +257,9 @@ void check_can_drive(CheckReport& r, const std::string& device, const std::strin
       pollfd p{port.fd(), POLLIN, 0};
       ::poll(&p, 1, 1);
     }
-    err = fmt::format("no answer to the SDO read of {:04X}h within {} ms (drive off, wrong node id or bitrate?)",
-                      index, timeout / 1'000'000);
+    err = fmt::format(
+        "no answer to the SDO read of {:04X}h within {} ms (drive off, wrong node id or bitrate?)", index,
+        timeout / 1'000'000);
     return false;
   };
   std::uint32_t device_type = 0, sw = 0;
@@ -258,7 +271,8 @@ void check_can_drive(CheckReport& r, const std::string& device, const std::strin
   const std::uint16_t profile = device_type & 0xFFFF;
   r.add(device, what + ": device type (1000h)", profile == 402,
         fmt::format("{:08X}h{}", device_type,
-                    profile == 402 ? " (CiA 402 drive)" : fmt::format(" (profile {}, not a CiA 402 drive)", profile)));
+                    profile == 402 ? " (CiA 402 drive)"
+                                   : fmt::format(" (profile {}, not a CiA 402 drive)", profile)));
   if (!sdo_read(cia402::kStatusword, sw, err)) {
     r.add(device, what + ": statusword (6041h)", false, err);
     return;
@@ -289,7 +303,8 @@ void check_v4l2(CheckReport& r, const std::string& device, const V4l2Spec& spec)
   const std::uint32_t caps = (cap.capabilities & V4L2_CAP_DEVICE_CAPS) ? cap.device_caps : cap.capabilities;
   const bool capture = (caps & V4L2_CAP_VIDEO_CAPTURE) != 0, streaming = (caps & V4L2_CAP_STREAMING) != 0;
   r.add(device, what, capture && streaming,
-        fmt::format("driver {}, card '{}'{}{}", cstr(reinterpret_cast<const char*>(cap.driver), sizeof cap.driver),
+        fmt::format("driver {}, card '{}'{}{}",
+                    cstr(reinterpret_cast<const char*>(cap.driver), sizeof cap.driver),
                     cstr(reinterpret_cast<const char*>(cap.card), sizeof cap.card),
                     capture ? "" : ", NOT a video capture device", streaming ? "" : ", no streaming I/O"));
   if (!capture) return;
@@ -319,7 +334,8 @@ void check_v4l2(CheckReport& r, const std::string& device, const V4l2Spec& spec)
           "VIDIOC_TRY_FMT: " + errno_text());
     return;
   }
-  const bool same = f.fmt.pix.width == spec.width && f.fmt.pix.height == spec.height && f.fmt.pix.pixelformat == want;
+  const bool same =
+      f.fmt.pix.width == spec.width && f.fmt.pix.height == spec.height && f.fmt.pix.pixelformat == want;
   r.add(device, what + fmt::format(": size {}x{}", spec.width, spec.height), same,
         same ? "accepted (VIDIOC_TRY_FMT)"
              : fmt::format("the driver gives {}x{} {} instead", f.fmt.pix.width, f.fmt.pix.height,
@@ -362,7 +378,8 @@ void check_sim_can(CheckReport& r, const std::string& device, const CanSpec& cs)
   tc.node = cs.node;
   sim::Cia402Twin twin(fds[1], clock, tc);
   r.add(device, "CAN (sim-can)", true, "hw-sim CiA 402 drive twin over a socketpair");
-  check_can_drive(r, device, "the socketpair", port, cs.node, clock, [&] { twin.poll(); }, 300'000'000);
+  check_can_drive(
+      r, device, "the socketpair", port, cs.node, clock, [&] { twin.poll(); }, 300'000'000);
   ::close(fds[1]);
 }
 
@@ -399,9 +416,12 @@ CheckReport check_devices(const std::string& galvo, const std::string& camera, c
     }
   });
   guarded(r, "camera", camera, [&] {
-    if (camera == "sim") r.add("camera", "sim", true, "hw-sim camera twin rendering the scene (no hardware)");
-    else if (camera.rfind("v4l2:", 0) == 0) check_v4l2(r, "camera", parse_v4l2_spec(camera));
-    else r.add("camera", camera, false, "expected sim or v4l2:...");
+    if (camera == "sim")
+      r.add("camera", "sim", true, "hw-sim camera twin rendering the scene (no hardware)");
+    else if (camera.rfind("v4l2:", 0) == 0)
+      check_v4l2(r, "camera", parse_v4l2_spec(camera));
+    else
+      r.add("camera", camera, false, "expected sim or v4l2:...");
   });
   if (!laser.empty()) {
     guarded(r, "laser", laser, [&] {
@@ -413,7 +433,8 @@ CheckReport check_devices(const std::string& galvo, const std::string& camera, c
       check_gpio(r, "laser", l.chip, {{"laser", l.line}});
     });
   } else if (camera != "sim" && !galvo_laser) {
-    r.add("laser", "(none)", false, "no laser line: give --laser gpio:CHIP:line=L (or laser= in the gpio galvo)");
+    r.add("laser", "(none)", false,
+          "no laser line: give --laser gpio:CHIP:line=L (or laser= in the gpio galvo)");
   }
   return r;
 }

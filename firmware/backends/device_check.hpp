@@ -3,7 +3,8 @@
 // what is missing.
 //   GPIO  (gpio:... galvo / laser): the chip (by path, gpiochipN, number or label) through the kernel GPIO
 //         character device, every line (offset or name) present and not used by another consumer.
-//   CAN   (can:IFACE...): the interface exists and is up, the drive answers an SDO read of 0x1000 (device type)
+//   CAN   (can:IFACE...): the interface exists and is up, the drive answers an SDO read of 0x1000 (device
+//   type)
 //         and 0x6041 (statusword); a heartbeat seen meanwhile gives its NMT state. `sim-can` runs the same
 //         probe against the hw-sim drive twin over a socketpair.
 //   V4L2  (v4l2:/dev/videoN...): the node opens, is a streaming capture device, its formats (VIDIOC_ENUM_FMT)

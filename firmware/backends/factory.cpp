@@ -59,8 +59,10 @@ bool flag(std::string_view spec, const KeyValue& kv) {
 GpioLineRef line_ref(std::string_view spec, const KeyValue& kv) {
   GpioLineRef r;
   const bool digits = kv.value.find_first_not_of("0123456789") == std::string_view::npos;
-  if (digits) r.offset = number<int>(spec, kv, 0, 4095);
-  else r.name = std::string(kv.value);
+  if (digits)
+    r.offset = number<int>(spec, kv, 0, 4095);
+  else
+    r.name = std::string(kv.value);
   return r;
 }
 
@@ -90,14 +92,23 @@ GpioSpec parse_gpio_spec(std::string_view spec) {
   GpioSpec g;
   g.chip = std::string(parts[0]);
   for (const auto& kv : split_kv(spec, parts[1])) {
-    if (kv.key == "step") g.step = line_ref(spec, kv);
-    else if (kv.key == "dir") g.dir = line_ref(spec, kv);
-    else if (kv.key == "en") g.enable = line_ref(spec, kv);
-    else if (kv.key == "home") g.home = line_ref(spec, kv);
-    else if (kv.key == "laser") g.laser = line_ref(spec, kv);
-    else if (kv.key == "home_active_low") g.home_active_low = flag(spec, kv);
-    else if (kv.key == "en_active_low") g.enable_active_low = flag(spec, kv);
-    else bad(spec, "unknown key '" + std::string(kv.key) + "' (known: step, dir, en, home, laser, home_active_low, en_active_low)");
+    if (kv.key == "step")
+      g.step = line_ref(spec, kv);
+    else if (kv.key == "dir")
+      g.dir = line_ref(spec, kv);
+    else if (kv.key == "en")
+      g.enable = line_ref(spec, kv);
+    else if (kv.key == "home")
+      g.home = line_ref(spec, kv);
+    else if (kv.key == "laser")
+      g.laser = line_ref(spec, kv);
+    else if (kv.key == "home_active_low")
+      g.home_active_low = flag(spec, kv);
+    else if (kv.key == "en_active_low")
+      g.enable_active_low = flag(spec, kv);
+    else
+      bad(spec, "unknown key '" + std::string(kv.key) +
+                    "' (known: step, dir, en, home, laser, home_active_low, en_active_low)");
   }
   const std::pair<const char*, const GpioLineRef*> required[] = {
       {"step", &g.step}, {"dir", &g.dir}, {"en", &g.enable}, {"home", &g.home}};
@@ -106,7 +117,8 @@ GpioSpec parse_gpio_spec(std::string_view spec) {
   const GpioLineRef* all[] = {&g.step, &g.dir, &g.enable, &g.home, &g.laser};
   for (int i = 0; i < 5; ++i)
     for (int j = i + 1; j < 5; ++j)
-      if (all[i]->valid() && all[j]->valid() && all[i]->offset == all[j]->offset && all[i]->name == all[j]->name)
+      if (all[i]->valid() && all[j]->valid() && all[i]->offset == all[j]->offset &&
+          all[i]->name == all[j]->name)
         bad(spec, "the same line is used twice");
   return g;
 }
@@ -127,13 +139,20 @@ CanSpec parse_can_spec(std::string_view spec) {
     bad(spec, "a CAN galvo spec is can:IFACE[:node=N,...] or sim-can[:node=N,...]");
   }
   for (const auto& kv : split_kv(spec, kvs)) {
-    if (kv.key == "node") c.node = number<std::uint8_t>(spec, kv, 1, 127);
-    else if (kv.key == "hb") c.heartbeat_ms = number<std::uint16_t>(spec, kv, 10, 10000);
-    else if (kv.key == "vel") c.velocity = number<std::uint32_t>(spec, kv, 1, 100'000'000);
-    else if (kv.key == "acc") c.acceleration = number<std::uint32_t>(spec, kv, 1, 1'000'000'000);
-    else if (kv.key == "sdo_ms") c.sdo_timeout_ms = number<std::uint32_t>(spec, kv, 1, 60000);
-    else if (kv.key == "state_ms") c.state_timeout_ms = number<std::uint32_t>(spec, kv, 1, 600000);
-    else bad(spec, "unknown key '" + std::string(kv.key) + "' (known: node, hb, vel, acc, sdo_ms, state_ms)");
+    if (kv.key == "node")
+      c.node = number<std::uint8_t>(spec, kv, 1, 127);
+    else if (kv.key == "hb")
+      c.heartbeat_ms = number<std::uint16_t>(spec, kv, 10, 10000);
+    else if (kv.key == "vel")
+      c.velocity = number<std::uint32_t>(spec, kv, 1, 100'000'000);
+    else if (kv.key == "acc")
+      c.acceleration = number<std::uint32_t>(spec, kv, 1, 1'000'000'000);
+    else if (kv.key == "sdo_ms")
+      c.sdo_timeout_ms = number<std::uint32_t>(spec, kv, 1, 60000);
+    else if (kv.key == "state_ms")
+      c.state_timeout_ms = number<std::uint32_t>(spec, kv, 1, 600000);
+    else
+      bad(spec, "unknown key '" + std::string(kv.key) + "' (known: node, hb, vel, acc, sdo_ms, state_ms)");
   }
   return c;
 }
@@ -146,16 +165,27 @@ V4l2Spec parse_v4l2_spec(std::string_view spec) {
   if (parts.size() == 2) {
     for (const auto& kv : split_kv(spec, parts[1])) {
       if (kv.key == "fmt") {
-        if (kv.value == "GREY") v.format = V4l2Fourcc::Grey;
-        else if (kv.value == "Y16") v.format = V4l2Fourcc::Y16;
-        else if (kv.value == "YUYV") v.format = V4l2Fourcc::Yuyv;
-        else bad(spec, "fmt='" + std::string(kv.value) + "' (known: GREY, Y16, YUYV)");
-      } else if (kv.key == "width") v.width = number<std::uint32_t>(spec, kv, 16, 16384);
-      else if (kv.key == "height") v.height = number<std::uint32_t>(spec, kv, 16, 16384);
-      else if (kv.key == "fps") v.fps = number<std::uint32_t>(spec, kv, 1, 10000);
-      else if (kv.key == "exposure") v.exposure = number<std::int32_t>(spec, kv, 0, std::numeric_limits<std::int32_t>::max());
-      else if (kv.key == "buffers") v.buffers = number<std::uint32_t>(spec, kv, 4, V4l2Camera::kMaxBuffers);
-      else bad(spec, "unknown key '" + std::string(kv.key) + "' (known: fmt, width, height, fps, exposure, buffers)");
+        if (kv.value == "GREY")
+          v.format = V4l2Fourcc::Grey;
+        else if (kv.value == "Y16")
+          v.format = V4l2Fourcc::Y16;
+        else if (kv.value == "YUYV")
+          v.format = V4l2Fourcc::Yuyv;
+        else
+          bad(spec, "fmt='" + std::string(kv.value) + "' (known: GREY, Y16, YUYV)");
+      } else if (kv.key == "width")
+        v.width = number<std::uint32_t>(spec, kv, 16, 16384);
+      else if (kv.key == "height")
+        v.height = number<std::uint32_t>(spec, kv, 16, 16384);
+      else if (kv.key == "fps")
+        v.fps = number<std::uint32_t>(spec, kv, 1, 10000);
+      else if (kv.key == "exposure")
+        v.exposure = number<std::int32_t>(spec, kv, 0, std::numeric_limits<std::int32_t>::max());
+      else if (kv.key == "buffers")
+        v.buffers = number<std::uint32_t>(spec, kv, 4, V4l2Camera::kMaxBuffers);
+      else
+        bad(spec,
+            "unknown key '" + std::string(kv.key) + "' (known: fmt, width, height, fps, exposure, buffers)");
     }
   }
   return v;
@@ -168,15 +198,20 @@ GpioLaserSpec parse_gpio_laser_spec(std::string_view spec) {
   GpioLaserSpec g;
   g.chip = std::string(parts[0]);
   for (const auto& kv : split_kv(spec, parts[1])) {
-    if (kv.key == "line") g.line = line_ref(spec, kv);
-    else if (kv.key == "active_low") g.active_low = flag(spec, kv);
-    else bad(spec, "unknown key '" + std::string(kv.key) + "' (known: line, active_low)");
+    if (kv.key == "line")
+      g.line = line_ref(spec, kv);
+    else if (kv.key == "active_low")
+      g.active_low = flag(spec, kv);
+    else
+      bad(spec, "unknown key '" + std::string(kv.key) + "' (known: line, active_low)");
   }
   if (!g.line.valid()) bad(spec, "missing 'line='");
   return g;
 }
 
-std::unique_ptr<Laser> make_gpio_laser(std::string_view spec) { return open_gpiod_laser(parse_gpio_laser_spec(spec)); }
+std::unique_ptr<Laser> make_gpio_laser(std::string_view spec) {
+  return open_gpiod_laser(parse_gpio_laser_spec(spec));
+}
 
 GpioBackend make_gpio_backend(std::string_view spec) {
   auto lines = GpiodLines::open(parse_gpio_spec(spec));

@@ -1,12 +1,14 @@
 #pragma once
-// GpioLines on a GPIO character device through libgpiod (consumer "facetscan"). The implementation is chosen at
-// configure time from the installed libgpiod: gpiod_lines_v1.cpp (1.6, v1 API) or gpiod_lines_v2.cpp (2.x).
-//   v2: step, dir, enable, laser (outputs) and home (input, both edges, CLOCK_MONOTONIC event timestamps) in one
-//       request. v1: the v1 uAPI cannot mix outputs and event inputs in one request, so the outputs are one bulk
-//       request (always written together, as the v1 handle ioctl sets every line of the handle) and home is an
-//       event request.
-// set_enable(true) means "driver enabled" (the physical level follows en_active_low); safe() = step low, enable
-// off, laser off; the destructor calls safe() before releasing the lines.
+// GpioLines on a GPIO character device through libgpiod (consumer "facetscan"). The implementation is chosen
+// at configure time from the installed libgpiod: gpiod_lines_v1.cpp (1.6, v1 API) or gpiod_lines_v2.cpp
+// (2.x).
+//   v2: step, dir, enable, laser (outputs) and home (input, both edges, CLOCK_MONOTONIC event timestamps) in
+//   one
+//       request. v1: the v1 uAPI cannot mix outputs and event inputs in one request, so the outputs are one
+//       bulk request (always written together, as the v1 handle ioctl sets every line of the handle) and home
+//       is an event request.
+// set_enable(true) means "driver enabled" (the physical level follows en_active_low); safe() = step low,
+// enable off, laser off; the destructor calls safe() before releasing the lines.
 #include <cstdint>
 #include <memory>
 #include <string>

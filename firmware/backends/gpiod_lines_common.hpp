@@ -14,7 +14,9 @@ namespace fs::fw::gpiod_detail {
 // Output slots inside the request.
 enum Slot : int { kStep = 0, kDir = 1, kEnable = 2, kLaser = 3 };
 
-inline std::string line_text(const GpioLineRef& r) { return r.offset >= 0 ? std::to_string(r.offset) : r.name; }
+inline std::string line_text(const GpioLineRef& r) {
+  return r.offset >= 0 ? std::to_string(r.offset) : r.name;
+}
 
 // Small fixed ring of home edges (no allocation).
 class EdgeRing {

@@ -85,9 +85,9 @@ class GpiodLinesV1 final : public GpiodLines {
   std::uint64_t step_pulses() const override { return pulses_; }
   Nanos last_write() const override { return last_write_; }
   std::string describe() const override {
-    std::string s = std::string(::gpiod_chip_name(chip_)) + " [" + ::gpiod_chip_label(chip_) + "]: step=" +
-                    line_text(spec_.step) + " dir=" + line_text(spec_.dir) + " en=" + line_text(spec_.enable) +
-                    " home=" + line_text(spec_.home);
+    std::string s = std::string(::gpiod_chip_name(chip_)) + " [" + ::gpiod_chip_label(chip_) +
+                    "]: step=" + line_text(spec_.step) + " dir=" + line_text(spec_.dir) +
+                    " en=" + line_text(spec_.enable) + " home=" + line_text(spec_.home);
     if (has_laser()) s += " laser=" + line_text(spec_.laser);
     return s + " (libgpiod v1 API)";
   }
@@ -120,7 +120,8 @@ class GpiodLinesV1 final : public GpiodLines {
         if (errno == EINTR) continue;
         fail("cannot read home edge event");
       }
-      edges_.push({Nanos(ev.ts.tv_sec) * 1'000'000'000 + ev.ts.tv_nsec, ev.event_type == GPIOD_LINE_EVENT_RISING_EDGE});
+      edges_.push({Nanos(ev.ts.tv_sec) * 1'000'000'000 + ev.ts.tv_nsec,
+                   ev.event_type == GPIOD_LINE_EVENT_RISING_EDGE});
     }
   }
 
@@ -174,9 +175,13 @@ class GpiodLaserLineV1 final : public Laser {
 
 }  // namespace
 
-std::unique_ptr<Laser> open_gpiod_laser(const GpioLaserSpec& spec) { return std::make_unique<GpiodLaserLineV1>(spec); }
+std::unique_ptr<Laser> open_gpiod_laser(const GpioLaserSpec& spec) {
+  return std::make_unique<GpiodLaserLineV1>(spec);
+}
 
-std::shared_ptr<GpiodLines> GpiodLines::open(const GpioSpec& spec) { return std::make_shared<GpiodLinesV1>(spec); }
+std::shared_ptr<GpiodLines> GpiodLines::open(const GpioSpec& spec) {
+  return std::make_shared<GpiodLinesV1>(spec);
+}
 int GpiodLines::api_version() { return 1; }
 
 }  // namespace fs::fw

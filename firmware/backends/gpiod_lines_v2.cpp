@@ -19,11 +19,15 @@ bool is_number(const std::string& s) {
   return !s.empty() && s.find_first_not_of("0123456789") == std::string::npos;
 }
 
-// CHIP: a path, gpiochipN, a number, or a chip label (searched among /dev/gpiochip*). nullptr (errno set) if none.
+// CHIP: a path, gpiochipN, a number, or a chip label (searched among /dev/gpiochip*). nullptr (errno set) if
+// none.
 gpiod_chip* open_chip_v2(const std::string& c, std::string& path) {
-  if (!c.empty() && c[0] == '/') path = c;
-  else if (is_number(c)) path = "/dev/gpiochip" + c;
-  else if (c.rfind("gpiochip", 0) == 0) path = "/dev/" + c;
+  if (!c.empty() && c[0] == '/')
+    path = c;
+  else if (is_number(c))
+    path = "/dev/gpiochip" + c;
+  else if (c.rfind("gpiochip", 0) == 0)
+    path = "/dev/" + c;
   if (!path.empty()) return ::gpiod_chip_open(path.c_str());
   DIR* d = ::opendir("/dev");
   if (!d) return nullptr;
@@ -85,8 +89,9 @@ class GpiodLinesV2 final : public GpiodLines {
     values_[kStep] = false;
     values_[kEnable] = spec_.enable_active_low;
     ::gpiod_line_request_set_value(req_, offsets_[kStep], GPIOD_LINE_VALUE_INACTIVE);
-    ::gpiod_line_request_set_value(req_, offsets_[kEnable], spec_.enable_active_low ? GPIOD_LINE_VALUE_ACTIVE
-                                                                                     : GPIOD_LINE_VALUE_INACTIVE);
+    ::gpiod_line_request_set_value(
+        req_, offsets_[kEnable],
+        spec_.enable_active_low ? GPIOD_LINE_VALUE_ACTIVE : GPIOD_LINE_VALUE_INACTIVE);
     if (has_laser()) {
       values_[kLaser] = false;
       ::gpiod_line_request_set_value(req_, offsets_[kLaser], GPIOD_LINE_VALUE_INACTIVE);
@@ -102,8 +107,9 @@ class GpiodLinesV2 final : public GpiodLines {
   std::uint64_t step_pulses() const override { return pulses_; }
   Nanos last_write() const override { return last_write_; }
   std::string describe() const override {
-    std::string s = path_ + ": step=" + std::to_string(offsets_[kStep]) + " dir=" + std::to_string(offsets_[kDir]) +
-                    " en=" + std::to_string(offsets_[kEnable]) + " home=" + std::to_string(offsets_[4]);
+    std::string s = path_ + ": step=" + std::to_string(offsets_[kStep]) +
+                    " dir=" + std::to_string(offsets_[kDir]) + " en=" + std::to_string(offsets_[kEnable]) +
+                    " home=" + std::to_string(offsets_[4]);
     if (has_laser()) s += " laser=" + std::to_string(offsets_[kLaser]);
     return s + " (libgpiod v2 API)";
   }
@@ -115,7 +121,9 @@ class GpiodLinesV2 final : public GpiodLines {
 
   gpiod_chip* open_chip(const std::string& c) {
     gpiod_chip* chip = open_chip_v2(c, path_);
-    if (!chip) fail(path_.empty() ? std::string("no GPIO chip with this path, number or label") : "cannot open " + path_);
+    if (!chip)
+      fail(path_.empty() ? std::string("no GPIO chip with this path, number or label")
+                         : "cannot open " + path_);
     return chip;
   }
 
@@ -152,8 +160,8 @@ class GpiodLinesV2 final : public GpiodLines {
     ::gpiod_line_settings_set_direction(out, GPIOD_LINE_DIRECTION_OUTPUT);
     ::gpiod_line_settings_set_output_value(out, GPIOD_LINE_VALUE_INACTIVE);
     ::gpiod_line_settings_set_direction(en, GPIOD_LINE_DIRECTION_OUTPUT);
-    ::gpiod_line_settings_set_output_value(en, spec_.enable_active_low ? GPIOD_LINE_VALUE_ACTIVE
-                                                                        : GPIOD_LINE_VALUE_INACTIVE);
+    ::gpiod_line_settings_set_output_value(
+        en, spec_.enable_active_low ? GPIOD_LINE_VALUE_ACTIVE : GPIOD_LINE_VALUE_INACTIVE);
     ::gpiod_line_settings_set_direction(in, GPIOD_LINE_DIRECTION_INPUT);
     ::gpiod_line_settings_set_edge_detection(in, GPIOD_LINE_EDGE_BOTH);
     ::gpiod_line_settings_set_event_clock(in, GPIOD_LINE_CLOCK_MONOTONIC);
@@ -184,8 +192,8 @@ class GpiodLinesV2 final : public GpiodLines {
 
   void write(int slot, bool level) {
     values_[slot] = level;
-    if (::gpiod_line_request_set_value(req_, offsets_[slot], level ? GPIOD_LINE_VALUE_ACTIVE
-                                                                    : GPIOD_LINE_VALUE_INACTIVE) < 0)
+    if (::gpiod_line_request_set_value(req_, offsets_[slot],
+                                       level ? GPIOD_LINE_VALUE_ACTIVE : GPIOD_LINE_VALUE_INACTIVE) < 0)
       fail("cannot set output line " + std::to_string(offsets_[slot]));
     last_write_ = monotonic_now();
   }
@@ -260,7 +268,8 @@ class GpiodLaserLineV2 final : public Laser {
     release();
   }
   void set(bool on, Nanos) override {
-    if (::gpiod_line_request_set_value(req_, offset_, on ? GPIOD_LINE_VALUE_ACTIVE : GPIOD_LINE_VALUE_INACTIVE) < 0)
+    if (::gpiod_line_request_set_value(req_, offset_,
+                                       on ? GPIOD_LINE_VALUE_ACTIVE : GPIOD_LINE_VALUE_INACTIVE) < 0)
       fail("cannot set laser line");
     on_ = on;
   }
@@ -290,9 +299,13 @@ class GpiodLaserLineV2 final : public Laser {
 
 }  // namespace
 
-std::unique_ptr<Laser> open_gpiod_laser(const GpioLaserSpec& spec) { return std::make_unique<GpiodLaserLineV2>(spec); }
+std::unique_ptr<Laser> open_gpiod_laser(const GpioLaserSpec& spec) {
+  return std::make_unique<GpiodLaserLineV2>(spec);
+}
 
-std::shared_ptr<GpiodLines> GpiodLines::open(const GpioSpec& spec) { return std::make_shared<GpiodLinesV2>(spec); }
+std::shared_ptr<GpiodLines> GpiodLines::open(const GpioSpec& spec) {
+  return std::make_shared<GpiodLinesV2>(spec);
+}
 int GpiodLines::api_version() { return 2; }
 
 }  // namespace fs::fw

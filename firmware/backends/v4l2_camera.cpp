@@ -89,9 +89,18 @@ void V4l2Camera::configure() {
   }
 
   switch (spec_.format) {
-    case V4l2Fourcc::Grey: fourcc_ = V4L2_PIX_FMT_GREY; format_ = PixelFormat::Mono8; break;
-    case V4l2Fourcc::Y16: fourcc_ = V4L2_PIX_FMT_Y16; format_ = PixelFormat::Mono16; break;
-    case V4l2Fourcc::Yuyv: fourcc_ = V4L2_PIX_FMT_YUYV; format_ = PixelFormat::Yuyv; break;
+    case V4l2Fourcc::Grey:
+      fourcc_ = V4L2_PIX_FMT_GREY;
+      format_ = PixelFormat::Mono8;
+      break;
+    case V4l2Fourcc::Y16:
+      fourcc_ = V4L2_PIX_FMT_Y16;
+      format_ = PixelFormat::Mono16;
+      break;
+    case V4l2Fourcc::Yuyv:
+      fourcc_ = V4L2_PIX_FMT_YUYV;
+      format_ = PixelFormat::Yuyv;
+      break;
   }
   v4l2_format fmt{};
   fmt.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
@@ -102,15 +111,16 @@ void V4l2Camera::configure() {
   if (xioctl(VIDIOC_S_FMT, &fmt) < 0) fail("VIDIOC_S_FMT " + fourcc_text(fourcc_) + " failed");
   if (fmt.fmt.pix.pixelformat != fourcc_) {
     errno = EINVAL;
-    fail("format " + fourcc_text(fourcc_) + " not supported (driver chose " + fourcc_text(fmt.fmt.pix.pixelformat) +
-         ")");
+    fail("format " + fourcc_text(fourcc_) + " not supported (driver chose " +
+         fourcc_text(fmt.fmt.pix.pixelformat) + ")");
   }
   width_ = fmt.fmt.pix.width;
   height_ = fmt.fmt.pix.height;
   const std::uint32_t bpp = format_ == PixelFormat::Mono8 ? 1 : 2;
   stride_ = fmt.fmt.pix.bytesperline ? fmt.fmt.pix.bytesperline : width_ * bpp;
   sizeimage_ = fmt.fmt.pix.sizeimage;
-  if (width_ == 0 || height_ == 0 || stride_ < width_ * bpp || (sizeimage_ && sizeimage_ < stride_ * height_)) {
+  if (width_ == 0 || height_ == 0 || stride_ < width_ * bpp ||
+      (sizeimage_ && sizeimage_ < stride_ * height_)) {
     errno = EINVAL;
     fail("driver returned an inconsistent format " + std::to_string(width_) + "x" + std::to_string(height_) +
          " bytesperline " + std::to_string(stride_) + " sizeimage " + std::to_string(sizeimage_));
@@ -126,7 +136,8 @@ void V4l2Camera::configure() {
   if (rb.count < 4 || rb.count > kMaxBuffers) {
     nbuf_ = 0;
     errno = ENOBUFS;
-    fail("driver granted " + std::to_string(rb.count) + " MMAP buffers, need 4.." + std::to_string(kMaxBuffers));
+    fail("driver granted " + std::to_string(rb.count) + " MMAP buffers, need 4.." +
+         std::to_string(kMaxBuffers));
   }
   nbuf_ = rb.count;
   for (std::uint32_t i = 0; i < nbuf_; ++i) {
@@ -176,8 +187,8 @@ void V4l2Camera::set_exposure() {
   }
   if (spec_.exposure < q.minimum || spec_.exposure > q.maximum) {
     errno = ERANGE;
-    fail("exposure=" + std::to_string(spec_.exposure) + " outside the driver's range " + std::to_string(q.minimum) +
-         ".." + std::to_string(q.maximum));
+    fail("exposure=" + std::to_string(spec_.exposure) + " outside the driver's range " +
+         std::to_string(q.minimum) + ".." + std::to_string(q.maximum));
   }
   v4l2_control c{V4L2_CID_EXPOSURE_ABSOLUTE, spec_.exposure};
   if (xioctl(VIDIOC_S_CTRL, &c) < 0) fail("VIDIOC_S_CTRL exposure failed");
@@ -223,8 +234,10 @@ GrabResult V4l2Camera::grab(Nanos deadline, FrameView& out) {
       buf.queued = false;
       if (have_seq_) {
         const auto gap = static_cast<std::int32_t>(b.sequence - last_seq_);  // wrap-safe
-        if (gap > 1) stats_.dropped += static_cast<std::uint32_t>(gap - 1);
-        else if (gap <= 0) ++stats_.sequence_restarts;  // driver restarted or repeated its count: no drop
+        if (gap > 1)
+          stats_.dropped += static_cast<std::uint32_t>(gap - 1);
+        else if (gap <= 0)
+          ++stats_.sequence_restarts;  // driver restarted or repeated its count: no drop
       }
       have_seq_ = true;
       last_seq_ = b.sequence;

@@ -1,10 +1,10 @@
 #pragma once
 // Camera on a V4L2 capture device: QUERYCAP, S_FMT (GREY / Y16 / YUYV, luma = even bytes), frame rate (S_PARM
 // when the driver has V4L2_CAP_TIMEPERFRAME), manual exposure when V4L2_CID_EXPOSURE_ABSOLUTE exists, MMAP
-// streaming with >= 4 buffers, poll + DQBUF / QBUF (EINTR and EAGAIN retried), sequence gaps counted as dropped
-// frames, buffers flagged V4L2_BUF_FLAG_ERROR or short re-queued and counted, timestamps used only when the
-// driver flags them CLOCK_MONOTONIC (else the dequeue time, counted). Zero copy: FrameView::data points into
-// the mmap'ed driver buffer until release(). grab() does not allocate.
+// streaming with >= 4 buffers, poll + DQBUF / QBUF (EINTR and EAGAIN retried), sequence gaps counted as
+// dropped frames, buffers flagged V4L2_BUF_FLAG_ERROR or short re-queued and counted, timestamps used only
+// when the driver flags them CLOCK_MONOTONIC (else the dequeue time, counted). Zero copy: FrameView::data
+// points into the mmap'ed driver buffer until release(). grab() does not allocate.
 #include <linux/videodev2.h>
 
 #include <array>
@@ -20,11 +20,11 @@ namespace fs::fw {
 
 struct V4l2Stats {
   std::uint64_t frames = 0;
-  std::uint64_t dropped = 0;             // sequence gaps
-  std::uint64_t sequence_restarts = 0;   // sequence went back or repeated (not counted as drops)
-  std::uint64_t error_buffers = 0;       // V4L2_BUF_FLAG_ERROR or bytesused too small
-  std::uint64_t non_monotonic = 0;       // frames whose timestamp was not CLOCK_MONOTONIC
-  std::uint64_t eintr = 0, eagain = 0;   // retried system calls
+  std::uint64_t dropped = 0;            // sequence gaps
+  std::uint64_t sequence_restarts = 0;  // sequence went back or repeated (not counted as drops)
+  std::uint64_t error_buffers = 0;      // V4L2_BUF_FLAG_ERROR or bytesused too small
+  std::uint64_t non_monotonic = 0;      // frames whose timestamp was not CLOCK_MONOTONIC
+  std::uint64_t eintr = 0, eagain = 0;  // retried system calls
 };
 
 class V4l2Camera final : public Camera {

@@ -10,7 +10,7 @@ namespace fs::fw {
 class V4l2Io {
  public:
   virtual ~V4l2Io() = default;
-  virtual int open(const char* path, int flags) = 0;                 // fd, or -1 with errno
+  virtual int open(const char* path, int flags) = 0;  // fd, or -1 with errno
   virtual int close(int fd) = 0;
   virtual int ioctl(int fd, unsigned long request, void* arg) = 0;   // -1 with errno
   virtual void* mmap(std::size_t length, int fd, off_t offset) = 0;  // MAP_FAILED with errno

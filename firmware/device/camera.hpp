@@ -11,11 +11,11 @@ enum class PixelFormat : std::uint8_t { Mono8 = 0, Mono16 = 1, Yuyv = 2 /* luma 
 struct FrameView {
   const std::uint8_t* data = nullptr;
   std::uint32_t width = 0, height = 0;
-  std::uint32_t stride = 0;            // bytes per row
+  std::uint32_t stride = 0;  // bytes per row
   PixelFormat format = PixelFormat::Mono8;
-  std::uint32_t sequence = 0;          // driver sequence number (gaps = dropped frames)
-  Nanos timestamp = 0;                 // exposure time, same clock as Clock::now()
-  std::int32_t buffer = -1;            // driver buffer index, for release()
+  std::uint32_t sequence = 0;  // driver sequence number (gaps = dropped frames)
+  Nanos timestamp = 0;         // exposure time, same clock as Clock::now()
+  std::int32_t buffer = -1;    // driver buffer index, for release()
 };
 
 enum class GrabResult : std::uint8_t { Ok = 0, Timeout, Error };

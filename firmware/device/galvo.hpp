@@ -10,21 +10,21 @@ namespace fs::fw {
 
 enum class GalvoFault : std::uint8_t {
   None = 0,
-  Stall,          // position does not follow the command
-  MissedSteps,    // position error beyond tolerance after a move
-  HomeNotFound,   // home switch not seen within the homing range/time
-  DriveFault,     // drive reports a fault (CiA 402 fault bit)
-  CommLost,       // no response / heartbeat lost
-  BusOff,         // CAN controller bus-off
+  Stall,         // position does not follow the command
+  MissedSteps,   // position error beyond tolerance after a move
+  HomeNotFound,  // home switch not seen within the homing range/time
+  DriveFault,    // drive reports a fault (CiA 402 fault bit)
+  CommLost,      // no response / heartbeat lost
+  BusOff,        // CAN controller bus-off
 };
 
 const char* to_string(GalvoFault f);
 
 struct GalvoStatus {
   std::int32_t commanded_step = 0;
-  double measured_step = 0.0;   // position read back (steps; fractional for encoders)
-  bool moving = false;          // a commanded motion is in progress
-  bool in_position = false;     // target reached and settled
+  double measured_step = 0.0;  // position read back (steps; fractional for encoders)
+  bool moving = false;         // a commanded motion is in progress
+  bool in_position = false;    // target reached and settled
   bool homed = false;
   bool enabled = false;
   GalvoFault fault = GalvoFault::None;

@@ -12,8 +12,8 @@ namespace {
 using detail::kMaxStepPx;
 
 // Chi-square 99 % quantiles for 1..13 degrees of freedom (a window of up to 15 rows minus the line's 2).
-constexpr double kChi2_99[14] = {0.0, 6.635, 9.210, 11.345, 13.277, 15.086, 16.812, 18.475,
-                                 20.090, 21.666, 23.209, 24.725, 26.217, 27.688};
+constexpr double kChi2_99[14] = {0.0,    6.635,  9.210,  11.345, 13.277, 15.086, 16.812,
+                                 18.475, 20.090, 21.666, 23.209, 24.725, 26.217, 27.688};
 // Medians of chi-square for 1..13 degrees of freedom (the odd ones are used: windows of 3..15 rows minus 2).
 constexpr double kChi2Median[14] = {0.0,     0.45494, 1.38629, 2.36597, 3.35669,  4.35146,  5.34812,
                                     6.34581, 7.34412, 8.34283, 9.34182, 10.34100, 11.34032, 12.33976};
@@ -70,9 +70,9 @@ double along_stripe_scale(std::span<const msg::StripePoint> pts, std::uint32_t r
   std::uint32_t count = 0;
   // The line through the window's w points at x = 0 .. 2H: residual sum of squares from the sums of y, x y,
   // y^2 (y relative to the run's first centre), slid along the run one point at a time (one add per sum and
-  // point: the sums of a window from scratch would be chains of w adds). Every kStride-th window of a run goes
-  // into the median: neighbouring windows share all but one row, so their residuals hardly differ, and one in
-  // four keeps the median as well for a quarter of the square roots and histogram updates.
+  // point: the sums of a window from scratch would be chains of w adds). Every kStride-th window of a run
+  // goes into the median: neighbouring windows share all but one row, so their residuals hardly differ, and
+  // one in four keeps the median as well for a quarter of the square roots and histogram updates.
   constexpr int kStride = 4;
   const double inv_w = 1.0 / w, inv_sxx = 1.0 / sxx_run(w - 1), inv_dof = 1.0 / (w - 2);
   double s0 = 0.0, s1 = 0.0, s2 = 0.0, ref = 0.0;
@@ -117,10 +117,10 @@ double along_stripe_scale(std::span<const msg::StripePoint> pts, std::uint32_t r
 
 namespace {
 
-// refine_along_stripe for a window of 2H + 1 rows, kChunk points at a time: first the full-window fit of every
-// point of the chunk (a fixed-trip-count float loop over the points: vectorized), then the points in order,
-// each taking that fit when its window is whole and explained, else the rows it has (near a run's end, at a
-// corner or step: the generic fits).
+// refine_along_stripe for a window of 2H + 1 rows, kChunk points at a time: first the full-window fit of
+// every point of the chunk (a fixed-trip-count float loop over the points: vectorized), then the points in
+// order, each taking that fit when its window is whole and explained, else the rows it has (near a run's end,
+// at a corner or step: the generic fits).
 constexpr int kChunk = 64;
 
 template <int H>
@@ -133,7 +133,8 @@ template <int H>
   const float chi2_full = static_cast<float>(kChi2_99[2 * H - 1] * s2);
   const float slope_limit = static_cast<float>(kSlopeSigmas * std::sqrt(s2 * 2.0 / sxx_run(H)));
   const std::size_t n = pts.size();
-  // c[H + j + x] = the original centre of point i0 + j + x (the H before the chunk carried over: refined by now).
+  // c[H + j + x] = the original centre of point i0 + j + x (the H before the chunk carried over: refined by
+  // now).
   float c[kChunk + 2 * H] = {};
   float at0[kChunk];
   std::int32_t ok[kChunk];
@@ -142,7 +143,8 @@ template <int H>
   for (std::size_t i0 = 0; i0 < n; i0 += kChunk) {
     const int m = static_cast<int>(std::min<std::size_t>(kChunk, n - i0));
     for (int x = 0; x < H; ++x) c[x] = c[kChunk + x];  // the previous chunk's last H originals
-    for (int j = 0; j < kChunk + H; ++j) c[H + j] = i0 + j < n ? pts[i0 + static_cast<std::size_t>(j)].col : 0.0f;
+    for (int j = 0; j < kChunk + H; ++j)
+      c[H + j] = i0 + j < n ? pts[i0 + static_cast<std::size_t>(j)].col : 0.0f;
     for (int j = 0; j < kChunk; ++j) {
       const float own = c[H + j];
       float sy = 0, sxy = 0, syy = 0, syl = 0, sxyl = 0;  // l: the left half x <= 0
@@ -167,8 +169,10 @@ template <int H>
     }
     for (int j = 0; j < m; ++j) {
       const std::size_t i = i0 + static_cast<std::size_t>(j);
-      if (i > 0 && i < run_end) a = std::min(a + 1, H);
-      else a = 0;
+      if (i > 0 && i < run_end)
+        a = std::min(a + 1, H);
+      else
+        a = 0;
       if (i >= run_end) {
         run_end = i + 1;
         while (run_end < n && joined(pts[run_end - 1], pts[run_end])) ++run_end;
@@ -182,7 +186,7 @@ template <int H>
       }
       const auto y = [&](int x) { return static_cast<double>(c[H + j + x]) - own; };  // relative to row i's
       Line best{};
-      best.var0 = 1.0;  // the row alone
+      best.var0 = 1.0;            // the row alone
       if (!(a == H && b == H)) {  // near the end of a run: the rows there
         const Line full = fit(y, -a, b);
         bool fits = explains(full, s2);
@@ -193,7 +197,8 @@ template <int H>
         }
         if (fits) best = full;
       }
-      if (best.n == 0) {  // one side of row i, the one explained with the smaller variance; else the row alone
+      if (best.n ==
+          0) {  // one side of row i, the one explained with the smaller variance; else the row alone
         for (const auto& [xa, xb] : {std::pair{-a, 0}, std::pair{0, b}}) {
           if (xb - xa < 2) continue;
           const Line side = fit(y, xa, xb);
@@ -206,8 +211,8 @@ template <int H>
   }
 }
 
-// The default window (15 rows, the hot case) compiled for AVX2 as well, chosen at run time: its chunk loop runs 8
-// points a vector instead of SSE2's 4. The same operations in the same order, no FMA: the same bits.
+// The default window (15 rows, the hot case) compiled for AVX2 as well, chosen at run time: its chunk loop
+// runs 8 points a vector instead of SSE2's 4. The same operations in the same order, no FMA: the same bits.
 void refine7_portable(std::span<msg::StripePoint> pts, double sigma) { refine<7>(pts, sigma); }
 #if defined(__x86_64__)
 __attribute__((target("avx2"))) void refine7_avx2(std::span<msg::StripePoint> pts, double sigma) {
@@ -232,13 +237,27 @@ void detail::refine_along_stripe_portable(std::span<msg::StripePoint> pts, std::
 void refine_along_stripe(std::span<msg::StripePoint> pts, std::uint32_t rows, double sigma) {
   if (rows < 3 || pts.size() < 3 || !(sigma > 0.0)) return;
   switch (std::min(rows, kAlongStripeMaxRows) / 2) {
-    case 1: refine<1>(pts, sigma); break;
-    case 2: refine<2>(pts, sigma); break;
-    case 3: refine<3>(pts, sigma); break;
-    case 4: refine<4>(pts, sigma); break;
-    case 5: refine<5>(pts, sigma); break;
-    case 6: refine<6>(pts, sigma); break;
-    default: refine7(pts, sigma); break;
+    case 1:
+      refine<1>(pts, sigma);
+      break;
+    case 2:
+      refine<2>(pts, sigma);
+      break;
+    case 3:
+      refine<3>(pts, sigma);
+      break;
+    case 4:
+      refine<4>(pts, sigma);
+      break;
+    case 5:
+      refine<5>(pts, sigma);
+      break;
+    case 6:
+      refine<6>(pts, sigma);
+      break;
+    default:
+      refine7(pts, sigma);
+      break;
   }
 }
 

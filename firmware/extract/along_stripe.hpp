@@ -30,10 +30,10 @@ constexpr std::uint32_t kAlongStripeMaxRows = 15;  // along_stripe in {0, 1 (= o
 
 namespace detail {
 constexpr double kMaxStepPx = 2.0;  // a larger column step between neighbouring rows ends the window
-// refine_along_stripe with the portable build of the 15-row window, where refine_along_stripe takes its AVX2 build
-// on x86-64 CPUs that have AVX2: the same bits (the test that they agree).
+// refine_along_stripe with the portable build of the 15-row window, where refine_along_stripe takes its AVX2
+// build on x86-64 CPUs that have AVX2: the same bits (the test that they agree).
 void refine_along_stripe_portable(std::span<msg::StripePoint> pts, std::uint32_t rows, double sigma);
-}
+}  // namespace detail
 
 // The per-row noise scale that refine_along_stripe's tests need, from the frame itself (robust: a median):
 // the median residual of the least-squares lines through every whole window of `rows` rows (contiguous,

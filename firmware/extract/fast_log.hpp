@@ -50,8 +50,8 @@ inline float fast_expf(float z) {
 }
 
 // The same two on 4 or 8 floats at once, as GCC/Clang generic vectors (vector_size: SSE2/AVX2 on x86-64, NEON
-// on arm, plain scalar code where a target has no SIMD): the identical operation sequence lane by lane, so each
-// lane equals the scalar function bit for bit (tested).
+// on arm, plain scalar code where a target has no SIMD): the identical operation sequence lane by lane, so
+// each lane equals the scalar function bit for bit (tested).
 using f32x4 = float __attribute__((vector_size(16)));
 using i32x4 = std::int32_t __attribute__((vector_size(16)));
 using u32x4 = std::uint32_t __attribute__((vector_size(16)));
@@ -74,7 +74,8 @@ template <typename F, typename I, typename U>
 inline F fast_expf_v(F z) {
   const F kf = (z * 1.44269504f + 12582912.0f) - 12582912.0f;
   const F r = (z - kf * 0.693145752f) - kf * 1.42860677e-6f;
-  const F p = 1.0f + r * (1.0f + r * (0.5f + r * (1.0f / 6 + r * (1.0f / 24 + r * (1.0f / 120 + r * (1.0f / 720))))));
+  const F p =
+      1.0f + r * (1.0f + r * (0.5f + r * (1.0f / 6 + r * (1.0f / 24 + r * (1.0f / 120 + r * (1.0f / 720))))));
   const I k = __builtin_convertvector(kf, I);
   return p * std::bit_cast<F>(std::bit_cast<U>(k + 127) << 23);
 }

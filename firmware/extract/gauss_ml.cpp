@@ -12,7 +12,8 @@ namespace {
 // Solves the symmetric 3x3 system [m0 m1 m2; m1 m2 m3; m2 m3 m4] z = r for z[1], z[2] (Cramer's rule; the
 // moment matrix of 1, x, x^2). Returns false when singular.
 bool solve_moments(const double m[5], const double r[3], double& z1, double& z2) {
-  const double c00 = m[2] * m[4] - m[3] * m[3], c01 = m[1] * m[4] - m[3] * m[2], c02 = m[1] * m[3] - m[2] * m[2];
+  const double c00 = m[2] * m[4] - m[3] * m[3], c01 = m[1] * m[4] - m[3] * m[2],
+               c02 = m[1] * m[3] - m[2] * m[2];
   const double det = m[0] * c00 - m[1] * c01 + m[2] * c02;
   if (!(std::abs(det) > 1e-12 * std::max(1.0, m[0] * m[2] * m[4]))) return false;
   z1 = (m[0] * (r[1] * m[4] - m[3] * r[2]) - r[0] * c01 + m[2] * (m[1] * r[2] - r[1] * m[2])) / det;
@@ -82,7 +83,8 @@ bool gauss_ml_centre(const float* y, int n, int ic, double contrast, double clip
   const int kb = std::min(n - 1, static_cast<int>(std::ceil(ic + u0 + 3.0 * s)));
   const float af = static_cast<float>(a), bf = static_cast<float>(b), cf = static_cast<float>(c);
   const float r2 = static_cast<float>(noise.read * noise.read + 1.0 / 12.0);
-  const float q2 = static_cast<float>(noise.shot * noise.shot), p2 = static_cast<float>(noise.speckle * noise.speckle);
+  const float q2 = static_cast<float>(noise.shot * noise.shot),
+              p2 = static_cast<float>(noise.speckle * noise.speckle);
   float g[8][kChunk] = {};  // per-lane sums: w, w x, w x^2, w x^3, w x^4, we, we x, we x^2
   for (int k0 = ka; k0 <= kb; k0 += kChunk) {
     for (int j = 0; j < kChunk; ++j) {
@@ -119,9 +121,10 @@ bool gauss_ml_centre(const float* y, int n, int ic, double contrast, double clip
 namespace {
 
 // The batched fit (gauss_ml.hpp) on generic vectors of W lanes, native width: W = 8 with AVX2, W = 4 on
-// SSE2 / NEON (two groups of 4 lanes side by side per batch; wider generic vectors lower to poor code there). Float lanes for the
-// per-sample work, double lanes for the solves. Masks instead of branches; everything outside a lane's samples
-// adds exact zeros. Comparisons give 0 / -1 lanes; `m & kOne` turns such a mask into 0.0f / 1.0f.
+// SSE2 / NEON (two groups of 4 lanes side by side per batch; wider generic vectors lower to poor code there).
+// Float lanes for the per-sample work, double lanes for the solves. Masks instead of branches; everything
+// outside a lane's samples adds exact zeros. Comparisons give 0 / -1 lanes; `m & kOne` turns such a mask into
+// 0.0f / 1.0f.
 using f64x4 = double __attribute__((vector_size(32)));
 using i64x4 = std::int64_t __attribute__((vector_size(32)));
 using f64x8 = double __attribute__((vector_size(64)));
@@ -182,26 +185,33 @@ inline bool none(i32x8 m) {
   return none(half[0] | half[1]);
 }
 template <typename D>
-inline D vabs(D v) { return v < 0.0 ? -v : v; }
+inline D vabs(D v) {
+  return v < 0.0 ? -v : v;
+}
 template <typename D>
-inline D vmax(D a, D b) { return a < b ? b : a; }  // std::max's order
+inline D vmax(D a, D b) {
+  return a < b ? b : a;
+}  // std::max's order
 
 // Masks of double lanes as doubles whose bits are all ones / zero (kAll / D{}), made by `condition ? all : 0`
-// with the comparison used only there, and applied with bit operations (pick): GCC 12 lowers a comparison of 8
-// doubles whose 0 / -1 result is kept as a value (or used twice) lane by lane even with AVX-512; this way it
-// stays vector code. Same bits as the plain selects.
+// with the comparison used only there, and applied with bit operations (pick): GCC 12 lowers a comparison of
+// 8 doubles whose 0 / -1 result is kept as a value (or used twice) lane by lane even with AVX-512; this way
+// it stays vector code. Same bits as the plain selects.
 template <typename D, typename DI>
 inline D pick(D m, D x, D y) {
   const DI mi = std::bit_cast<DI>(m);
   return std::bit_cast<D>((std::bit_cast<DI>(x) & mi) | (std::bit_cast<DI>(y) & ~mi));
 }
 template <typename D, typename DI>
-inline D both(D a, D b) { return std::bit_cast<D>(std::bit_cast<DI>(a) & std::bit_cast<DI>(b)); }
+inline D both(D a, D b) {
+  return std::bit_cast<D>(std::bit_cast<DI>(a) & std::bit_cast<DI>(b));
+}
 
-// Cramer's rule for z1, z2 of the moment system (solve_moments), all lanes; `regular` = not singular (a mask).
+// Cramer's rule for z1, z2 of the moment system (solve_moments), all lanes; `regular` = not singular (a
+// mask).
 template <int W>
-inline void solve_lanes(const typename Lanes<W>::F (&acc)[8], typename Lanes<W>::D& z1, typename Lanes<W>::D& z2,
-                        typename Lanes<W>::D& regular) {
+inline void solve_lanes(const typename Lanes<W>::F (&acc)[8], typename Lanes<W>::D& z1,
+                        typename Lanes<W>::D& z2, typename Lanes<W>::D& regular) {
   using D = typename Lanes<W>::D;
   using DI = typename Lanes<W>::DI;
   const D all = std::bit_cast<D>(DI{} - 1);
@@ -218,8 +228,8 @@ inline void solve_lanes(const typename Lanes<W>::F (&acc)[8], typename Lanes<W>:
 // Lanes [0, G W) of the batch as G groups of W lanes (group h: lanes [h W, h W + W)), the groups side by side
 // at every step: the fit is a chain of dependent steps (walk, solve, sums, solve), and two groups give the
 // core two independent chains (the portable build: two groups of 4 lanes). A walk or a sum loop runs over
-// the union of the groups' ranges; a group's lanes outside their own add exact zeros, as any lane's do outside
-// its window, so every lane's result is the one of its group alone, bit for bit.
+// the union of the groups' ranges; a group's lanes outside their own add exact zeros, as any lane's do
+// outside its window, so every lane's result is the one of its group alone, bit for bit.
 template <int W, int G>
 [[gnu::always_inline]] inline void batch_fit_lanes(GaussMlBatch& b, const SensorNoise& noise) {
   using F = typename Lanes<W>::F;
@@ -336,10 +346,11 @@ template <int W, int G>
   // keeps it out of the denormals (slow) without touching any value that is used. Relative error of S after
   // the <= 16 steps: < 1e-5 (against 12 % speckle).
   const float rr = static_cast<float>(noise.read * noise.read + 1.0 / 12.0);
-  const float q2 = static_cast<float>(noise.shot * noise.shot), p2 = static_cast<float>(noise.speckle * noise.speckle);
+  const float q2 = static_cast<float>(noise.shot * noise.shot),
+              p2 = static_cast<float>(noise.speckle * noise.speckle);
   // Each direction its own loop and set of sums.
   F gr[G][8] = {}, gl[G][8] = {};  // per lane: w, w x, w x^2, w x^3, w x^4, we, we x, we x^2
-  const auto add = [&](F (&gs)[8], int h, int x, F S) {
+  const auto add = [&](F(&gs)[8], int h, int x, F S) {
     const float xf = kX[C + x], x2 = kX2[C + x];  // loads, not conversions
     const I xv = I{} + kXi[C + x];
     const F v = load<F>(&b.y[C + x][h * W]);
@@ -369,7 +380,7 @@ template <int W, int G>
   for (int h = 0; h < G; ++h) {
     const F S0 = fast_expf(af[h]);
     Q[h] = fast_expf(cf[h] + cf[h]);
-    Sr[h] = S0;                            // rightward: S(x), S(x + 1) / S(x) at x = 0
+    Sr[h] = S0;  // rightward: S(x), S(x + 1) / S(x) at x = 0
     Rr[h] = fast_expf(bf[h] + cf[h]);
     const F L0 = fast_expf(cf[h] - bf[h]);  // leftward: S(x - 1) / S(x) at x = 0
     Sl[h] = floor_at(S0 * L0);
@@ -419,8 +430,8 @@ __attribute__((target("avx2"))) void batch_fit_avx2(GaussMlBatch& b, const Senso
 }
 // The same 8 lanes (256-bit vectors) with AVX-512VL's 32 vector registers: the AVX2 build spills its
 // accumulators and constants to the stack; this one does not (measured 1.6x faster, BM_GaussMlBatch).
-__attribute__((target("avx512f,avx512vl,avx512dq,avx512bw"))) void batch_fit_avx512(GaussMlBatch& b,
-                                                                                   const SensorNoise& noise) {
+__attribute__((target("avx512f,avx512vl,avx512dq,avx512bw"))) void batch_fit_avx512(
+    GaussMlBatch& b, const SensorNoise& noise) {
   batch_fit_lanes<8, 1>(b, noise);
 }
 #endif
@@ -439,7 +450,9 @@ bool gauss_ml_centre_batch_avx2([[maybe_unused]] GaussMlBatch& b, [[maybe_unused
   return false;
 }
 
-const char* gauss_ml_batch_isa() { return cpu_has_avx512vl() ? "avx512vl" : cpu_has_avx2() ? "avx2" : "portable"; }
+const char* gauss_ml_batch_isa() {
+  return cpu_has_avx512vl() ? "avx512vl" : cpu_has_avx2() ? "avx2" : "portable";
+}
 
 void gauss_ml_centre_batch(GaussMlBatch& b, const SensorNoise& noise) {
 #if defined(__x86_64__)
@@ -455,7 +468,8 @@ void gauss_ml_centre_batch(GaussMlBatch& b, const SensorNoise& noise) {
   batch_fit(b, noise);
 }
 
-double centre_crb(double u, double s, double A, double background, double full_scale_dn, const SensorNoise& noise) {
+double centre_crb(double u, double s, double A, double background, double full_scale_dn,
+                  const SensorNoise& noise) {
   const double r2 = noise.read * noise.read + 1.0 / 12.0, q2 = noise.shot * noise.shot,
                p2 = noise.speckle * noise.speckle;
   double F[3][3] = {};

@@ -9,7 +9,8 @@
 // GaussFit) throws most of it away. Two steps, both closed form:
 //   1. unweighted least squares of ln y = a + b x + c x^2 over the contiguous samples above 10 % of the
 //      contrast (this is already the ML fit when speckle alone is present);
-//   2. one Gauss-Newton step of the weighted least squares in the intensity domain, weights 1 / var(S(x)) from
+//   2. one Gauss-Newton step of the weighted least squares in the intensity domain, weights 1 / var(S(x))
+//   from
 //      that model, over |x - u| <= 3 s.
 // Speed: gauss_ml_centre (one row): the per-sample work (log, exp, weights, the moment sums) is branch-free
 // float arithmetic over chunks of kChunk samples with one accumulator per lane, which the compiler vectorizes
@@ -43,12 +44,13 @@ bool gauss_ml_centre(const float* y, int n, int ic, double contrast, double clip
 // above background) and sigma s (px) centred at u on integer pixels, with A and s unknown too (Fisher
 // information of the Gaussian likelihood with signal-dependent variance, 3x3, inverted). Pixels at full scale
 // (background + A >= full_scale_dn) carry no information. For the accuracy study and its tests.
-double centre_crb(double u, double s, double A, double background, double full_scale_dn, const SensorNoise& noise);
+double centre_crb(double u, double s, double A, double background, double full_scale_dn,
+                  const SensorNoise& noise);
 
-// The same fit for kBatch rows at once, the rows in SIMD lanes (stripe_extractor.cpp's extract_frame fills one
-// lane per row of a block of rows). Every per-sample loop runs over the lanes with a fixed trip count, so it
-// vectorizes across rows (the walks that bound the fit become lane-wise masks, no per-row branches); the 3x3
-// solves are lane loops in double too. Each lane's window is the samples at ic + x for x in [xa, xb],
+// The same fit for kBatch rows at once, the rows in SIMD lanes (stripe_extractor.cpp's extract_frame fills
+// one lane per row of a block of rows). Every per-sample loop runs over the lanes with a fixed trip count, so
+// it vectorizes across rows (the walks that bound the fit become lane-wise masks, no per-row branches); the
+// 3x3 solves are lane loops in double too. Each lane's window is the samples at ic + x for x in [xa, xb],
 // -kBatchHalf < xa <= 0 <= xb < kBatchHalf, stored at y[kBatchHalf + x][lane]. Per lane the result is the one
 // gauss_ml_centre gives on that window up to float rounding (the sums are added in another order): same
 // sample sets, same fallbacks. It depends on that lane's inputs only, bit for bit (unused lanes and the other
@@ -60,9 +62,9 @@ struct GaussMlBatch {
   alignas(64) float y[2 * kBatchHalf][kBatch] = {};  // samples minus background, 8-bit DN; finite everywhere
   alignas(32) std::int32_t xa[kBatch] = {};          // the lane's window (relative to its ic)
   alignas(32) std::int32_t xb[kBatch] = {};
-  alignas(32) double contrast[kBatch] = {};          // peak height above background, DN
-  alignas(32) double clip[kBatch] = {};              // samples >= clip are at full scale (censored)
-  bool intensity_step = true;                        // false: step 1 only (GaussLog), see gauss_ml_centre
+  alignas(32) double contrast[kBatch] = {};  // peak height above background, DN
+  alignas(32) double clip[kBatch] = {};      // samples >= clip are at full scale (censored)
+  bool intensity_step = true;                // false: step 1 only (GaussLog), see gauss_ml_centre
   // Results: ok[lane] != 0 when a Gaussian fits; then centre[lane] is the centre relative to ic.
   alignas(32) double centre[kBatch] = {};
   alignas(32) std::int32_t ok[kBatch] = {};

@@ -4,19 +4,19 @@
 //
 // Each row's samples at imax - kWinHalf .. imax + kWinHalf - 1 (zeros outside the row) are copied into
 // LaneWindow::raw, then transposed so that w[kWinHalf + d][lane] is that lane's sample at imax + d. The walks
-// (support of the peak, its flat top, the half-maximum flanks) then step d = 1, 2, ... for all lanes together:
-// a lane's walk is a mask that stays set while its condition holds (no per-row branch, one loop exit per block
-// instead of one mispredicted exit per row and walk). The zeros outside the row stop every walk there exactly
-// where the per-row walks stop at the row's ends (every threshold is >= 0 and the walks ask `v > threshold`),
-// so the counts are the per-row walks' (stripe_extractor.cpp uses the per-row code for Mono16 and as the
-// reference; tests/firmware/extract_lanes_test.cpp checks they agree).
+// (support of the peak, its flat top, the half-maximum flanks) then step d = 1, 2, ... for all lanes
+// together: a lane's walk is a mask that stays set while its condition holds (no per-row branch, one loop
+// exit per block instead of one mispredicted exit per row and walk). The zeros outside the row stop every
+// walk there exactly where the per-row walks stop at the row's ends (every threshold is >= 0 and the walks
+// ask `v > threshold`), so the counts are the per-row walks' (stripe_extractor.cpp uses the per-row code for
+// Mono16 and as the reference; tests/firmware/extract_lanes_test.cpp checks they agree).
 #include <cstdint>
 #include <cstring>
 
 namespace fs::fw::detail {
 
-constexpr int kLaneRows = 8;   // rows per block (= kBatch of the fit)
-constexpr int kWinHalf = 32;   // window imax - 32 .. imax + 31: walks of up to kMaxLaneWalk samples + 1 flank
+constexpr int kLaneRows = 8;  // rows per block (= kBatch of the fit)
+constexpr int kWinHalf = 32;  // window imax - 32 .. imax + 31: walks of up to kMaxLaneWalk samples + 1 flank
 constexpr int kMaxLaneWalk = kWinHalf - 2;
 
 using LaneI16 = std::int16_t __attribute__((vector_size(16)));
@@ -43,7 +43,8 @@ inline void window_fill(std::uint8_t* dst, const std::uint8_t* row, std::uint32_
 
 // raw[lane] = the row's window (window_fill).
 template <std::uint32_t Step>
-inline void lane_window_fill(LaneWindow& win, int lane, const std::uint8_t* row, std::uint32_t n, std::uint32_t imax) {
+inline void lane_window_fill(LaneWindow& win, int lane, const std::uint8_t* row, std::uint32_t n,
+                             std::uint32_t imax) {
   window_fill<Step>(win.raw[lane], row, n, imax);
 }
 
@@ -57,12 +58,24 @@ inline LaneU8 shuffle(LaneU8 a, LaneU8 b) {
   return __builtin_shuffle(a, b, LaneU8{I...});
 #endif
 }
-inline LaneU8 lo8(LaneU8 a, LaneU8 b) { return shuffle<0, 16, 1, 17, 2, 18, 3, 19, 4, 20, 5, 21, 6, 22, 7, 23>(a, b); }
-inline LaneU8 hi8(LaneU8 a, LaneU8 b) { return shuffle<8, 24, 9, 25, 10, 26, 11, 27, 12, 28, 13, 29, 14, 30, 15, 31>(a, b); }
-inline LaneU8 lo16(LaneU8 a, LaneU8 b) { return shuffle<0, 1, 16, 17, 2, 3, 18, 19, 4, 5, 20, 21, 6, 7, 22, 23>(a, b); }
-inline LaneU8 hi16(LaneU8 a, LaneU8 b) { return shuffle<8, 9, 24, 25, 10, 11, 26, 27, 12, 13, 28, 29, 14, 15, 30, 31>(a, b); }
-inline LaneU8 lo32(LaneU8 a, LaneU8 b) { return shuffle<0, 1, 2, 3, 16, 17, 18, 19, 4, 5, 6, 7, 20, 21, 22, 23>(a, b); }
-inline LaneU8 hi32(LaneU8 a, LaneU8 b) { return shuffle<8, 9, 10, 11, 24, 25, 26, 27, 12, 13, 14, 15, 28, 29, 30, 31>(a, b); }
+inline LaneU8 lo8(LaneU8 a, LaneU8 b) {
+  return shuffle<0, 16, 1, 17, 2, 18, 3, 19, 4, 20, 5, 21, 6, 22, 7, 23>(a, b);
+}
+inline LaneU8 hi8(LaneU8 a, LaneU8 b) {
+  return shuffle<8, 24, 9, 25, 10, 26, 11, 27, 12, 28, 13, 29, 14, 30, 15, 31>(a, b);
+}
+inline LaneU8 lo16(LaneU8 a, LaneU8 b) {
+  return shuffle<0, 1, 16, 17, 2, 3, 18, 19, 4, 5, 20, 21, 6, 7, 22, 23>(a, b);
+}
+inline LaneU8 hi16(LaneU8 a, LaneU8 b) {
+  return shuffle<8, 9, 24, 25, 10, 11, 26, 27, 12, 13, 28, 29, 14, 15, 30, 31>(a, b);
+}
+inline LaneU8 lo32(LaneU8 a, LaneU8 b) {
+  return shuffle<0, 1, 2, 3, 16, 17, 18, 19, 4, 5, 6, 7, 20, 21, 22, 23>(a, b);
+}
+inline LaneU8 hi32(LaneU8 a, LaneU8 b) {
+  return shuffle<8, 9, 10, 11, 24, 25, 26, 27, 12, 13, 14, 15, 28, 29, 30, 31>(a, b);
+}
 // The same 16 bytes as another 16-byte vector type.
 template <class To, class From>
 inline To bits(From a) {
@@ -86,7 +99,8 @@ inline bool any(LaneI16 m) {
 
 }  // namespace lanes
 
-// w from raw: 8 x 16 bytes at a time through three interleave stages (the byte transpose), then zero-extended.
+// w from raw: 8 x 16 bytes at a time through three interleave stages (the byte transpose), then
+// zero-extended.
 inline void lane_window_transpose(LaneWindow& win) {
   using namespace lanes;
   for (int c = 0; c < 2 * kWinHalf; c += 16) {
@@ -107,8 +121,8 @@ inline void lane_window_transpose(LaneWindow& win) {
 }
 
 // The support walks: per lane, how many contiguous samples left / right of imax exceed low[lane] (at most
-// max_walk), their sum, and how many samples right of imax within that support are >= top[lane] (the flat top).
-// Lanes with low = 32767 walk nowhere.
+// max_walk), their sum, and how many samples right of imax within that support are >= top[lane] (the flat
+// top). Lanes with low = 32767 walk nowhere.
 struct LaneSupport {
   LaneI16 left, right, sum, top;
 };
@@ -131,8 +145,8 @@ inline LaneSupport lane_support_walks(const LaneWindow& win, LaneI16 low, LaneI1
 
 // The half-maximum walks inside the support: samples left / right of imax above half[lane], at most
 // left_max[lane] / right_max[lane] of them.
-inline void lane_half_walks(const LaneWindow& win, LaneI16 half, LaneI16 left_max, LaneI16 right_max, int max_walk,
-                            LaneI16& left, LaneI16& right) {
+inline void lane_half_walks(const LaneWindow& win, LaneI16 half, LaneI16 left_max, LaneI16 right_max,
+                            int max_walk, LaneI16& left, LaneI16& right) {
   LaneI16 aliveL = ~LaneI16{}, aliveR = ~LaneI16{};
   left = right = LaneI16{};
   for (int d = 1; d <= max_walk; ++d) {

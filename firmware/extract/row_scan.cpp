@@ -45,7 +45,8 @@ inline __m128i sse2_block(const std::uint8_t* p, std::uint8_t* lanes, __m128i& a
 void scan_sse2(const std::uint8_t* row, std::uint32_t n, RowScan<std::uint8_t>& s) {
   const std::uint32_t full = n / kBlock;
   __m128i acc = _mm_setzero_si128(), gm = _mm_setzero_si128();
-  for (std::uint32_t b = 0; b < full; ++b) gm = sse2_block(row + static_cast<std::size_t>(b) * kBlock, s.lane_max[b], acc, gm);
+  for (std::uint32_t b = 0; b < full; ++b)
+    gm = sse2_block(row + static_cast<std::size_t>(b) * kBlock, s.lane_max[b], acc, gm);
   if (full < s.nblocks) {
     std::uint8_t tail[kBlock];
     gm = sse2_block(padded_tail(row, n, full, tail), s.lane_max[full], acc, gm);
@@ -55,8 +56,8 @@ void scan_sse2(const std::uint8_t* row, std::uint32_t n, RowScan<std::uint8_t>& 
           static_cast<std::uint64_t>(_mm_cvtsi128_si64(_mm_unpackhi_epi64(acc, acc)));
 }
 
-__attribute__((target("avx2"))) inline __m256i avx2_block(const std::uint8_t* p, std::uint8_t* lanes, __m256i& acc,
-                                                          __m256i gm) {
+__attribute__((target("avx2"))) inline __m256i avx2_block(const std::uint8_t* p, std::uint8_t* lanes,
+                                                          __m256i& acc, __m256i gm) {
   const __m256i z = _mm256_setzero_si256();
   const __m256i a0 = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(p));
   const __m256i a1 = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(p + 32));
@@ -66,27 +67,31 @@ __attribute__((target("avx2"))) inline __m256i avx2_block(const std::uint8_t* p,
   return _mm256_max_epu8(gm, m);
 }
 
-__attribute__((target("avx2"))) void scan_avx2(const std::uint8_t* row, std::uint32_t n, RowScan<std::uint8_t>& s) {
+__attribute__((target("avx2"))) void scan_avx2(const std::uint8_t* row, std::uint32_t n,
+                                               RowScan<std::uint8_t>& s) {
   const std::uint32_t full = n / kBlock;
   __m256i acc = _mm256_setzero_si256(), gm = _mm256_setzero_si256();
-  for (std::uint32_t b = 0; b < full; ++b) gm = avx2_block(row + static_cast<std::size_t>(b) * kBlock, s.lane_max[b], acc, gm);
+  for (std::uint32_t b = 0; b < full; ++b)
+    gm = avx2_block(row + static_cast<std::size_t>(b) * kBlock, s.lane_max[b], acc, gm);
   if (full < s.nblocks) {
     std::uint8_t tail[kBlock];
     gm = avx2_block(padded_tail(row, n, full, tail), s.lane_max[full], acc, gm);
   }
   s.max = hmax16(_mm_max_epu8(_mm256_castsi256_si128(gm), _mm256_extracti128_si256(gm, 1)));
   const __m128i a = _mm_add_epi64(_mm256_castsi256_si128(acc), _mm256_extracti128_si256(acc, 1));
-  s.sum = static_cast<std::uint64_t>(_mm_cvtsi128_si64(a)) + static_cast<std::uint64_t>(_mm_cvtsi128_si64(_mm_unpackhi_epi64(a, a)));
+  s.sum = static_cast<std::uint64_t>(_mm_cvtsi128_si64(a)) +
+          static_cast<std::uint64_t>(_mm_cvtsi128_si64(_mm_unpackhi_epi64(a, a)));
 }
 
 // max_outside_u8 on AVX2: the (at most two) blocks that [lo, hi] overlaps get lane maxima of their samples
 // outside [lo, hi] (masked reads of the row), written over theirs in s.lane_max, then every block's lane
 // maxima in one pass of fixed length (the same trip count for every row of a frame: no mispredicted exits).
-__attribute__((target("avx2"))) std::uint8_t max_outside_avx2(const std::uint8_t* row, RowScan<std::uint8_t>& s,
-                                                              std::int64_t lo, std::int64_t hi, std::uint32_t blo,
+__attribute__((target("avx2"))) std::uint8_t max_outside_avx2(const std::uint8_t* row,
+                                                              RowScan<std::uint8_t>& s, std::int64_t lo,
+                                                              std::int64_t hi, std::uint32_t blo,
                                                               std::uint32_t bhi) {
-  const __m256i iota0 = _mm256_setr_epi8(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20,
-                                         21, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31);
+  const __m256i iota0 = _mm256_setr_epi8(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19,
+                                         20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31);
   const __m256i iota1 = _mm256_add_epi8(iota0, _mm256_set1_epi8(32));
   for (std::uint32_t b = blo; b <= bhi; ++b) {
     const std::int64_t base = static_cast<std::int64_t>(b) * kBlock;
@@ -95,8 +100,10 @@ __attribute__((target("avx2"))) std::uint8_t max_outside_avx2(const std::uint8_t
     // outside [lo, hi]: i < lo or i > hi (indices and bounds in -1 .. 64: signed byte compares are exact)
     const __m256i out0 = _mm256_or_si256(_mm256_cmpgt_epi8(rlo, iota0), _mm256_cmpgt_epi8(iota0, rhi));
     const __m256i out1 = _mm256_or_si256(_mm256_cmpgt_epi8(rlo, iota1), _mm256_cmpgt_epi8(iota1, rhi));
-    const __m256i a0 = _mm256_and_si256(out0, _mm256_loadu_si256(reinterpret_cast<const __m256i*>(row + base)));
-    const __m256i a1 = _mm256_and_si256(out1, _mm256_loadu_si256(reinterpret_cast<const __m256i*>(row + base + 32)));
+    const __m256i a0 =
+        _mm256_and_si256(out0, _mm256_loadu_si256(reinterpret_cast<const __m256i*>(row + base)));
+    const __m256i a1 =
+        _mm256_and_si256(out1, _mm256_loadu_si256(reinterpret_cast<const __m256i*>(row + base + 32)));
     _mm256_storeu_si256(reinterpret_cast<__m256i*>(s.lane_max[b]), _mm256_max_epu8(a0, a1));
   }
   __m256i m0 = _mm256_setzero_si256(), m1 = _mm256_setzero_si256();
@@ -105,7 +112,8 @@ __attribute__((target("avx2"))) std::uint8_t max_outside_avx2(const std::uint8_t
     m0 = _mm256_max_epu8(m0, _mm256_loadu_si256(reinterpret_cast<const __m256i*>(s.lane_max[b])));
     m1 = _mm256_max_epu8(m1, _mm256_loadu_si256(reinterpret_cast<const __m256i*>(s.lane_max[b + 1])));
   }
-  if (b < s.nblocks) m0 = _mm256_max_epu8(m0, _mm256_loadu_si256(reinterpret_cast<const __m256i*>(s.lane_max[b])));
+  if (b < s.nblocks)
+    m0 = _mm256_max_epu8(m0, _mm256_loadu_si256(reinterpret_cast<const __m256i*>(s.lane_max[b])));
   m0 = _mm256_max_epu8(m0, m1);
   return hmax16(_mm_max_epu8(_mm256_castsi256_si128(m0), _mm256_extracti128_si256(m0, 1)));
 }
@@ -132,10 +140,12 @@ bool cpu_has_avx512vl() {
   return detected;
 }
 
-std::uint8_t max_outside_u8(const std::uint8_t* row, RowScan<std::uint8_t>& s, std::int64_t lo, std::int64_t hi) {
+std::uint8_t max_outside_u8(const std::uint8_t* row, RowScan<std::uint8_t>& s, std::int64_t lo,
+                            std::int64_t hi) {
   const std::int64_t n = s.n;
   const std::int64_t l = std::clamp<std::int64_t>(lo, 0, n - 1), h = std::clamp<std::int64_t>(hi, l, n - 1);
-  const std::uint32_t blo = static_cast<std::uint32_t>(l / kBlock), bhi = static_cast<std::uint32_t>(h / kBlock);
+  const std::uint32_t blo = static_cast<std::uint32_t>(l / kBlock),
+                      bhi = static_cast<std::uint32_t>(h / kBlock);
   if (isa() == Isa::Avx2 && bhi <= blo + 1 && static_cast<std::int64_t>(bhi + 1) * kBlock <= n)
     return max_outside_avx2(row, s, l, h, blo, bhi);
   return max_outside<std::uint8_t, 1>(row, s, lo, hi);
@@ -147,8 +157,10 @@ void scan_row_u8(const std::uint8_t* row, std::uint32_t n, RowScan<std::uint8_t>
   n = std::min(n, kMaxBlocks * kBlock);
   s.n = n;
   s.nblocks = (n + kBlock - 1) / kBlock;
-  if (isa() == Isa::Avx2) scan_avx2(row, n, s);
-  else scan_sse2(row, n, s);
+  if (isa() == Isa::Avx2)
+    scan_avx2(row, n, s);
+  else
+    scan_sse2(row, n, s);
 }
 
 #else
@@ -158,7 +170,8 @@ bool cpu_has_avx512vl() { return false; }
 
 const char* scan_row_u8_isa() { return "portable"; }
 
-std::uint8_t max_outside_u8(const std::uint8_t* row, RowScan<std::uint8_t>& s, std::int64_t lo, std::int64_t hi) {
+std::uint8_t max_outside_u8(const std::uint8_t* row, RowScan<std::uint8_t>& s, std::int64_t lo,
+                            std::int64_t hi) {
   return max_outside<std::uint8_t, 1>(row, s, lo, hi);
 }
 

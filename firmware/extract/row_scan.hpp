@@ -3,8 +3,8 @@
 // maxima (kLanes lanes, each the max of the block's samples j and j + kLanes) and the row sum. Written as
 // plain fixed-trip-count loops over independent lanes so the compiler vectorizes them on every target (SSE2 /
 // AVX2 on x86-64, NEON on aarch64/armhf) without intrinsics; no horizontal reduction per block. Everything
-// after this pass (arg-max, support, background, double-peak test, sub-pixel fit) touches only the few samples
-// around the peak plus these block maxima.
+// after this pass (arg-max, support, background, double-peak test, sub-pixel fit) touches only the few
+// samples around the peak plus these block maxima.
 //
 // 8-bit rows (Mono8, the hot case) on x86-64 take the SIMD path of row_scan.cpp instead: the same lane maxima
 // with the row sum by PSADBW (the compiler cannot derive a byte sum that cheap), AVX2 when the CPU has it,
@@ -18,9 +18,9 @@
 
 namespace fs::fw::detail {
 
-constexpr std::uint32_t kBlock = 64;      // samples per block
-constexpr std::uint32_t kLanes = 32;      // lane maxima kept per block (kBlock / 2)
-constexpr std::uint32_t kMaxBlocks = 256; // rows up to 16384 samples
+constexpr std::uint32_t kBlock = 64;       // samples per block
+constexpr std::uint32_t kLanes = 32;       // lane maxima kept per block (kBlock / 2)
+constexpr std::uint32_t kMaxBlocks = 256;  // rows up to 16384 samples
 
 template <typename T>
 struct RowScan {
@@ -31,7 +31,7 @@ struct RowScan {
 
   T lane_max[kMaxBlocks][kLanes];  // per block, lane-wise maxima (uninitialized beyond nblocks)
   std::uint32_t nblocks = 0;
-  std::uint32_t n = 0;             // samples scanned (the row width, clamped to kMaxBlocks * kBlock)
+  std::uint32_t n = 0;  // samples scanned (the row width, clamped to kMaxBlocks * kBlock)
   std::uint64_t sum = 0;
   T max = 0;
 
@@ -75,7 +75,8 @@ void scan_row_portable(const T* row, std::uint32_t n, RowScan<T>& s) {
   }
   if (full < s.nblocks) {  // the partial last block, zero-padded (zeros change neither max nor sum)
     T tail[kBlock] = {};
-    for (std::uint32_t i = full * kBlock; i < n; ++i) tail[i - full * kBlock] = row[static_cast<std::size_t>(i) * Step];
+    for (std::uint32_t i = full * kBlock; i < n; ++i)
+      tail[i - full * kBlock] = row[static_cast<std::size_t>(i) * Step];
     scan_block<T, 1>(tail, s.lane_max[full], acc);
   }
   flush();
@@ -99,8 +100,10 @@ void scan_row_u8(const std::uint8_t* row, std::uint32_t n, RowScan<std::uint8_t>
 
 template <typename T, std::uint32_t Step>
 inline void scan_row(const T* row, std::uint32_t n, RowScan<T>& s) {
-  if constexpr (sizeof(T) == 1 && Step == 1) scan_row_u8(row, n, s);
-  else scan_row_portable<T, Step>(row, n, s);
+  if constexpr (sizeof(T) == 1 && Step == 1)
+    scan_row_u8(row, n, s);
+  else
+    scan_row_portable<T, Step>(row, n, s);
 }
 
 // Max of the samples [begin, end) (exact; vectorizable for Step 1).
@@ -114,10 +117,10 @@ inline T range_max(const T* row, std::int64_t begin, std::int64_t end) {
   return m;
 }
 
-// Max of every sample outside [lo, hi] (inclusive): lane maxima for the blocks clear of it, exact scans of the
-// parts of the (at most few) blocks it overlaps. Generic vectors of one block's kLanes lane maxima (SSE2/AVX2 on
-// x86-64, NEON on arm); for contiguous rows (Step 1) the overlapped full blocks are read whole with the
-// samples inside [lo, hi] masked out, no per-sample loop.
+// Max of every sample outside [lo, hi] (inclusive): lane maxima for the blocks clear of it, exact scans of
+// the parts of the (at most few) blocks it overlaps. Generic vectors of one block's kLanes lane maxima
+// (SSE2/AVX2 on x86-64, NEON on arm); for contiguous rows (Step 1) the overlapped full blocks are read whole
+// with the samples inside [lo, hi] masked out, no per-sample loop.
 template <typename T>
 struct Vec16;  // 16 bytes of T as a generic vector (the SIMD width every target has), and its signed twin
 template <>
@@ -140,7 +143,8 @@ T max_outside(const T* row, const RowScan<T>& s, std::int64_t lo, std::int64_t h
   const std::int64_t n = s.n;
   lo = std::clamp<std::int64_t>(lo, 0, n - 1);
   hi = std::clamp<std::int64_t>(hi, lo, n - 1);
-  const std::uint32_t blo = static_cast<std::uint32_t>(lo / kBlock), bhi = static_cast<std::uint32_t>(hi / kBlock);
+  const std::uint32_t blo = static_cast<std::uint32_t>(lo / kBlock),
+                      bhi = static_cast<std::uint32_t>(hi / kBlock);
   V mx[kParts] = {};
   const auto vmax = [](V a, V b) { return a > b ? a : b; };
   const auto add_blocks = [&](std::uint32_t b0, std::uint32_t b1) {
@@ -180,14 +184,16 @@ T max_outside(const T* row, const RowScan<T>& s, std::int64_t lo, std::int64_t h
   T m = 0;
   for (std::uint32_t j = 0; j < kW; ++j) m = mx[0][j] > m ? mx[0][j] : m;
   const T left = range_max<T, Step>(row, static_cast<std::int64_t>(blo) * kBlock, lo);
-  const T right = range_max<T, Step>(row, hi + 1, std::min<std::int64_t>(static_cast<std::int64_t>(bhi + 1) * kBlock, n));
+  const T right =
+      range_max<T, Step>(row, hi + 1, std::min<std::int64_t>(static_cast<std::int64_t>(bhi + 1) * kBlock, n));
   m = left > m ? left : m;
   return right > m ? right : m;
 }
 
-// max_outside for contiguous 8-bit rows, the same result: on x86-64 with AVX2 it overwrites the lane maxima of
-// the (at most two) blocks that [lo, hi] overlaps with those of their samples outside [lo, hi], so s is spent
-// for any other window afterwards (what extraction does: one double-peak test per row pass).
-std::uint8_t max_outside_u8(const std::uint8_t* row, RowScan<std::uint8_t>& s, std::int64_t lo, std::int64_t hi);
+// max_outside for contiguous 8-bit rows, the same result: on x86-64 with AVX2 it overwrites the lane maxima
+// of the (at most two) blocks that [lo, hi] overlaps with those of their samples outside [lo, hi], so s is
+// spent for any other window afterwards (what extraction does: one double-peak test per row pass).
+std::uint8_t max_outside_u8(const std::uint8_t* row, RowScan<std::uint8_t>& s, std::int64_t lo,
+                            std::int64_t hi);
 
 }  // namespace fs::fw::detail

@@ -22,12 +22,18 @@ namespace fs::fw {
 
 const char* to_string(SubpixelMethod m) {
   switch (m) {
-    case SubpixelMethod::CentreOfGravity: return "cog";
-    case SubpixelMethod::Gaussian3: return "gauss3";
-    case SubpixelMethod::BlaisRioux: return "blais-rioux";
-    case SubpixelMethod::GaussFit: return "gauss-fit";
-    case SubpixelMethod::GaussMl: return "gauss-ml";
-    case SubpixelMethod::GaussLog: return "gauss-log";
+    case SubpixelMethod::CentreOfGravity:
+      return "cog";
+    case SubpixelMethod::Gaussian3:
+      return "gauss3";
+    case SubpixelMethod::BlaisRioux:
+      return "blais-rioux";
+    case SubpixelMethod::GaussFit:
+      return "gauss-fit";
+    case SubpixelMethod::GaussMl:
+      return "gauss-ml";
+    case SubpixelMethod::GaussLog:
+      return "gauss-log";
   }
   return "unknown";
 }
@@ -69,7 +75,9 @@ std::uint32_t first_argmax(const T* row, const detail::RowScan<T>& s, T mx) {
 }
 
 // The methods whose centres the batched fit computes (gauss_ml.hpp: GaussLog is its first step alone).
-inline bool fits_in_batch(SubpixelMethod m) { return m == SubpixelMethod::GaussMl || m == SubpixelMethod::GaussLog; }
+inline bool fits_in_batch(SubpixelMethod m) {
+  return m == SubpixelMethod::GaussMl || m == SubpixelMethod::GaussLog;
+}
 
 // A row whose GaussMl centre waits for the batched fit (lane `lane` of the block's GaussMlBatch): what
 // finish_row needs besides the batch's result.
@@ -97,7 +105,7 @@ template <typename T>
 struct RowState {
   const T* row = nullptr;
   std::uint32_t n = 0;
-  bool active = false;  // still being analysed (false: `r` is final, or the row waits for the batch)
+  bool active = false;    // still being analysed (false: `r` is final, or the row waits for the batch)
   bool deferred = false;  // waits for the batched GaussMl fit (then `d` holds the rest)
   RowPeak r;
   Deferred d;
@@ -137,8 +145,8 @@ void stage_scan(RowState<T>& st, const T* row, std::uint32_t n, double full_scal
 }
 
 template <typename T, std::uint32_t Step>
-void support_end(RowState<T>& st, std::int64_t lo, std::int64_t hi, std::int64_t support_sum, double full_scale,
-                 const ExtractParams& p);
+void support_end(RowState<T>& st, std::int64_t lo, std::int64_t hi, std::int64_t support_sum,
+                 double full_scale, const ExtractParams& p);
 template <typename T, std::uint32_t Step>
 void support_decide(RowState<T>& st, std::int64_t lo, std::int64_t hi, double bg, double full_scale,
                     const ExtractParams& p);
@@ -157,7 +165,9 @@ void stage_support(RowState<T>& st, double full_scale, const ExtractParams& p) {
   // Integer samples: v > low  <=>  v > floor(low).
   const double low = bg + 0.2 * (peak - bg);
   const std::int64_t low_i = static_cast<std::int64_t>(low);  // low >= 0: truncation = floor
-  const auto iat = [&](std::int64_t i) { return static_cast<std::int64_t>(row[static_cast<std::size_t>(i) * Step]); };
+  const auto iat = [&](std::int64_t i) {
+    return static_cast<std::int64_t>(row[static_cast<std::size_t>(i) * Step]);
+  };
   const std::int64_t hw = p.max_half_width;
   std::int64_t lo = imax, hi = imax;
   std::int64_t support_sum = iat(imax);  // summed on the way (no second loop over the support)
@@ -168,13 +178,14 @@ void stage_support(RowState<T>& st, double full_scale, const ExtractParams& p) {
 
 // The rest of stage 2 once the support [lo, hi] and its sum are known (shared with the lane path).
 template <typename T, std::uint32_t Step>
-void support_end(RowState<T>& st, std::int64_t lo, std::int64_t hi, std::int64_t support_sum, double full_scale,
-                 const ExtractParams& p) {
+void support_end(RowState<T>& st, std::int64_t lo, std::int64_t hi, std::int64_t support_sum,
+                 double full_scale, const ExtractParams& p) {
   // Background without the stripe's own energy.
   double bg = st.bg;
   const std::int64_t rest = static_cast<std::int64_t>(st.n) - (hi - lo + 1);
   if (rest > 0)
-    bg = static_cast<double>(static_cast<std::int64_t>(st.scan.sum) - support_sum) / static_cast<double>(rest);
+    bg =
+        static_cast<double>(static_cast<std::int64_t>(st.scan.sum) - support_sum) / static_cast<double>(rest);
   support_decide<T, Step>(st, lo, hi, bg, full_scale, p);
 }
 
@@ -228,8 +239,8 @@ void defer_to_batch(RowState<T>& st, detail::GaussMlBatch& batch, int lane, cons
   if (!fill) {
     // filled already (the lane path's lane_fill_batch, the same arithmetic)
   } else if (src) {
-    // The whole lane, a fixed trip count in float (vectorized; samples outside [first, last] are masked by the
-    // fit).
+    // The whole lane, a fixed trip count in float (vectorized; samples outside [first, last] are masked by
+    // the fit).
     const float bgf = static_cast<float>(bg), invf = static_cast<float>(inv);
     for (std::int64_t x = 0; x < 2 * C; ++x) batch.y[x][lane] = (static_cast<float>(src[x]) - bgf) * invf;
   } else {
@@ -248,23 +259,27 @@ void defer_to_batch(RowState<T>& st, detail::GaussMlBatch& batch, int lane, cons
 template <typename T, std::uint32_t Step>
 bool ambiguous(RowState<T>& st, const ExtractParams& p);
 template <typename T, std::uint32_t Step>
-void centre_end(RowState<T>& st, double full_scale, const ExtractParams& p, detail::GaussMlBatch& batch, int lane,
-                std::int64_t left_end, std::int64_t right_end, std::int64_t top_end);
+void centre_end(RowState<T>& st, double full_scale, const ExtractParams& p, detail::GaussMlBatch& batch,
+                int lane, std::int64_t left_end, std::int64_t right_end, std::int64_t top_end);
 
-// Stage 3: the double-peak test, FWHM, and the sub-pixel centre (GaussMl: the row's window into lane `lane` of
-// the batch, finished by finish_row once the batch is fitted).
+// Stage 3: the double-peak test, FWHM, and the sub-pixel centre (GaussMl: the row's window into lane `lane`
+// of the batch, finished by finish_row once the batch is fitted).
 template <typename T, std::uint32_t Step>
-void stage_centre(RowState<T>& st, double full_scale, const ExtractParams& p, detail::GaussMlBatch& batch, int lane) {
+void stage_centre(RowState<T>& st, double full_scale, const ExtractParams& p, detail::GaussMlBatch& batch,
+                  int lane) {
   const T* row = st.row;
   const double bg = st.bg, contrast = st.contrast;
   const T mx = st.mx;
   const std::uint32_t imax = st.imax;
   const std::int64_t lo = st.lo, hi = st.hi;
-  const auto iat = [&](std::int64_t i) { return static_cast<std::int64_t>(row[static_cast<std::size_t>(i) * Step]); };
+  const auto iat = [&](std::int64_t i) {
+    return static_cast<std::int64_t>(row[static_cast<std::size_t>(i) * Step]);
+  };
   st.active = false;
   if (ambiguous<T, Step>(st, p)) return;
 
-  // Full width at half maximum by linear interpolation on both flanks (integer walks: v > half <=> v > floor).
+  // Full width at half maximum by linear interpolation on both flanks (integer walks: v > half <=> v >
+  // floor).
   const double half = bg + 0.5 * contrast;
   const std::int64_t half_i = static_cast<std::int64_t>(half);  // half >= 0: truncation = floor
   std::int64_t i = imax, j = imax;
@@ -283,8 +298,10 @@ bool ambiguous(RowState<T>& st, const ExtractParams& p) {
   const std::int64_t lo = st.lo, hi = st.hi;
   const double second_limit = st.bg + p.ambiguous_ratio * st.contrast;
   double second;
-  if constexpr (sizeof(T) == 1 && Step == 1) second = static_cast<double>(detail::max_outside_u8(st.row, st.scan, lo - 1, hi + 1));
-  else second = static_cast<double>(detail::max_outside<T, Step>(st.row, st.scan, lo - 1, hi + 1));
+  if constexpr (sizeof(T) == 1 && Step == 1)
+    second = static_cast<double>(detail::max_outside_u8(st.row, st.scan, lo - 1, hi + 1));
+  else
+    second = static_cast<double>(detail::max_outside<T, Step>(st.row, st.scan, lo - 1, hi + 1));
   if (second > second_limit || (hi - lo) >= 2 * static_cast<std::int64_t>(p.max_half_width)) {
     st.r.status = RowStatus::Ambiguous;
     return true;
@@ -292,14 +309,14 @@ bool ambiguous(RowState<T>& st, const ExtractParams& p) {
   return false;
 }
 
-// The FWHM from the half-maximum walks' ends i (left) and j (right), b and c the samples there, a and d the ones
-// past them (has_l / has_r: those exist in the row). Each edge is interpolated where the walk ended on the flank
-// (the sample past it at or below half: then b > half >= a and the edge lies in [i - 1, i)); a walk stopped by
-// the support's bound (max_half_width) on a stretch still above half keeps the bound (interpolating there
-// extrapolated: widths of -4500 px on such rows). The one expression of the per-row, lane and mask paths (same
-// bits), written with selects so that their lane loops vectorize.
-inline double half_max_width(double a, double b, double c, double d, double half, double i, double j, bool has_l,
-                             bool has_r) {
+// The FWHM from the half-maximum walks' ends i (left) and j (right), b and c the samples there, a and d the
+// ones past them (has_l / has_r: those exist in the row). Each edge is interpolated where the walk ended on
+// the flank (the sample past it at or below half: then b > half >= a and the edge lies in [i - 1, i)); a walk
+// stopped by the support's bound (max_half_width) on a stretch still above half keeps the bound
+// (interpolating there extrapolated: widths of -4500 px on such rows). The one expression of the per-row,
+// lane and mask paths (same bits), written with selects so that their lane loops vectorize.
+inline double half_max_width(double a, double b, double c, double d, double half, double i, double j,
+                             bool has_l, bool has_r) {
   const bool ul = has_l && a <= half, ur = has_r && d <= half;
   const double ql = (b - half) / (ul ? b - a : 1.0), qr = (c - half) / (ur ? c - d : 1.0);
   return (ur ? j + qr : j) - (ul ? i - ql : i);
@@ -308,8 +325,8 @@ inline double half_max_width(double a, double b, double c, double d, double half
 // The rest of stage 3 once the half-maximum walks ended at i (left) and j (right) and the flat top at top_end
 // (shared with the lane path).
 template <typename T, std::uint32_t Step>
-void centre_end(RowState<T>& st, double full_scale, const ExtractParams& p, detail::GaussMlBatch& batch, int lane,
-                std::int64_t left_end, std::int64_t right_end, std::int64_t top_end) {
+void centre_end(RowState<T>& st, double full_scale, const ExtractParams& p, detail::GaussMlBatch& batch,
+                int lane, std::int64_t left_end, std::int64_t right_end, std::int64_t top_end) {
   const T* row = st.row;
   const std::uint32_t n = st.n;
   const double scale = full_scale / 255.0;
@@ -389,8 +406,10 @@ void centre_end(RowState<T>& st, double full_scale, const ExtractParams& p, deta
       const double inv = 1.0 / scale;
       const double clip = (full_scale - bg) * inv;
       if (k < detail::kBatchHalf) {  // the batched fit (every stripe narrower than ~9 px FWHM)
-        const T* src = Step == 1 && ic - detail::kBatchHalf >= 0 && ic + detail::kBatchHalf <= static_cast<std::int64_t>(n)
-                           ? row + (ic - detail::kBatchHalf) : nullptr;
+        const T* src = Step == 1 && ic - detail::kBatchHalf >= 0 &&
+                               ic + detail::kBatchHalf <= static_cast<std::int64_t>(n)
+                           ? row + (ic - detail::kBatchHalf)
+                           : nullptr;
         defer_to_batch<T, Step>(st, batch, lane, src, ic, first, last, inv, clip);
         return;
       }
@@ -398,7 +417,8 @@ void centre_end(RowState<T>& st, double full_scale, const ExtractParams& p, deta
       const std::int64_t count = last - first + 1;
       for (std::int64_t i = 0; i < count; ++i)
         y[static_cast<std::size_t>(i)] = static_cast<float>((at(row, Step, first + i) - bg) * inv);
-      std::fill_n(y.begin() + count, detail::kChunk, 0.0f);  // the fit reads (and masks out) up to kChunk more
+      std::fill_n(y.begin() + count, detail::kChunk,
+                  0.0f);  // the fit reads (and masks out) up to kChunk more
       const detail::SensorNoise noise{p.read_noise, p.shot_noise, p.speckle};
       double c = 0.0;
       if (detail::gauss_ml_centre(y.data(), static_cast<int>(last - first + 1), static_cast<int>(ic - first),
@@ -410,7 +430,8 @@ void centre_end(RowState<T>& st, double full_scale, const ExtractParams& p, deta
       break;
     }
     case SubpixelMethod::BlaisRioux: {
-      // 4th-order derivative filter g(j) = f(j-2) + f(j-1) - f(j+1) - f(j+2); the centre is its zero crossing.
+      // 4th-order derivative filter g(j) = f(j-2) + f(j-1) - f(j+1) - f(j+2); the centre is its zero
+      // crossing.
       const auto g = [&](std::int64_t j) { return v(j - 2) + v(j - 1) - v(j + 1) - v(j + 2); };
       const double g0 = g(ic);
       std::int64_t j = g0 > 0.0 ? ic - 1 : ic;
@@ -425,15 +446,15 @@ void centre_end(RowState<T>& st, double full_scale, const ExtractParams& p, deta
   r.status = RowStatus::Ok;
 }
 
-// Stages 2 and 3 for a block of 8-bit rows with the walks in SIMD lanes (row_lanes.hpp), one row per lane: the
-// same decisions and results as stage_support + stage_centre row by row (the walks give the same counts, the
-// rest is the same code). Needs max_half_width <= kMaxLaneWalk; extract_rows and extract_row take it for GaussMl
-// rows only (lane_path), but it gives every method's results (the others through centre_end).
+// Stages 2 and 3 for a block of 8-bit rows with the walks in SIMD lanes (row_lanes.hpp), one row per lane:
+// the same decisions and results as stage_support + stage_centre row by row (the walks give the same counts,
+// the rest is the same code). Needs max_half_width <= kMaxLaneWalk; extract_rows and extract_row take it for
+// GaussMl rows only (lane_path), but it gives every method's results (the others through centre_end).
 template <std::uint32_t Step>
 void stage_lanes(RowState<std::uint8_t>* st, int rows, double full_scale, const ExtractParams& p,
                  detail::GaussMlBatch& batch, detail::LaneWindow& win) {
-  using detail::LaneI16;
   using detail::kWinHalf;
+  using detail::LaneI16;
   static_assert(detail::kLaneRows == detail::kBatch);
   constexpr std::int16_t kNever = 32767;  // a threshold no 8-bit sample exceeds: the lane walks nowhere
   alignas(16) std::int16_t low[detail::kLaneRows], top[detail::kLaneRows];
@@ -459,7 +480,9 @@ void stage_lanes(RowState<std::uint8_t>* st, int rows, double full_scale, const 
   for (int l = 0; l < L; ++l) {
     const bool act = l < rows && st[l].active;
     const std::int64_t width = sup.left[l] + sup.right[l] + 1;
-    total[l] = act ? static_cast<double>(static_cast<std::int64_t>(st[l].scan.sum) - win.raw[l][kWinHalf] - sup.sum[l]) : 0.0;
+    total[l] = act ? static_cast<double>(static_cast<std::int64_t>(st[l].scan.sum) - win.raw[l][kWinHalf] -
+                                         sup.sum[l])
+                   : 0.0;
     rest[l] = act ? static_cast<double>(static_cast<std::int64_t>(st[l].n) - width) : 1.0;
     bg0[l] = act ? st[l].bg : 0.0;
     peak[l] = act ? st[l].peak : 0.0;
@@ -496,8 +519,9 @@ void stage_lanes(RowState<std::uint8_t>* st, int rows, double full_scale, const 
   std::memcpy(&rmaxv, rmax, sizeof rmaxv);
   detail::lane_half_walks(win, halfv, lmaxv, rmaxv, walk, left, right);
 
-  // The FWHM by interpolation on both flanks, in double lanes: centre_end's formulas, the samples at the walks'
-  // ends from the windows (0 outside the row, where the conditions i > 0, j + 1 < n exclude them anyway).
+  // The FWHM by interpolation on both flanks, in double lanes: centre_end's formulas, the samples at the
+  // walks' ends from the windows (0 outside the row, where the conditions i > 0, j + 1 < n exclude them
+  // anyway).
   alignas(64) double a[L], b[L], c[L], d[L], hv[L], iv[L], jv[L], width[L];
   alignas(64) std::int32_t ok_l[L], ok_r[L];
   for (int l = 0; l < L; ++l) {
@@ -531,7 +555,8 @@ void stage_lanes(RowState<std::uint8_t>* st, int rows, double full_scale, const 
     const std::int64_t ic = (im + im + sup.top[l]) / 2;
     const std::int64_t k = ml_half_window(width[l]);
     if (!fits_in_batch(p.method) || k >= detail::kBatchHalf) {  // the per-row code
-      centre_end<std::uint8_t, Step>(s, full_scale, p, batch, l, im - left[l], im + right[l], im + sup.top[l]);
+      centre_end<std::uint8_t, Step>(s, full_scale, p, batch, l, im - left[l], im + right[l],
+                                     im + sup.top[l]);
       continue;
     }
     s.r.width = width[l];
@@ -553,31 +578,33 @@ void stage_lanes(RowState<std::uint8_t>* st, int rows, double full_scale, const 
     const std::int64_t ic = ic_l[l], im = s.imax, n = s.n;
     const bool whole = Step == 1 && ic - detail::kBatchHalf >= 0 && ic + detail::kBatchHalf <= n;
     const std::uint8_t* src = whole ? win.raw[l] + (kWinHalf + (ic - im) - detail::kBatchHalf) : nullptr;
-    defer_to_batch<std::uint8_t, Step>(s, batch, l, src, ic, first_l[l], last_l[l], inv, (full_scale - s.bg) * inv,
-                                       !from_window[l]);
+    defer_to_batch<std::uint8_t, Step>(s, batch, l, src, ic, first_l[l], last_l[l], inv,
+                                       (full_scale - s.bg) * inv, !from_window[l]);
   }
 }
 
 #if defined(__x86_64__)
 // stage_lanes for contiguous 8-bit rows on x86-64 CPUs with AVX2 (masks_supported()): each row's walks as bit
-// masks of its 64-sample window (row_masks.hpp) instead of lane walks over transposed windows, and the batch's
-// input converted per row and transposed once per block. Three passes over the block's rows (support and
-// background; contrast, saturation and FWHM; double-peak test and the centre's window), so that the rows'
-// dependency chains (arg-max, masks, divisions) overlap as in stage_lanes. The same arithmetic in the same order
-// as stage_lanes and the per-row code (same bits, tests/firmware/extract_lanes_test.cpp); compiled for AVX2
-// without FMA (no contraction: the double expressions round as in the portable build).
-FS_ROW_MASKS_TARGET void stage_masks(RowState<std::uint8_t>* st, int rows, double full_scale, const ExtractParams& p,
-                                     detail::GaussMlBatch& batch, detail::LaneWindow& win) {
+// masks of its 64-sample window (row_masks.hpp) instead of lane walks over transposed windows, and the
+// batch's input converted per row and transposed once per block. Three passes over the block's rows (support
+// and background; contrast, saturation and FWHM; double-peak test and the centre's window), so that the rows'
+// dependency chains (arg-max, masks, divisions) overlap as in stage_lanes. The same arithmetic in the same
+// order as stage_lanes and the per-row code (same bits, tests/firmware/extract_lanes_test.cpp); compiled for
+// AVX2 without FMA (no contraction: the double expressions round as in the portable build).
+FS_ROW_MASKS_TARGET void stage_masks(RowState<std::uint8_t>* st, int rows, double full_scale,
+                                     const ExtractParams& p, detail::GaussMlBatch& batch,
+                                     detail::LaneWindow& win) {
   using detail::kWinHalf;
   constexpr int C = detail::kBatchHalf, L = detail::kBatch;
   const int hw = static_cast<int>(p.max_half_width);
   const double min_contrast = p.min_contrast * (full_scale / 255.0);
   const double inv = 1.0 / (full_scale / 255.0);  // centre_end's 1 / scale
   int left[L], right[L], top[L], left2[L], right2[L];
-  // the rows' divisions in loops of their own after the loops that feed them (independent of each other, so they
-  // overlap in the core; GCC keeps them scalar: vdivsd)
+  // the rows' divisions in loops of their own after the loops that feed them (independent of each other, so
+  // they overlap in the core; GCC keeps them scalar: vdivsd)
   alignas(64) double total[L] = {}, rest[L], bg0[L] = {}, bg[L];
-  alignas(64) double fa[L] = {}, fb[L] = {}, fc[L] = {}, fd[L] = {}, hv[L] = {}, fi[L] = {}, fj[L] = {}, width[L];
+  alignas(64) double fa[L] = {}, fb[L] = {}, fc[L] = {}, fd[L] = {}, hv[L] = {}, fi[L] = {}, fj[L] = {},
+                     width[L];
   alignas(64) std::int64_t ok_l[L] = {}, ok_r[L] = {};
   bool live[L];
   for (int l = 0; l < L; ++l) rest[l] = 1.0;
@@ -591,7 +618,8 @@ FS_ROW_MASKS_TARGET void stage_masks(RowState<std::uint8_t>* st, int rows, doubl
     const std::uint32_t imax = detail::masks::first_argmax(row, s.scan, s.mx);
     s.imax = imax;
     std::uint8_t* raw = win.raw[l];
-    // Straight from the row (a load right after the copy's stores would wait for them), kept for passes 2 and 3.
+    // Straight from the row (a load right after the copy's stores would wait for them), kept for passes 2
+    // and 3.
     detail::masks::Window w;
     if (static_cast<std::int64_t>(imax) < kWinHalf || imax + kWinHalf > s.n) {
       detail::window_fill<1>(raw, row, s.n, imax);
@@ -628,7 +656,8 @@ FS_ROW_MASKS_TARGET void stage_masks(RowState<std::uint8_t>* st, int rows, doubl
     live[l] = true;
     const std::uint8_t* raw = win.raw[l];
     hv[l] = s.bg + 0.5 * s.contrast;
-    const std::uint64_t above_half = detail::masks::above(detail::masks::load(raw), static_cast<std::int16_t>(hv[l]));
+    const std::uint64_t above_half =
+        detail::masks::above(detail::masks::load(raw), static_cast<std::int16_t>(hv[l]));
     left2[l] = detail::masks::run_left(above_half, left[l]);
     right2[l] = detail::masks::run_right(above_half, right[l]);
     const int li = kWinHalf - left2[l], rj = kWinHalf + right2[l];
@@ -647,7 +676,8 @@ FS_ROW_MASKS_TARGET void stage_masks(RowState<std::uint8_t>* st, int rows, doubl
   // 3. Double-peak test, then the centre: the batch's lane (or the per-row code).
   alignas(32) float lane_y[L][2 * C];  // the whole lanes' fit inputs, row-major (transposed below)
   bool any_whole = false, edge[L] = {};
-  std::int64_t edge_ic[L], edge_first[L], edge_last[L];  // the edge lanes' windows, filled after the transpose
+  std::int64_t edge_ic[L], edge_first[L],
+      edge_last[L];  // the edge lanes' windows, filled after the transpose
   for (int l = 0; l < rows; ++l) {
     if (!live[l]) continue;
     RowState<std::uint8_t>& s = st[l];
@@ -660,7 +690,8 @@ FS_ROW_MASKS_TARGET void stage_masks(RowState<std::uint8_t>* st, int rows, doubl
       continue;
     }
     s.r.width = width[l];
-    const std::int64_t first = std::max<std::int64_t>(0, ic - k), last = std::min<std::int64_t>(n - 1, ic + k);
+    const std::int64_t first = std::max<std::int64_t>(0, ic - k),
+                       last = std::min<std::int64_t>(n - 1, ic + k);
     const bool whole = ic - C >= 0 && ic + C <= n;
     edge[l] = !whole;
     if (!whole) {  // after the transpose, which writes every lane: defer_to_batch's per-sample fill
@@ -674,7 +705,8 @@ FS_ROW_MASKS_TARGET void stage_masks(RowState<std::uint8_t>* st, int rows, doubl
     detail::masks::fill_lane(win.raw[l] + (kWinHalf + (ic - im) - C), static_cast<float>(s.bg),
                              static_cast<float>(inv), lane_y[l]);
     any_whole = true;
-    defer_to_batch<std::uint8_t, 1>(s, batch, l, nullptr, ic, first, last, inv, (full_scale - s.bg) * inv, false);
+    defer_to_batch<std::uint8_t, 1>(s, batch, l, nullptr, ic, first, last, inv, (full_scale - s.bg) * inv,
+                                    false);
   }
   if (any_whole) {
     for (int l = 0; l < L; ++l)  // lanes without a whole window: finite placeholders
@@ -697,15 +729,16 @@ void finish_row(const T* row, const Deferred& d, const detail::GaussMlBatch& bat
   r.col = std::clamp(col, static_cast<double>(d.lo) - 0.5, static_cast<double>(d.hi) + 0.5);
 }
 
-// 8-bit GaussMl rows take the lane path (stage_lanes) unless the walks could leave its window. The other methods
-// keep the per-row walks: measured 2-12 % faster for them (the lane path pays off through the batch's lane fill).
+// 8-bit GaussMl rows take the lane path (stage_lanes) unless the walks could leave its window. The other
+// methods keep the per-row walks: measured 2-12 % faster for them (the lane path pays off through the batch's
+// lane fill).
 inline bool lane_path(const ExtractParams& p) {
   return fits_in_batch(p.method) && p.max_half_width <= static_cast<std::uint32_t>(detail::kMaxLaneWalk);
 }
 
-// Which code a lane-path block of 8-bit rows takes: the bit-mask walks (stage_masks: contiguous rows on x86-64
-// CPUs with AVX2, BMI1 and LZCNT; detected once) or the lane walks (stage_lanes: YUYV, other CPUs and targets).
-// Walks::Rows: the per-row walks (detail::extract_row_per_row_walks, the reference).
+// Which code a lane-path block of 8-bit rows takes: the bit-mask walks (stage_masks: contiguous rows on
+// x86-64 CPUs with AVX2, BMI1 and LZCNT; detected once) or the lane walks (stage_lanes: YUYV, other CPUs and
+// targets). Walks::Rows: the per-row walks (detail::extract_row_per_row_walks, the reference).
 using Walks = detail::Walks;
 inline bool masks_supported() {
 #if defined(__x86_64__)
@@ -761,8 +794,8 @@ RowPeak extract_row_impl(const T* row, std::uint32_t n, double full_scale, const
 }  // namespace
 
 template <>
-RowPeak extract_row<std::uint8_t>(const std::uint8_t* row, std::uint32_t n, std::uint32_t step, double full_scale,
-                                  const ExtractParams& p) {
+RowPeak extract_row<std::uint8_t>(const std::uint8_t* row, std::uint32_t n, std::uint32_t step,
+                                  double full_scale, const ExtractParams& p) {
   return step == 2 ? extract_row_impl<std::uint8_t, 2>(row, n, full_scale, p)
                    : extract_row_impl<std::uint8_t, 1>(row, n, full_scale, p);
 }
@@ -803,8 +836,8 @@ inline void prefetch_row(const std::uint8_t* p, std::size_t bytes) {
 // centre, GaussMl rows into the lanes of the batch), then one batched GaussMl fit for the block, then the
 // block's points in row order.
 template <typename T, std::uint32_t Step>
-void extract_rows(const FrameView& f, double full_scale, const ExtractParams& params, std::span<msg::StripePoint> out,
-                  ExtractCounts& c, Walks walks) {
+void extract_rows(const FrameView& f, double full_scale, const ExtractParams& params,
+                  std::span<msg::StripePoint> out, ExtractCounts& c, Walks walks) {
   constexpr int L = detail::kBatch;
   RowState<T> st[L];
   detail::GaussMlBatch batch;
@@ -815,8 +848,8 @@ void extract_rows(const FrameView& f, double full_scale, const ExtractParams& pa
   for (std::uint32_t y0 = 0; y0 < f.height; y0 += L) {
     const int rows = static_cast<int>(std::min<std::uint32_t>(L, f.height - y0));
     for (int i = 0; i < rows; ++i) {
-      const auto* row =
-          reinterpret_cast<const T*>(f.data + static_cast<std::size_t>(y0 + static_cast<std::uint32_t>(i)) * f.stride);
+      const auto* row = reinterpret_cast<const T*>(
+          f.data + static_cast<std::size_t>(y0 + static_cast<std::uint32_t>(i)) * f.stride);
       stage_pass<T, Step>(st[i], row, f.width);
       if (const std::uint8_t* ahead =
               detail::prefetch_target(f, y0 + static_cast<std::uint32_t>(i), params.prefetch_rows))
@@ -844,10 +877,17 @@ void extract_rows(const FrameView& f, double full_scale, const ExtractParams& pa
       const RowPeak& r = st[i].r;
       ++c.rows;
       switch (r.status) {
-        case RowStatus::NoStripe: ++c.no_stripe; continue;
-        case RowStatus::Ambiguous: ++c.ambiguous; continue;
-        case RowStatus::Saturated: ++c.saturated; continue;
-        case RowStatus::Ok: break;
+        case RowStatus::NoStripe:
+          ++c.no_stripe;
+          continue;
+        case RowStatus::Ambiguous:
+          ++c.ambiguous;
+          continue;
+        case RowStatus::Saturated:
+          ++c.saturated;
+          continue;
+        case RowStatus::Ok:
+          break;
       }
       if (c.points >= out.size()) continue;
       msg::StripePoint& pt = out[c.points++];
@@ -867,7 +907,8 @@ const std::uint8_t* detail::prefetch_target(const FrameView& f, std::uint32_t y,
   return f.data + (static_cast<std::size_t>(y) + rows) * f.stride;
 }
 
-ExtractCounts extract_frame(const FrameView& f, const ExtractParams& params, std::span<msg::StripePoint> out) {
+ExtractCounts extract_frame(const FrameView& f, const ExtractParams& params,
+                            std::span<msg::StripePoint> out) {
   return detail::extract_frame_walks(f, params, out, Walks::Best);
 }
 
@@ -876,9 +917,15 @@ ExtractCounts detail::extract_frame_walks(const FrameView& f, const ExtractParam
   ExtractCounts c;
   if (!f.data || f.width == 0 || f.height == 0) return c;
   switch (f.format) {
-    case PixelFormat::Mono8: extract_rows<std::uint8_t, 1>(f, 255.0, params, out, c, walks); break;
-    case PixelFormat::Yuyv: extract_rows<std::uint8_t, 2>(f, 255.0, params, out, c, walks); break;
-    case PixelFormat::Mono16: extract_rows<std::uint16_t, 1>(f, 65535.0, params, out, c, walks); break;
+    case PixelFormat::Mono8:
+      extract_rows<std::uint8_t, 1>(f, 255.0, params, out, c, walks);
+      break;
+    case PixelFormat::Yuyv:
+      extract_rows<std::uint8_t, 2>(f, 255.0, params, out, c, walks);
+      break;
+    case PixelFormat::Mono16:
+      extract_rows<std::uint16_t, 1>(f, 65535.0, params, out, c, walks);
+      break;
   }
   if (params.along_stripe >= 3) {
     const std::span<msg::StripePoint> pts = out.first(std::min<std::size_t>(c.points, out.size()));

@@ -33,21 +33,27 @@ namespace fs::fw {
 // GaussLog: GaussMl's first step alone (the unweighted log-parabola over the samples above 10 % of the
 // contrast: the maximum-likelihood fit when speckle is the only noise), about half the fit's cost.
 enum class SubpixelMethod : std::uint8_t {
-  CentreOfGravity = 0, Gaussian3 = 1, BlaisRioux = 2, GaussFit = 3, GaussMl = 4, GaussLog = 5
+  CentreOfGravity = 0,
+  Gaussian3 = 1,
+  BlaisRioux = 2,
+  GaussFit = 3,
+  GaussMl = 4,
+  GaussLog = 5
 };
 const char* to_string(SubpixelMethod m);
-// Parses "cog" | "gauss3" | "blais-rioux" | "gauss-fit" | "gauss-ml" | "gauss-log"; throws fs::Error otherwise.
+// Parses "cog" | "gauss3" | "blais-rioux" | "gauss-fit" | "gauss-ml" | "gauss-log"; throws fs::Error
+// otherwise.
 SubpixelMethod parse_subpixel_method(const char* text);
 
 enum class RowStatus : std::uint8_t { Ok = 0, NoStripe = 1, Ambiguous = 2, Saturated = 3 };
 
 struct ExtractParams {
   SubpixelMethod method = SubpixelMethod::GaussMl;
-  double min_contrast = 24.0;     // peak - background, in 8-bit units (scaled by 257 for Mono16)
-  double ambiguous_ratio = 0.5;   // second peak above bg + ratio * (peak - bg) -> Ambiguous
-  std::uint32_t saturation_run = 3;  // this many pixels at full scale around the peak -> Saturated
-  std::uint32_t cog_half_window = 5; // centre-of-gravity window: peak +- this many pixels
-  std::uint32_t max_half_width = 24; // support of the peak searched at most this far each side
+  double min_contrast = 24.0;         // peak - background, in 8-bit units (scaled by 257 for Mono16)
+  double ambiguous_ratio = 0.5;       // second peak above bg + ratio * (peak - bg) -> Ambiguous
+  std::uint32_t saturation_run = 3;   // this many pixels at full scale around the peak -> Saturated
+  std::uint32_t cog_half_window = 5;  // centre-of-gravity window: peak +- this many pixels
+  std::uint32_t max_half_width = 24;  // support of the peak searched at most this far each side
   // Sensor noise model for GaussMl's weights, in 8-bit DN (the bench camera's, = the hw-sim camera twin's):
   // per-pixel variance = read_noise^2 + 1/12 + shot_noise^2 * S + (speckle * S)^2 for a signal S. A model off
   // by 2x costs ~8 % accuracy (measured), so a rough characterization of the sensor is enough.
@@ -83,32 +89,37 @@ struct RowPeak {
 
 // Analyses one row of `n` samples of type T (uint8_t or uint16_t) spaced `step` samples apart.
 template <typename T>
-RowPeak extract_row(const T* row, std::uint32_t n, std::uint32_t step, double full_scale, const ExtractParams& p);
+RowPeak extract_row(const T* row, std::uint32_t n, std::uint32_t step, double full_scale,
+                    const ExtractParams& p);
 
 namespace detail {
 // extract_row for 8-bit rows with the per-row walks that Mono16 rows take, instead of the walks of a block's
-// rows in SIMD lanes (row_lanes.hpp) that 8-bit rows take: the reference that tests compare the lane path with.
-RowPeak extract_row_per_row_walks(const std::uint8_t* row, std::uint32_t n, std::uint32_t step, double full_scale,
-                                  const ExtractParams& p);
-// extract_row with the walks of a block's rows in SIMD lanes (row_lanes.hpp) where extract_row takes the bit-mask
-// walks (row_masks.hpp: contiguous 8-bit rows on x86-64 with AVX2); the same results.
-RowPeak extract_row_lane_walks(const std::uint8_t* row, std::uint32_t n, std::uint32_t step, double full_scale,
-                               const ExtractParams& p);
-// Which walks extract_row and extract_frame take for contiguous 8-bit rows here: "bit masks (avx2)" or "lanes".
+// rows in SIMD lanes (row_lanes.hpp) that 8-bit rows take: the reference that tests compare the lane path
+// with.
+RowPeak extract_row_per_row_walks(const std::uint8_t* row, std::uint32_t n, std::uint32_t step,
+                                  double full_scale, const ExtractParams& p);
+// extract_row with the walks of a block's rows in SIMD lanes (row_lanes.hpp) where extract_row takes the
+// bit-mask walks (row_masks.hpp: contiguous 8-bit rows on x86-64 with AVX2); the same results.
+RowPeak extract_row_lane_walks(const std::uint8_t* row, std::uint32_t n, std::uint32_t step,
+                               double full_scale, const ExtractParams& p);
+// Which walks extract_row and extract_frame take for contiguous 8-bit rows here: "bit masks (avx2)" or
+// "lanes".
 const char* extract_walks_isa();
-// The walks of 8-bit rows: Best (what extract_row and extract_frame take), Lanes (the SIMD-lane walks, what arm
-// and CPUs without AVX2 take) or Rows (the per-row walks).
+// The walks of 8-bit rows: Best (what extract_row and extract_frame take), Lanes (the SIMD-lane walks, what
+// arm and CPUs without AVX2 take) or Rows (the per-row walks).
 enum class Walks { Best, Lanes, Rows };
 }  // namespace detail
 
 // Extracts every row of the frame into `out` (at most out.size() points, rows in order), then refines the
 // centres along the stripe when params.along_stripe >= 3. Returns the counts.
-ExtractCounts extract_frame(const FrameView& frame, const ExtractParams& params, std::span<msg::StripePoint> out);
+ExtractCounts extract_frame(const FrameView& frame, const ExtractParams& params,
+                            std::span<msg::StripePoint> out);
 
 namespace detail {
-// extract_frame with the walks chosen; every choice gives the same results (tests/firmware/extract_lanes_test.cpp).
-ExtractCounts extract_frame_walks(const FrameView& frame, const ExtractParams& params, std::span<msg::StripePoint> out,
-                                  Walks walks);
+// extract_frame with the walks chosen; every choice gives the same results
+// (tests/firmware/extract_lanes_test.cpp).
+ExtractCounts extract_frame_walks(const FrameView& frame, const ExtractParams& params,
+                                  std::span<msg::StripePoint> out, Walks walks);
 // The first byte of the row `rows` below row y of the frame, which extract_frame prefetches while it passes
 // row y (ExtractParams::prefetch_rows); null when rows is 0 or that row is past the frame's last (y <
 // frame.height).

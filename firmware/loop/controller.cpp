@@ -10,12 +10,18 @@ namespace fs::fw {
 
 const char* to_string(State s) {
   switch (s) {
-    case State::Idle: return "idle";
-    case State::Homing: return "homing";
-    case State::Ready: return "ready";
-    case State::Scanning: return "scanning";
-    case State::Done: return "done";
-    case State::Fault: return "fault";
+    case State::Idle:
+      return "idle";
+    case State::Homing:
+      return "homing";
+    case State::Ready:
+      return "ready";
+    case State::Scanning:
+      return "scanning";
+    case State::Done:
+      return "done";
+    case State::Fault:
+      return "fault";
   }
   return "unknown";
 }
@@ -102,8 +108,8 @@ void Controller::fault(FaultCode code, Nanos now) {
   report_.fault = code;
   report_.fault_time = now;
   ++report_.fault_count;
-  std::snprintf(text_.data(), text_.size(), "%s (state %s, step %u)", to_string(code), to_string(report_.state),
-                step_);
+  std::snprintf(text_.data(), text_.size(), "%s (state %s, step %u)", to_string(code),
+                to_string(report_.state), step_);
   pub_.fault(static_cast<std::uint32_t>(code), text_.data());
   report_.state = State::Fault;
   state_since_ = now;
@@ -170,8 +176,10 @@ bool Controller::handle_frame(const FrameView& f, Nanos now) {
   s.header.frame_sequence = f.sequence;
   s.header.flags = counts.header_flags();
   s.points = std::span<msg::StripePoint>(points_.data(), counts.points);
-  if (pub_.stripe(s)) ++report_.stripes_sent;
-  else ++report_.stripes_dropped;
+  if (pub_.stripe(s))
+    ++report_.stripes_sent;
+  else
+    ++report_.stripes_dropped;
   retries_ = 0;
   ++step_;
   phase_ = Phase::Move;
@@ -197,19 +205,24 @@ void Controller::tick(Nanos now) {
   if (host_ok) host_lost_since_ = -1;
   const bool dwell_exceeded = laser_on_at_ >= 0 && now - laser_on_at_ > cfg_.max_dwell;
   const bool late = consecutive_late_ > cfg_.max_consecutive_late;
-  const bool host_fault = cfg_.require_host && host_lost_since_ >= 0 && now - host_lost_since_ >= cfg_.host_grace;
-  const bool allowed = st == State::Scanning && phase_ == Phase::Expose && gs.in_position && !gs.moving &&
-                       gs.fault == GalvoFault::None && !dwell_exceeded && !late && !host_fault &&
-                       std::abs(gs.measured_step - static_cast<double>(cfg_.first_step + static_cast<std::int32_t>(step_))) <= 0.5;
+  const bool host_fault =
+      cfg_.require_host && host_lost_since_ >= 0 && now - host_lost_since_ >= cfg_.host_grace;
+  const bool allowed =
+      st == State::Scanning && phase_ == Phase::Expose && gs.in_position && !gs.moving &&
+      gs.fault == GalvoFault::None && !dwell_exceeded && !late && !host_fault &&
+      std::abs(gs.measured_step - static_cast<double>(cfg_.first_step + static_cast<std::int32_t>(step_))) <=
+          0.5;
   if (dev_.laser.is_on() && !allowed) set_laser(false, now);
   bool emitting = false;
-  if (dev_.laser.monitor(emitting) && emitting != dev_.laser.is_on()) return fault(FaultCode::LaserMonitorMismatch, now);
+  if (dev_.laser.monitor(emitting) && emitting != dev_.laser.is_on())
+    return fault(FaultCode::LaserMonitorMismatch, now);
   if (stop_requested_.load(std::memory_order_relaxed)) return fault(FaultCode::Stopped, now);
   if (gs.fault != GalvoFault::None) return fault(fault_code_for(gs.fault), now);
   if (late) return fault(FaultCode::DeadlineMissed, now);
   if (dwell_exceeded) return fault(FaultCode::DwellOverrun, now);
   if (host_fault) return fault(FaultCode::HostLost, now);
-  if (st == State::Scanning && now - last_frame_at_ > cfg_.camera_timeout) return fault(FaultCode::CameraTimeout, now);
+  if (st == State::Scanning && now - last_frame_at_ > cfg_.camera_timeout)
+    return fault(FaultCode::CameraTimeout, now);
 
   if (now - last_heartbeat_ >= cfg_.heartbeat_period) {
     last_heartbeat_ = now;
@@ -279,10 +292,12 @@ void Controller::tick(Nanos now) {
             fault(FaultCode::MoveTimeout, now);
           }
           break;
-        case Phase::Expose: break;
+        case Phase::Expose:
+          break;
       }
       break;
-    default: break;
+    default:
+      break;
   }
 }
 

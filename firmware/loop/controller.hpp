@@ -36,21 +36,21 @@ enum class State : std::uint8_t { Idle = 0, Homing = 1, Ready = 2, Scanning = 3,
 const char* to_string(State s);
 
 struct LoopConfig {
-  Nanos period = 500'000;                 // control period (tick)
+  Nanos period = 500'000;  // control period (tick)
   std::int32_t first_step = 0;
   std::uint32_t steps = 500;
   Nanos homing_timeout = 2'000'000'000;
-  Nanos move_timeout = 50'000'000;        // in-position not reached after a move command
-  Nanos max_dwell = 40'000'000;           // laser on longer than this in one step -> DwellOverrun
-  Nanos camera_timeout = 25'000'000;      // no frame at all for this long -> CameraTimeout
-  Nanos late_limit = 250'000;             // wake-up later than this = overrun
-  std::uint32_t max_consecutive_late = 3; // more consecutive overruns -> DeadlineMissed
+  Nanos move_timeout = 50'000'000;         // in-position not reached after a move command
+  Nanos max_dwell = 40'000'000;            // laser on longer than this in one step -> DwellOverrun
+  Nanos camera_timeout = 25'000'000;       // no frame at all for this long -> CameraTimeout
+  Nanos late_limit = 250'000;              // wake-up later than this = overrun
+  std::uint32_t max_consecutive_late = 3;  // more consecutive overruns -> DeadlineMissed
   Nanos heartbeat_period = 500'000'000;
-  bool require_host = false;              // streaming: host connection loss is a fault
-  Nanos host_grace = 0;                   // ... after being lost this long
-  double saturated_rows_limit = 0.05;     // fraction of stripe rows saturated -> repeat the step
+  bool require_host = false;           // streaming: host connection loss is a fault
+  Nanos host_grace = 0;                // ... after being lost this long
+  double saturated_rows_limit = 0.05;  // fraction of stripe rows saturated -> repeat the step
   std::uint32_t saturated_retries = 2;
-  std::uint32_t max_rows = 4096;          // largest image height
+  std::uint32_t max_rows = 4096;  // largest image height
   std::uint64_t scan_id = 1;
   ExtractParams extract;
 };
@@ -67,7 +67,7 @@ struct LoopReport {
   State state = State::Idle;
   FaultCode fault = FaultCode::None;
   Nanos fault_time = -1;
-  std::uint32_t fault_count = 0;          // fatal + warnings
+  std::uint32_t fault_count = 0;  // fatal + warnings
   std::uint32_t stripes_sent = 0, frames_captured = 0, frames_dropped = 0, frames_stale = 0;
   std::uint32_t stripes_dropped = 0, saturated_retries = 0;
   std::uint32_t overruns = 0;
@@ -120,7 +120,8 @@ class Controller {
   Phase phase_ = Phase::Move;
   std::uint32_t step_ = 0;
   std::uint32_t retries_ = 0;
-  Nanos t0_ = 0, state_since_ = 0, phase_since_ = 0, laser_on_at_ = -1, last_frame_at_ = 0, last_heartbeat_ = 0;
+  Nanos t0_ = 0, state_since_ = 0, phase_since_ = 0, laser_on_at_ = -1, last_frame_at_ = 0,
+        last_heartbeat_ = 0;
   Nanos host_lost_since_ = -1;
   Nanos deadline_ = 0;
   Nanos homing_requested_at_ = 0;

@@ -18,12 +18,12 @@ enum class FaultCode : std::uint32_t {
   MoveTimeout = 7,
   CameraTimeout = 10,
   CameraError = 11,
-  FrameSaturated = 12,     // still saturated after the retries
+  FrameSaturated = 12,  // still saturated after the retries
   LaserMonitorMismatch = 20,
   DwellOverrun = 21,
   DeadlineMissed = 22,
   HostLost = 23,
-  Stopped = 24,            // stop requested (signal)
+  Stopped = 24,  // stop requested (signal)
   // warnings
   FramesDropped = 100,
   SaturatedRetry = 101,

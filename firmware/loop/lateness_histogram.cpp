@@ -8,7 +8,7 @@ namespace fs::fw {
 
 int LatenessHistogram::bucket(std::uint64_t v) {
   if (v < kSub) return static_cast<int>(v);
-  const int msb = 63 - std::countl_zero(v);           // >= 4
+  const int msb = 63 - std::countl_zero(v);  // >= 4
   const int sub = static_cast<int>((v >> (msb - 4)) & (kSub - 1));
   return std::min(kBuckets - 1, (msb - 3) * kSub + sub);
 }
@@ -32,7 +32,8 @@ void LatenessHistogram::add(std::int64_t ns) {
 
 std::int64_t LatenessHistogram::quantile(double q) const {
   if (count_ == 0) return 0;
-  const auto rank = static_cast<std::uint64_t>(std::ceil(std::clamp(q, 0.0, 1.0) * static_cast<double>(count_)));
+  const auto rank =
+      static_cast<std::uint64_t>(std::ceil(std::clamp(q, 0.0, 1.0) * static_cast<double>(count_)));
   std::uint64_t acc = 0;
   for (int b = 0; b < kBuckets; ++b) {
     acc += n_[static_cast<std::size_t>(b)];

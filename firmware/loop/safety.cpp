@@ -21,7 +21,8 @@ void on_crash(int sig) {
 }
 
 void on_stop(int) {
-  if (Controller* c = g_controller.load()) c->request_stop();
+  if (Controller* c = g_controller.load())
+    c->request_stop();
   else {
     force_safe();
     _Exit(130);
@@ -45,12 +46,12 @@ void install_safety_handlers(Laser* laser, Galvo* galvo, Controller* controller)
     registered = true;
     std::atexit(at_exit_safe);
   }
-  struct sigaction sa{};
+  struct sigaction sa {};
   sigemptyset(&sa.sa_mask);
   sa.sa_handler = on_crash;
   sa.sa_flags = SA_RESETHAND;
   for (int s : {SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGABRT}) sigaction(s, &sa, nullptr);
-  struct sigaction st{};
+  struct sigaction st {};
   sigemptyset(&st.sa_mask);
   st.sa_handler = on_stop;
   for (int s : {SIGINT, SIGTERM, SIGHUP}) sigaction(s, &st, nullptr);

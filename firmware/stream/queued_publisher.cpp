@@ -118,14 +118,19 @@ void QueuedPublisher::run() {
             stripe_msg_.points = std::span<msg::StripePoint>(s.points.data(), s.npoints);
             writer_.send(stripe_msg_);
             break;
-          case msg::Type::Heartbeat: writer_.send(s.heartbeat); break;
-          case msg::Type::ScanEnd: writer_.send(s.end); break;
+          case msg::Type::Heartbeat:
+            writer_.send(s.heartbeat);
+            break;
+          case msg::Type::ScanEnd:
+            writer_.send(s.end);
+            break;
           case msg::Type::Fault:
             fault_msg_.code = s.fault_code;
             fault_msg_.text.assign(s.fault_text, s.fault_len);
             writer_.send(fault_msg_);
             break;
-          case msg::Type::ScanBegin: break;
+          case msg::Type::ScanBegin:
+            break;
         }
         written_.fetch_add(1);
       } catch (...) {

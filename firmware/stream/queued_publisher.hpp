@@ -18,8 +18,8 @@
 namespace fs::fw {
 
 struct QueuedPublisherConfig {
-  std::uint32_t slots = 64;          // ring capacity (messages)
-  std::uint32_t max_points = 4096;   // stripe points per message (>= image height)
+  std::uint32_t slots = 64;         // ring capacity (messages)
+  std::uint32_t max_points = 4096;  // stripe points per message (>= image height)
   bool block_when_full = false;
 };
 

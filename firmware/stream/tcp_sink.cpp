@@ -14,9 +14,9 @@
 #include <chrono>
 #include <cstring>
 
-#include "common/monotonic_time.hpp"
 #include "common/error.hpp"
 #include "common/host_port.hpp"
+#include "common/monotonic_time.hpp"
 
 namespace fs::fw {
 

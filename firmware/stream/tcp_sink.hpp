@@ -62,10 +62,10 @@ class TcpSink final : public wire::FrameSink, public LinkState {
   TcpSinkConfig cfg_;
   mutable std::mutex mu_;
   std::condition_variable cv_;
-  std::vector<std::uint8_t> buf_;    // queued frames, back to back
-  std::deque<std::size_t> sizes_;    // their sizes
-  std::size_t head_ = 0;             // start of the first frame in buf_
-  std::size_t sent_ = 0;             // bytes of the first frame already sent on this connection
+  std::vector<std::uint8_t> buf_;  // queued frames, back to back
+  std::deque<std::size_t> sizes_;  // their sizes
+  std::size_t head_ = 0;           // start of the first frame in buf_
+  std::size_t sent_ = 0;           // bytes of the first frame already sent on this connection
   int fd_ = -1;
   std::atomic<bool> stop_{false}, connected_{false};
   std::atomic<std::uint32_t> stripes_dropped_{0}, other_dropped_{0}, connections_{0};

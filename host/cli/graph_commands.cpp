@@ -60,12 +60,13 @@ void run_graph(const GraphOptions& o) {
     seg::write_pictures(s, g, cloud.viewpoint - c, o.pictures);
   }
   if (!o.quiet) {
-    std::fprintf(stderr,
-                 "graph: %s: %ux%u grid (%zu valid), preset %s: %d known + %d unknown regions, %zu borders; "
-                 "%d border regions eliminated, %d null nodes -> supernode, %d dropped; PFRG %zu nodes, %zu arcs%s\n",
-                 o.input.c_str(), cloud.width, cloud.height, info.valid_points, preset.c_str(), st.known_regions,
-                 st.unknown_regions, s.borders.size(), st.border_regions_eliminated, st.null_nodes_to_supernode,
-                 st.null_nodes_dropped, g.nodes.size(), g.arcs.size(), s.truncated ? " (budget exhausted)" : "");
+    std::fprintf(
+        stderr,
+        "graph: %s: %ux%u grid (%zu valid), preset %s: %d known + %d unknown regions, %zu borders; "
+        "%d border regions eliminated, %d null nodes -> supernode, %d dropped; PFRG %zu nodes, %zu arcs%s\n",
+        o.input.c_str(), cloud.width, cloud.height, info.valid_points, preset.c_str(), st.known_regions,
+        st.unknown_regions, s.borders.size(), st.border_regions_eliminated, st.null_nodes_to_supernode,
+        st.null_nodes_dropped, g.nodes.size(), g.arcs.size(), s.truncated ? " (budget exhausted)" : "");
   }
 }
 
@@ -77,7 +78,8 @@ void add_graph_commands(CLI::App& app) {
       "graph", "Segment a scan or organized cloud into planar faces and write the scene PFRG (JSON)");
   cmd->add_option("input", opts->input, "scan (.fscan) or organized cloud (.pcd, .ply)")->required();
   cmd->add_option("-o,--output", opts->output, "PFRG JSON output file ('-' = stdout)")->required();
-  cmd->add_option("--pictures", opts->pictures, "write segmentation.png, pfrg.svg, enm.svg into this directory");
+  cmd->add_option("--pictures", opts->pictures,
+                  "write segmentation.png, pfrg.svg, enm.svg into this directory");
   cmd->add_option("--preset", opts->preset, "segmentation parameters: auto (default), laser, kinect");
   cmd->add_flag("-q,--quiet", opts->quiet, "no summary on stderr");
   cmd->callback([opts] { run_graph(*opts); });

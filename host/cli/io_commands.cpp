@@ -36,13 +36,17 @@ void add_io_commands(CLI::App& app) {
     auto args = std::make_shared<CalibrateArgs>();
     auto* cmd = app.add_subcommand(
         "calibrate", "Estimate the laser plane model from scans of a flat target at known heights");
-    cmd->add_option("--target", args->targets, "SCAN.fscan@HEIGHT_MM (repeat; at least two heights)")->required();
-    cmd->add_option("--nominal", args->nominal, "Starting calibration JSON (default: the first scan's header)");
+    cmd->add_option("--target", args->targets, "SCAN.fscan@HEIGHT_MM (repeat; at least two heights)")
+        ->required();
+    cmd->add_option("--nominal", args->nominal,
+                    "Starting calibration JSON (default: the first scan's header)");
     cmd->add_option("-o,--output", args->output, "Calibration JSON to write");
-    cmd->add_option("--row-stride", args->options.row_stride, "Use every n-th stripe point")->capture_default_str();
+    cmd->add_option("--row-stride", args->options.row_stride, "Use every n-th stripe point")
+        ->capture_default_str();
     cmd->add_option("--max-iterations", args->options.max_iterations, "Levenberg-Marquardt iterations")
         ->capture_default_str();
-    cmd->add_option("--outlier-mm", args->options.outlier_mm, "Drop points this far from their target after init")
+    cmd->add_option("--outlier-mm", args->options.outlier_mm,
+                    "Drop points this far from their target after init")
         ->capture_default_str();
     cmd->add_flag("!--no-linear-init", args->options.linear_init, "Start from the nominal model");
     cmd->callback([args] { run_calibrate(*args, std::cout); });

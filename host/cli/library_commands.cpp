@@ -13,8 +13,8 @@
 #include "common/mesh.hpp"
 #include "host/cli/commands.hpp"
 #include "host/cli/progress.hpp"
-#include "host/library/mesh_files.hpp"
 #include "host/library/library.hpp"
+#include "host/library/mesh_files.hpp"
 #include "host/library/polycubes.hpp"
 #include "host/library/views.hpp"
 #include "host/pfrg/pfrg.hpp"
@@ -29,11 +29,12 @@ namespace stdfs = std::filesystem;
 void print_table(const Library& lib) {
   std::size_t w = 5;
   for (const auto& m : lib.models) w = std::max(w, m.name.size());
-  fmt::print("{:<{}}  {:>5}  {:>5}  {:>14}  {:>14}  {:>8}\n", "model", w, "faces", "arcs", "area_mm2", "volume_mm3",
-             "symmetry");
+  fmt::print("{:<{}}  {:>5}  {:>5}  {:>14}  {:>14}  {:>8}\n", "model", w, "faces", "arcs", "area_mm2",
+             "volume_mm3", "symmetry");
   for (const auto& m : lib.models)
-    fmt::print("{:<{}}  {:>5}  {:>5}  {:>14.3f}  {:>14.3f}  {:>8}{}\n", m.name, w, m.face_count(), m.arc_count(),
-               m.total_area, m.volume, m.symmetry_order(), m.open ? "  (open: faces may be missing)" : "");
+    fmt::print("{:<{}}  {:>5}  {:>5}  {:>14.3f}  {:>14.3f}  {:>8}{}\n", m.name, w, m.face_count(),
+               m.arc_count(), m.total_area, m.volume, m.symmetry_order(),
+               m.open ? "  (open: faces may be missing)" : "");
   fmt::print("{} models\n", lib.models.size());
 }
 
@@ -50,13 +51,16 @@ void add_library_commands(CLI::App& app) {
     bool quiet = false;
   };
   auto b = std::make_shared<BuildArgs>();
-  auto* build = lib->add_subcommand("build", "Build a .fslib from meshes (OFF, OBJ, STL, PLY) and directories of them");
+  auto* build =
+      lib->add_subcommand("build", "Build a .fslib from meshes (OFF, OBJ, STL, PLY) and directories of them");
   build->add_option("inputs", b->inputs, "Mesh files or directories")->required();
   build->add_option("-o,--output", b->out, "Output library (.fslib)")->required();
-  build->add_option("--scale", b->options.scale, "Multiply coordinates (to millimetres)")->check(CLI::PositiveNumber);
+  build->add_option("--scale", b->options.scale, "Multiply coordinates (to millimetres)")
+      ->check(CLI::PositiveNumber);
   build->add_option("--merge-angle", b->options.merge_angle_deg, "Coplanar merge tolerance (degrees)")
       ->check(CLI::Range(0.0, 30.0));
-  build->add_flag("--allow-open", b->options.allow_open, "Accept open meshes (flagged: faces may be missing)");
+  build->add_flag("--allow-open", b->options.allow_open,
+                  "Accept open meshes (flagged: faces may be missing)");
   build->add_flag("-q,--quiet", b->quiet, "No progress bar, no table");
   build->callback([b] {
     const auto files = collect_mesh_files(b->inputs);
@@ -82,7 +86,8 @@ void add_library_commands(CLI::App& app) {
   });
 
   auto lib_path = std::make_shared<std::string>();
-  auto* list = lib->add_subcommand("list", "List the models of a library (faces, arcs, area, symmetry order)");
+  auto* list =
+      lib->add_subcommand("list", "List the models of a library (faces, arcs, area, symmetry order)");
   list->add_option("library", *lib_path, "Library file (.fslib)")->required();
   list->callback([lib_path] { print_table(Library::load(*lib_path)); });
 
@@ -91,11 +96,14 @@ void add_library_commands(CLI::App& app) {
     std::vector<double> view;
   };
   auto s = std::make_shared<ShowArgs>();
-  auto* show = lib->add_subcommand("show", "Print a model's PFRG as JSON (or the partial view from a direction)");
+  auto* show =
+      lib->add_subcommand("show", "Print a model's PFRG as JSON (or the partial view from a direction)");
   show->add_option("library", s->library, "Library file (.fslib)")->required();
   show->add_option("model", s->model, "Model name")->required();
-  show->add_option("--view", s->view, "Viewing direction X Y Z (sensor -> object): the PFRG of the visible faces "
-                                      "plus a supernode")->expected(3);
+  show->add_option("--view", s->view,
+                   "Viewing direction X Y Z (sensor -> object): the PFRG of the visible faces "
+                   "plus a supernode")
+      ->expected(3);
   show->add_option("-o,--output", s->out, "Output JSON file (- = stdout)");
   show->callback([s] {
     const Library l = Library::load(s->library);
@@ -104,11 +112,14 @@ void add_library_commands(CLI::App& app) {
     Pfrg g = m->graph;
     if (!s->view.empty()) {
       const Vec3 dir(s->view[0], s->view[1], s->view[2]);
-      if (!(dir.norm() > 0) || !dir.allFinite()) throw Error("--view: the direction must be a non-zero vector");
+      if (!(dir.norm() > 0) || !dir.allFinite())
+        throw Error("--view: the direction must be a non-zero vector");
       g = partial_view(*m, Mat3::Identity(), dir);
     }
-    if (s->out == "-") fmt::print("{}\n", to_json(g).dump(1));
-    else write_pfrg_json(g, s->out);
+    if (s->out == "-")
+      fmt::print("{}\n", to_json(g).dump(1));
+    else
+      write_pfrg_json(g, s->out);
   });
 
   struct CubeArgs {
@@ -118,8 +129,11 @@ void add_library_commands(CLI::App& app) {
     bool quiet = false;
   };
   auto c = std::make_shared<CubeArgs>();
-  auto* cubes = lib->add_subcommand("polycubes", "Build all polycubes up to a volume (thesis ch. 4.1.3) as a .fslib");
-  cubes->add_option("--max-volume", c->max_volume, "Largest number of unit cubes")->required()->check(CLI::Range(1, 10));
+  auto* cubes =
+      lib->add_subcommand("polycubes", "Build all polycubes up to a volume (thesis ch. 4.1.3) as a .fslib");
+  cubes->add_option("--max-volume", c->max_volume, "Largest number of unit cubes")
+      ->required()
+      ->check(CLI::Range(1, 10));
   cubes->add_option("--edge", c->edge, "Cube edge length (mm)")->check(CLI::PositiveNumber);
   cubes->add_option("-o,--output", c->out, "Output library (.fslib)")->required();
   cubes->add_flag("-q,--quiet", c->quiet, "No progress bar, no summary");
@@ -140,7 +154,8 @@ void add_library_commands(CLI::App& app) {
     progress.finish();
     out.save(c->out);
     if (!c->quiet) {
-      for (std::size_t v = 0; v < all.size(); ++v) fmt::print("volume {}: {} polycubes\n", v + 1, all[v].size());
+      for (std::size_t v = 0; v < all.size(); ++v)
+        fmt::print("volume {}: {} polycubes\n", v + 1, all[v].size());
       fmt::print("wrote {} models to {}\n", total, c->out);
     }
   });

@@ -70,13 +70,16 @@ class ScanHandler {
       const stdfs::path dir = stdfs::path(out_dir_) / fmt::format("scan-{:03}-id{}", scans_, scan.scan_id());
       rec::write_report(dir / "report", fmt::format("scan {}", scan.scan_id()), cloud_, *recognizer_, r);
       nlohmann::json j = rec::to_json(r, library_);
-      j["scan"] = {{"scan_id", scan.scan_id()}, {"status", to_string(scan.status())}, {"partial", partial},
-                   {"stripes", scan.stripes_received()}, {"steps", scan.slot_count()}};
+      j["scan"] = {{"scan_id", scan.scan_id()},
+                   {"status", to_string(scan.status())},
+                   {"partial", partial},
+                   {"stripes", scan.stripes_received()},
+                   {"steps", scan.slot_count()}};
       std::ofstream(dir / "result.json") << j.dump(2) << "\n";
       last_dir_ = dir;
       if (!quiet_) fmt::print("report: {}\n", (dir / "report" / "index.html").string());
     }
-    std::fflush(stdout);   // a log file or pipe sees each scan's result as it is recognized
+    std::fflush(stdout);  // a log file or pipe sees each scan's result as it is recognized
   }
   int scans() const { return scans_; }
   int last_objects() const { return last_objects_; }
@@ -125,23 +128,26 @@ void run_serve(const ServeOptions& o) {
   g_server = &server;
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
-  if (!o.quiet) fmt::print("facetscan serve: listening on {} (port {}), {} models; Ctrl-C stops\n", o.listen,
-                           server.port(), library.models.size());
+  if (!o.quiet)
+    fmt::print("facetscan serve: listening on {} (port {}), {} models; Ctrl-C stops\n", o.listen,
+               server.port(), library.models.size());
   std::fflush(stdout);
   while (server.poll_once(200)) {
     if (o.max_scans > 0 && handler.scans() >= o.max_scans) break;
   }
   server.close_all();
   g_server = nullptr;
-  if (!o.quiet) fmt::print("facetscan serve: {} scan(s), {} connection(s), {} disconnect(s)\n", handler.scans(),
-                           server.stats().connections, server.stats().disconnects);
+  if (!o.quiet)
+    fmt::print("facetscan serve: {} scan(s), {} connection(s), {} disconnect(s)\n", handler.scans(),
+               server.stats().connections, server.stats().disconnects);
 }
 
 // Where the shipped scenes are: next to the sources, or installed.
 stdfs::path scenes_dir() {
   for (const stdfs::path& p : {stdfs::path(FACETSCAN_SCENES_DIR), stdfs::path("/usr/share/facetscan/scenes")})
     if (stdfs::is_directory(p)) return p;
-  throw Error("cannot find the shipped scenes (looked in " FACETSCAN_SCENES_DIR " and /usr/share/facetscan/scenes)");
+  throw Error("cannot find the shipped scenes (looked in " FACETSCAN_SCENES_DIR
+              " and /usr/share/facetscan/scenes)");
 }
 
 stdfs::path self_dir() {
@@ -151,9 +157,9 @@ stdfs::path self_dir() {
 }
 
 // The galvo twin of the demo, as facetscan-fw's --galvo value:
-//   gpio (or sim): the firmware's step/dir StepperGalvo driving the simulated GPIO lines (hw-sim SimStepperLines);
-//   can (or sim-can[:node=N,...]): the firmware's CiA 402 master driving the simulated drive (hw-sim Cia402Twin)
-//   with CAN frames over a socketpair.
+//   gpio (or sim): the firmware's step/dir StepperGalvo driving the simulated GPIO lines (hw-sim
+//   SimStepperLines); can (or sim-can[:node=N,...]): the firmware's CiA 402 master driving the simulated
+//   drive (hw-sim Cia402Twin) with CAN frames over a socketpair.
 // Real devices (gpio:CHIP:..., can:IFACE) are not a demo: facetscan-fw runs them on the board.
 struct GalvoTwin {
   std::string fw_spec;
@@ -186,7 +192,8 @@ int run_demo(const DemoOptions& o) {
   const GalvoTwin twin = galvo_twin(o.galvo);
   for (const auto& f : o.faults)
     if (twin.fw_spec != "sim" && f.rfind("galvo.", 0) == 0)
-      throw Error("--fault '" + f + "': galvo faults act on the step/dir GPIO twin (--galvo gpio); the CAN twin "
+      throw Error("--fault '" + f +
+                  "': galvo faults act on the step/dir GPIO twin (--galvo gpio); the CAN twin "
                   "takes camera.* and laser.* faults");
   std::vector<std::string> lib_inputs = o.library;
   if (lib_inputs.empty()) lib_inputs.push_back((scene.parent_path() / "meshes").string());
@@ -203,8 +210,10 @@ int run_demo(const DemoOptions& o) {
 
   const stdfs::path fw = self_dir() / "facetscan-fw";
   if (!stdfs::exists(fw)) throw Error(fw.string() + ": facetscan-fw not found next to facetscan");
-  std::vector<std::string> args = {fw.string(), "--galvo", twin.fw_spec, "--camera", "sim", "--scene", scene.string(),
-                                   "--stream", fmt::format("127.0.0.1:{}", server.port()), "--record", recording};
+  std::vector<std::string> args = {fw.string(),    "--galvo",  twin.fw_spec,
+                                   "--camera",     "sim",      "--scene",
+                                   scene.string(), "--stream", fmt::format("127.0.0.1:{}", server.port()),
+                                   "--record",     recording};
   if (o.steps > 0) args.insert(args.end(), {"--steps", std::to_string(o.steps)});
   for (const auto& f : o.faults) args.insert(args.end(), {"--fault", f});
   std::vector<char*> argv;
@@ -227,13 +236,14 @@ int run_demo(const DemoOptions& o) {
     try {
       std::ifstream sf(scene);
       const nlohmann::json sj = nlohmann::json::parse(sf);
-      if (sj.contains("scanner") && sj["scanner"].contains("steps")) steps = sj["scanner"]["steps"].get<std::size_t>();
+      if (sj.contains("scanner") && sj["scanner"].contains("steps"))
+        steps = sj["scanner"]["steps"].get<std::size_t>();
     } catch (const std::exception&) {
     }
   }
   Progress progress(steps, o.quiet, 0.0);
   handler.set_before_result([&progress](const Scan& scan) {
-    progress.update(scan.stripes_received(), "stripes received");   // the bar ends at what the scan holds
+    progress.update(scan.stripes_received(), "stripes received");  // the bar ends at what the scan holds
     progress.finish();
   });
   std::uint64_t shown = 0;
@@ -265,9 +275,11 @@ int run_demo(const DemoOptions& o) {
   const int fw_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
   if (!o.quiet) {
     fmt::print("firmware exit code {}; recording: {}\n", fw_code, recording);
-    if (!handler.last_dir().empty()) fmt::print("result: {}\n", (handler.last_dir() / "result.json").string());
+    if (!handler.last_dir().empty())
+      fmt::print("result: {}\n", (handler.last_dir() / "result.json").string());
   }
-  if (handler.scans() == 0) throw Error("the demo received no scan from facetscan-fw (exit code " + std::to_string(fw_code) + ")");
+  if (handler.scans() == 0)
+    throw Error("the demo received no scan from facetscan-fw (exit code " + std::to_string(fw_code) + ")");
   return fw_code;
 }
 
@@ -280,30 +292,37 @@ void add_live_commands(CLI::App& app) {
   serve->add_option("-l,--library", so->library, "Library: a .fslib file, or mesh files / directories")
       ->required()
       ->expected(1, -1);
-  serve->add_option("-o,--out", so->out_dir, "Write result.json and an HTML report per scan into DIR/scan-<n>-id<scan id>/");
+  serve->add_option("-o,--out", so->out_dir,
+                    "Write result.json and an HTML report per scan into DIR/scan-<n>-id<scan id>/");
   serve->add_option("--params", so->params, "Match parameters: a preset or a JSON file");
   serve->add_option("--max-scans", so->max_scans, "Stop after N scans (0 = run until interrupted)");
-  serve->add_option("--reconnect-grace", so->reconnect_grace_ms,
-                    "Milliseconds a scanner that disconnected mid-scan has to reconnect and resume it; after that "
-                    "the scan is recognized as PARTIAL")
+  serve
+      ->add_option(
+          "--reconnect-grace", so->reconnect_grace_ms,
+          "Milliseconds a scanner that disconnected mid-scan has to reconnect and resume it; after that "
+          "the scan is recognized as PARTIAL")
       ->capture_default_str()
       ->check(CLI::Range(std::int64_t{0}, std::int64_t{3'600'000}));
   serve->add_flag("-q,--quiet", so->quiet, "Print nothing per scan");
   serve->callback([so] { run_serve(*so); });
 
   auto o = std::make_shared<DemoOptions>();
-  auto* demo = app.add_subcommand("demo",
-                                  "Hardware-in-the-loop demo: facetscan-fw on simulated devices scans a scene and "
-                                  "streams it over TCP loopback; this process recognizes the objects");
-  demo->add_option("--scene", o->scene, "Shipped scene name (default, cube, pyramid, cube-pyramid-separate, "
-                                        "cube-occludes-pyramid, corner) or a scene JSON file");
-  demo->add_option("--galvo", o->galvo,
-                   "Galvo twin: gpio (the firmware's step/dir galvo on simulated GPIO lines; alias sim) or can "
-                   "(its CiA 402 master and a simulated drive on CAN; alias sim-can[:node=N,...])")
+  auto* demo =
+      app.add_subcommand("demo",
+                         "Hardware-in-the-loop demo: facetscan-fw on simulated devices scans a scene and "
+                         "streams it over TCP loopback; this process recognizes the objects");
+  demo->add_option("--scene", o->scene,
+                   "Shipped scene name (default, cube, pyramid, cube-pyramid-separate, "
+                   "cube-occludes-pyramid, corner) or a scene JSON file");
+  demo->add_option(
+          "--galvo", o->galvo,
+          "Galvo twin: gpio (the firmware's step/dir galvo on simulated GPIO lines; alias sim) or can "
+          "(its CiA 402 master and a simulated drive on CAN; alias sim-can[:node=N,...])")
       ->capture_default_str();
-  demo->add_option("--fault", o->faults,
-                   "Inject a fault into the twins (repeatable): DEVICE.KIND[@TRIGGER][,count=N][,for=S], e.g. "
-                   "galvo.stall@step=120, camera.drop@frame=40,count=2, camera.timeout@t=1, laser.stuck@on=0");
+  demo->add_option(
+      "--fault", o->faults,
+      "Inject a fault into the twins (repeatable): DEVICE.KIND[@TRIGGER][,count=N][,for=S], e.g. "
+      "galvo.stall@step=120, camera.drop@frame=40,count=2, camera.timeout@t=1, laser.stuck@on=0");
   demo->add_option("-o,--out", o->out_dir, "Output directory (recording, result.json, HTML report)");
   demo->add_option("-l,--library", o->library, "Library (default: the scene's mesh folder)")->expected(1, -1);
   demo->add_option("--steps", o->steps, "Galvo steps of the scan (default: the scene's)");
@@ -312,7 +331,8 @@ void add_live_commands(CLI::App& app) {
   demo->callback([o] {
     const int code = run_demo(*o);
     // With an injected fault the firmware is expected to stop in its fault state.
-    if (code != 0 && o->faults.empty()) throw Error(fmt::format("facetscan-fw ended with exit code {}", code));
+    if (code != 0 && o->faults.empty())
+      throw Error(fmt::format("facetscan-fw ended with exit code {}", code));
   });
 }
 

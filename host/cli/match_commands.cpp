@@ -9,8 +9,8 @@
 
 #include "host/cli/commands.hpp"
 #include "host/match/inexact.hpp"
-#include "host/match/params.hpp"
 #include "host/match/parallel.hpp"
+#include "host/match/params.hpp"
 #include "host/match/report.hpp"
 #include "host/match/ullmann.hpp"
 #include "host/pfrg/pfrg.hpp"
@@ -49,8 +49,9 @@ void run_isomorphisms(const IsoOptions& o) {
     };
   }
   const match::ExactStats st = match::count_isomorphisms(t, r, mode, fn);
-  std::printf("%llu %s (search states %llu, refinement removals %llu)\n", static_cast<unsigned long long>(st.count),
-              o.mono ? "monomorphisms" : "isomorphisms", static_cast<unsigned long long>(st.tree_nodes),
+  std::printf("%llu %s (search states %llu, refinement removals %llu)\n",
+              static_cast<unsigned long long>(st.count), o.mono ? "monomorphisms" : "isomorphisms",
+              static_cast<unsigned long long>(st.tree_nodes),
               static_cast<unsigned long long>(st.refinement_removals));
 }
 
@@ -76,7 +77,8 @@ void run_match(const MatchOptions& o) {
       std::cout << j.dump(1) << "\n";
     } else {
       if (o.show_params) std::cout << match::to_json(p).dump(1) << "\n";
-      std::cout << fmt::format("scene {} vs reference {} (parameters {})\n", scene.name, refs[0].name, p.name);
+      std::cout << fmt::format("scene {} vs reference {} (parameters {})\n", scene.name, refs[0].name,
+                               p.name);
       std::cout << match::format_result(r, scene.name, static_cast<std::size_t>(o.solutions));
     }
     return;
@@ -90,16 +92,25 @@ void run_match(const MatchOptions& o) {
       for (const auto& s : rr.solutions) {
         nlohmann::json m = nlohmann::json::array();
         for (const auto& x : s.matches) m.push_back({x.scene, x.ref});
-        sols.push_back({{"rank", s.rank}, {"id", match::state_id(scene.name, s.path)}, {"level", s.level},
-                        {"cost", s.cost}, {"rotfit_error", s.rotfit_error}, {"matches", m},
-                        {"rotation", {{s.rotation(0, 0), s.rotation(0, 1), s.rotation(0, 2)},
-                                      {s.rotation(1, 0), s.rotation(1, 1), s.rotation(1, 2)},
-                                      {s.rotation(2, 0), s.rotation(2, 1), s.rotation(2, 2)}}},
+        sols.push_back({{"rank", s.rank},
+                        {"id", match::state_id(scene.name, s.path)},
+                        {"level", s.level},
+                        {"cost", s.cost},
+                        {"rotfit_error", s.rotfit_error},
+                        {"matches", m},
+                        {"rotation",
+                         {{s.rotation(0, 0), s.rotation(0, 1), s.rotation(0, 2)},
+                          {s.rotation(1, 0), s.rotation(1, 1), s.rotation(1, 2)},
+                          {s.rotation(2, 0), s.rotation(2, 1), s.rotation(2, 2)}}},
                         {"complete", s.complete}});
       }
-      out.push_back({{"reference", refs[i].name}, {"solutions", sols},
-                     {"stats", {{"states", rr.stats.states_created}, {"solutions", rr.stats.solutions},
-                                {"time_ms", rr.stats.time_ms}, {"stop", std::string(match::stop_name(rr.stats.stop))}}}});
+      out.push_back({{"reference", refs[i].name},
+                     {"solutions", sols},
+                     {"stats",
+                      {{"states", rr.stats.states_created},
+                       {"solutions", rr.stats.solutions},
+                       {"time_ms", rr.stats.time_ms},
+                       {"stop", std::string(match::stop_name(rr.stats.stop))}}}});
     } else {
       std::cout << fmt::format("reference {}: {} solutions, {} states, {:.3f} ms, stop: {}\n", refs[i].name,
                                rr.stats.solutions, rr.stats.states_created, rr.stats.time_ms,
@@ -119,21 +130,25 @@ void run_match(const MatchOptions& o) {
 
 void add_match_commands(CLI::App& app) {
   auto iso = std::make_shared<IsoOptions>();
-  auto* c = app.add_subcommand("isomorphisms", "Exact matching (Ullmann): count the mappings of TEST into REF");
+  auto* c =
+      app.add_subcommand("isomorphisms", "Exact matching (Ullmann): count the mappings of TEST into REF");
   c->add_option("test", iso->test, "test PFRG JSON")->required()->check(CLI::ExistingFile);
   c->add_option("ref", iso->ref, "reference PFRG JSON")->required()->check(CLI::ExistingFile);
-  auto* ind = c->add_flag("--induced", iso->induced, "subgraph isomorphism (default): arcs and non-arcs agree");
+  auto* ind =
+      c->add_flag("--induced", iso->induced, "subgraph isomorphism (default): arcs and non-arcs agree");
   auto* mono = c->add_flag("--monomorphism", iso->mono, "subgraph check: every test arc has a reference arc");
   ind->excludes(mono);
   c->add_flag("--list", iso->list, "print every mapping (test->ref node ids)");
   c->callback([iso] { run_isomorphisms(*iso); });
 
   auto mo = std::make_shared<MatchOptions>();
-  auto* m = app.add_subcommand("match", "Inexact best-first PFRG matching (thesis ch. 7): SCENE against REF...");
+  auto* m =
+      app.add_subcommand("match", "Inexact best-first PFRG matching (thesis ch. 7): SCENE against REF...");
   m->add_option("scene", mo->scene, "scene PFRG JSON")->required()->check(CLI::ExistingFile);
   m->add_option("refs", mo->refs, "reference PFRG JSON file(s)")->required()->check(CLI::ExistingFile);
-  m->add_option("--params", mo->params,
-                "parameter preset (t7.19 t7.28 t7.30 t7.32 t7.34 = default, t7.41 t9.3 fast scan) or JSON file");
+  m->add_option(
+      "--params", mo->params,
+      "parameter preset (t7.19 t7.28 t7.30 t7.32 t7.34 = default, t7.41 t9.3 fast scan) or JSON file");
   m->add_flag("--json", mo->json, "JSON output on stdout");
   m->add_option("--solutions", mo->solutions, "solutions to print (default 3)")->check(CLI::Range(1, 100000));
   m->add_option("--threads", mo->threads, "threads for several references (default: all cores)");

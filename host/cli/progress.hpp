@@ -21,8 +21,9 @@ class Progress {
     shown_ = true;
     constexpr int kWidth = 30;
     const int fill = total_ ? static_cast<int>(kWidth * std::min(done, total_) / total_) : kWidth;
-    std::fprintf(stderr, "\r[%s%s] %zu/%zu %-40.40s", std::string(static_cast<std::size_t>(fill), '#').c_str(),
-                 std::string(static_cast<std::size_t>(kWidth - fill), ' ').c_str(), done, total_, what.c_str());
+    std::fprintf(
+        stderr, "\r[%s%s] %zu/%zu %-40.40s", std::string(static_cast<std::size_t>(fill), '#').c_str(),
+        std::string(static_cast<std::size_t>(kWidth - fill), ' ').c_str(), done, total_, what.c_str());
     std::fflush(stderr);
   }
   void finish() {

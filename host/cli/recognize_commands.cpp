@@ -73,10 +73,11 @@ void write_file(const std::string& path, const std::string& text) {
 void run_recognize(const RecognizeOptions& o) {
   const auto files = collect_inputs(o.inputs);
   Progress lib_progress(0, o.quiet);
-  const Library library = load_or_build_library(o.library, {}, [&](std::size_t i, std::size_t n, const std::string& name) {
-    lib_progress.set_total(n);
-    lib_progress.update(i, "model " + name);
-  });
+  const Library library =
+      load_or_build_library(o.library, {}, [&](std::size_t i, std::size_t n, const std::string& name) {
+        lib_progress.set_total(n);
+        lib_progress.update(i, "model " + name);
+      });
   lib_progress.finish();
   if (library.models.empty()) throw Error("the library has no models");
 
@@ -104,11 +105,13 @@ void run_recognize(const RecognizeOptions& o) {
     try {
       const LoadInfo info = load_cloud(path, cloud, lo);
       std::string profile = o.segment;
-      if (profile == "auto") profile = segment_profile_for(info);   // laser for scans and mm clouds, kinect for metres
+      if (profile == "auto")
+        profile = segment_profile_for(info);  // laser for scans and mm clouds, kinect for metres
       if (!recognizer || profile != recognizer_profile) {
         if (!seg::SegmentParams::by_name(profile, params.segment))
           throw Error("--segment: unknown profile '" + profile + "' (laser, kinect, auto)");
-        recognizer = std::make_unique<rec::Recognizer>(library, params, std::max<std::size_t>(cloud.points.size(), 1));
+        recognizer =
+            std::make_unique<rec::Recognizer>(library, params, std::max<std::size_t>(cloud.points.size(), 1));
         recognizer_profile = profile;
       }
       const rec::Recognition& r = recognizer->recognize(cloud);
@@ -116,31 +119,40 @@ void run_recognize(const RecognizeOptions& o) {
         std::fprintf(stderr, "scene graph: %s\n", to_json(recognizer->scene_graph()).dump().c_str());
         for (const rec::Hypothesis* h : recognizer->candidates()) {
           std::string m;
-          for (const auto& fm : h->matches) m += fmt::format(" {}:{}{}", fm.scene, fm.ref, fm.expanded ? "e" : "");
-          std::fprintf(stderr, "candidate %-20s cost %.5f conf %.3f inl %d viol %d occ %d t (%.1f %.1f %.1f) [%s]\n",
-                       library.models[static_cast<std::size_t>(h->model)].name.c_str(), h->cost, h->verify.confidence,
-                       h->verify.inliers, h->verify.violations, h->verify.occluded, h->t.x(), h->t.y(), h->t.z(),
-                       m.c_str());
+          for (const auto& fm : h->matches)
+            m += fmt::format(" {}:{}{}", fm.scene, fm.ref, fm.expanded ? "e" : "");
+          std::fprintf(stderr,
+                       "candidate %-20s cost %.5f conf %.3f inl %d viol %d occ %d t (%.1f %.1f %.1f) [%s]\n",
+                       library.models[static_cast<std::size_t>(h->model)].name.c_str(), h->cost,
+                       h->verify.confidence, h->verify.inliers, h->verify.violations, h->verify.occluded,
+                       h->t.x(), h->t.y(), h->t.z(), m.c_str());
         }
         if (std::string(std::getenv("FACETSCAN_DEBUG")) == "2")
           for (const rec::Hypothesis* h : recognizer->all_hypotheses()) {
             std::string m;
-            for (const auto& fm : h->matches) m += fmt::format(" {}:{}{}", fm.scene, fm.ref, fm.expanded ? "e" : "");
-            std::fprintf(stderr, "hypothesis %-20s level %d prescore %.3f cost %.5f conf %.3f support %.1f [%s]\n",
-                         library.models[static_cast<std::size_t>(h->model)].name.c_str(), h->level, h->prescore,
-                         h->cost, h->verify.confidence, h->verify.support, m.c_str());
+            for (const auto& fm : h->matches)
+              m += fmt::format(" {}:{}{}", fm.scene, fm.ref, fm.expanded ? "e" : "");
+            std::fprintf(stderr,
+                         "hypothesis %-20s level %d prescore %.3f cost %.5f conf %.3f support %.1f [%s]\n",
+                         library.models[static_cast<std::size_t>(h->model)].name.c_str(), h->level,
+                         h->prescore, h->cost, h->verify.confidence, h->verify.support, m.c_str());
           }
       }
       nlohmann::json j = rec::to_json(r, library);
-      j["input"] = {{"file", path}, {"format", info.format}, {"width", cloud.width}, {"height", cloud.height},
-                    {"valid_points", info.valid_points}, {"complete_scan", info.complete_scan}};
+      j["input"] = {{"file", path},
+                    {"format", info.format},
+                    {"width", cloud.width},
+                    {"height", cloud.height},
+                    {"valid_points", info.valid_points},
+                    {"complete_scan", info.complete_scan}};
       if (!info.complete_scan) j["input"]["scan_status"] = info.scan_status;
       if (!batch && !o.quiet) {
         if (!info.complete_scan) fmt::print("note: partial scan ({})\n", info.scan_status);
         fmt::print("{}", rec::result_table(r, library));
       }
       if (!o.report_dir.empty()) {
-        const stdfs::path dir = batch ? stdfs::path(o.report_dir) / files[i].stem() : stdfs::path(o.report_dir);
+        const stdfs::path dir =
+            batch ? stdfs::path(o.report_dir) / files[i].stem() : stdfs::path(o.report_dir);
         rec::write_report(dir, files[i].filename().string(), cloud, *recognizer, r);
         if (!batch && !o.quiet) fmt::print("report: {}\n", (dir / "index.html").string());
       }
@@ -154,8 +166,8 @@ void run_recognize(const RecognizeOptions& o) {
       row["models"] = models;
       row["total_ms"] = r.stats.total_ms;
       row["note"] = r.note;
-      csv += fmt::format("{},ok,{},{},{},{:.1f},{}\n", csv_field(path), j["objects"].size(), csv_field(models), confs,
-                         r.stats.total_ms, csv_field(r.note));
+      csv += fmt::format("{},ok,{},{},{},{:.1f},{}\n", csv_field(path), j["objects"].size(),
+                         csv_field(models), confs, r.stats.total_ms, csv_field(r.note));
       last_json = std::move(j);
       if (batch) row["result"] = last_json;
     } catch (const Error& e) {
@@ -172,9 +184,11 @@ void run_recognize(const RecognizeOptions& o) {
     if (!o.quiet) {
       fmt::print("{:<40} {:>7} {:>8}  {}\n", "file", "objects", "ms", "models");
       for (const auto& row : summary)
-        fmt::print("{:<40} {:>7} {:>8.1f}  {}\n", stdfs::path(row["file"].get<std::string>()).filename().string(),
-                   row.value("objects", 0), row.value("total_ms", 0.0),
-                   row["status"] == "ok" ? row.value("models", std::string()) : "error: " + row.value("note", std::string()));
+        fmt::print("{:<40} {:>7} {:>8.1f}  {}\n",
+                   stdfs::path(row["file"].get<std::string>()).filename().string(), row.value("objects", 0),
+                   row.value("total_ms", 0.0),
+                   row["status"] == "ok" ? row.value("models", std::string())
+                                         : "error: " + row.value("note", std::string()));
     }
     if (!o.summary_csv.empty()) write_file(o.summary_csv, csv);
     if (!o.summary_json.empty()) write_file(o.summary_json, summary.dump(2) + "\n");
@@ -188,24 +202,28 @@ void run_recognize(const RecognizeOptions& o) {
 
 void add_recognize_commands(CLI::App& app) {
   auto o = std::make_shared<RecognizeOptions>();
-  auto* rc = app.add_subcommand("recognize",
-                                "Recognize the library's objects in scans (.fscan) or point clouds (.pcd, .ply); "
-                                "a directory is a batch");
+  auto* rc =
+      app.add_subcommand("recognize",
+                         "Recognize the library's objects in scans (.fscan) or point clouds (.pcd, .ply); "
+                         "a directory is a batch");
   rc->add_option("inputs", o->inputs, "Input files or directories")->required();
   rc->add_option("-l,--library", o->library, "Library: a .fslib file, or mesh files / directories")
       ->required()
       ->expected(1, -1);
   rc->add_option("--json", o->json_out, "Write the recognition JSON to FILE ('-' = stdout)");
-  rc->add_option("--report", o->report_dir, "Write an HTML report into DIR (a sub-directory per input in a batch)");
+  rc->add_option("--report", o->report_dir,
+                 "Write an HTML report into DIR (a sub-directory per input in a batch)");
   rc->add_option("--params", o->params, "Match parameters: a preset (t9.3, t7.34, ...) or a JSON file");
   rc->add_option("--segment", o->segment,
-                 "Segmentation profile: auto (laser for .fscan and clouds in mm, kinect for clouds in metres), laser, kinect");
+                 "Segmentation profile: auto (laser for .fscan and clouds in mm, kinect for clouds in "
+                 "metres), laser, kinect");
   rc->add_option("--min-confidence", o->min_confidence, "Verification confidence an object needs (0..1)")
       ->check(CLI::Range(0.0, 1.0));
   rc->add_option("--scale", o->scale, "PCD/PLY: millimetres per file unit (default: auto)");
   rc->add_option("--threads", o->threads, "Matching threads (0 = all cores)");
-  rc->add_option("--max-solutions", o->max_solutions,
-                 "Stop each search after N solutions (TH_solutions; default 1, 0 = the match parameters' own)")
+  rc->add_option(
+        "--max-solutions", o->max_solutions,
+        "Stop each search after N solutions (TH_solutions; default 1, 0 = the match parameters' own)")
       ->check(CLI::NonNegativeNumber);
   rc->add_option("--summary-csv", o->summary_csv, "Batch: summary table as CSV");
   rc->add_option("--summary-json", o->summary_json, "Batch: summary as JSON");

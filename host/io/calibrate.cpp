@@ -12,7 +12,7 @@ namespace {
 
 struct Obs {
   double step;
-  Vec3 ray;       // unit, world frame, from the camera centre
+  Vec3 ray;  // unit, world frame, from the camera centre
   int target;
 };
 
@@ -58,7 +58,9 @@ LaserModel apply(const LaserModel& m, const Eigen::Matrix<double, 6, 1>& d) {
   return out;
 }
 
-double rms(const Eigen::VectorXd& r) { return r.size() ? std::sqrt(r.squaredNorm() / double(r.size())) : 0.0; }
+double rms(const Eigen::VectorXd& r) {
+  return r.size() ? std::sqrt(r.squaredNorm() / double(r.size())) : 0.0;
+}
 
 // Linear estimate: per-step planes from the points on the targets, the common axis, angle vs. step.
 LaserModel linear_init(const LaserModel& nominal, const Problem& p) {
@@ -68,7 +70,7 @@ LaserModel linear_init(const LaserModel& nominal, const Problem& p) {
     std::size_t n = 0;
     std::uint32_t targets_mask = 0;
   };
-  std::map<double, Acc> steps;   // per galvo step, over all targets
+  std::map<double, Acc> steps;  // per galvo step, over all targets
   for (const Obs& o : p.obs) {
     const Plane target{p.table.n, p.table.d + p.heights[static_cast<std::size_t>(o.target)]};
     Vec3 x;
@@ -79,14 +81,19 @@ LaserModel linear_init(const LaserModel& nominal, const Problem& p) {
     ++a.n;
     a.targets_mask |= 1u << (o.target % 32);
   }
-  struct StepPlane { double step; Vec3 n; double d; double weight; };
+  struct StepPlane {
+    double step;
+    Vec3 n;
+    double d;
+    double weight;
+  };
   std::vector<StepPlane> planes;
   for (const auto& [step, a] : steps) {
-    if (a.n < 6 || (a.targets_mask & (a.targets_mask - 1)) == 0) continue;   // needs >= 2 heights
+    if (a.n < 6 || (a.targets_mask & (a.targets_mask - 1)) == 0) continue;  // needs >= 2 heights
     const Vec3 c = a.sum / double(a.n);
     const Mat3 cov = a.outer / double(a.n) - c * c.transpose();
     Eigen::SelfAdjointEigenSolver<Mat3> es(cov);
-    if (es.eigenvalues()[1] < 1e-6 * es.eigenvalues()[2]) continue;   // collinear
+    if (es.eigenvalues()[1] < 1e-6 * es.eigenvalues()[2]) continue;  // collinear
     Vec3 n = es.eigenvectors().col(0);
     const Vec3 n_nom = nominal.plane_at_step(step).n;
     if (n.dot(n_nom) < 0) n = -n;
@@ -162,7 +169,8 @@ CalibrationResult calibrate_laser(const ScannerCalibration& nominal, const std::
       }
     }
   }
-  if (p.obs.size() < 50) throw Error("calibrate: only " + std::to_string(p.obs.size()) + " stripe points on the targets");
+  if (p.obs.size() < 50)
+    throw Error("calibrate: only " + std::to_string(p.obs.size()) + " stripe points on the targets");
 
   CalibrationResult res;
   Eigen::VectorXd r;
@@ -171,7 +179,8 @@ CalibrationResult calibrate_laser(const ScannerCalibration& nominal, const std::
   std::vector<double> before_sq(targets.size(), 0.0);
   std::vector<std::size_t> before_n(targets.size(), 0);
   for (std::size_t i = 0; i < p.obs.size(); ++i) {
-    before_sq[static_cast<std::size_t>(p.obs[i].target)] += r[static_cast<Eigen::Index>(i)] * r[static_cast<Eigen::Index>(i)];
+    before_sq[static_cast<std::size_t>(p.obs[i].target)] +=
+        r[static_cast<Eigen::Index>(i)] * r[static_cast<Eigen::Index>(i)];
     ++before_n[static_cast<std::size_t>(p.obs[i].target)];
   }
 
@@ -184,7 +193,9 @@ CalibrationResult calibrate_laser(const ScannerCalibration& nominal, const std::
   for (std::size_t i = 0; i < p.obs.size(); ++i)
     if (std::abs(r[static_cast<Eigen::Index>(i)]) <= options.outlier_mm) kept.push_back(p.obs[i]);
   res.outliers = p.obs.size() - kept.size();
-  if (kept.size() < 50) throw Error("calibrate: too few points within " + std::to_string(options.outlier_mm) + " mm of the targets");
+  if (kept.size() < 50)
+    throw Error("calibrate: too few points within " + std::to_string(options.outlier_mm) +
+                " mm of the targets");
   p.obs.swap(kept);
 
   // Levenberg-Marquardt with forward-difference Jacobian.
@@ -219,7 +230,7 @@ CalibrationResult calibrate_laser(const ScannerCalibration& nominal, const std::
         cost = c2;
         lambda = std::max(lambda * 0.2, 1e-12);
         improved = true;
-        if (rel < 1e-9) it = options.max_iterations;   // converged (relative cost change)
+        if (rel < 1e-9) it = options.max_iterations;  // converged (relative cost change)
       } else {
         lambda *= 10.0;
       }
@@ -248,7 +259,8 @@ CalibrationResult calibrate_laser(const ScannerCalibration& nominal, const std::
     res.targets[t].max_after_mm = std::max(res.targets[t].max_after_mm, std::abs(v));
   }
   for (std::size_t t = 0; t < targets.size(); ++t)
-    res.targets[t].rms_after_mm = res.targets[t].points ? std::sqrt(sq[t] / double(res.targets[t].points)) : 0.0;
+    res.targets[t].rms_after_mm =
+        res.targets[t].points ? std::sqrt(sq[t] / double(res.targets[t].points)) : 0.0;
   return res;
 }
 

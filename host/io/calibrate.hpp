@@ -22,15 +22,15 @@ namespace fs::host {
 
 struct FlatTarget {
   const Scan* scan = nullptr;
-  double height_mm = 0.0;   // the target plane is the table plane raised by this height along its normal
-  std::string name;         // for reports
+  double height_mm = 0.0;  // the target plane is the table plane raised by this height along its normal
+  std::string name;        // for reports
 };
 
 struct CalibrateOptions {
-  std::uint32_t row_stride = 8;      // use every n-th stripe point
+  std::uint32_t row_stride = 8;  // use every n-th stripe point
   int max_iterations = 50;
-  bool linear_init = true;           // start from the linear estimate instead of the nominal model
-  double outlier_mm = 5.0;           // points farther than this from the target after the init are dropped
+  bool linear_init = true;  // start from the linear estimate instead of the nominal model
+  double outlier_mm = 5.0;  // points farther than this from the target after the init are dropped
 };
 
 struct TargetResidual {
@@ -41,11 +41,11 @@ struct TargetResidual {
 };
 
 struct CalibrationResult {
-  ScannerCalibration calibration;    // nominal with the estimated laser model
+  ScannerCalibration calibration;  // nominal with the estimated laser model
   std::vector<TargetResidual> targets;
-  double rms_before_mm = 0.0;        // nominal model
-  double rms_init_mm = 0.0;          // after the linear initialization
-  double rms_after_mm = 0.0;         // final
+  double rms_before_mm = 0.0;  // nominal model
+  double rms_init_mm = 0.0;    // after the linear initialization
+  double rms_after_mm = 0.0;   // final
   double max_after_mm = 0.0;
   std::size_t points = 0;
   std::size_t outliers = 0;

@@ -36,7 +36,8 @@ struct Reader {
   std::uint64_t uint(const json& obj, const std::string& parent, const char* key, std::uint64_t max) const {
     const json& v = member(obj, parent, key);
     const std::string f = parent.empty() ? key : parent + "." + key;
-    if (!v.is_number_integer() || (v.is_number_integer() && v.get<std::int64_t>() < 0)) fail(f, "is not a non-negative integer");
+    if (!v.is_number_integer() || (v.is_number_integer() && v.get<std::int64_t>() < 0))
+      fail(f, "is not a non-negative integer");
     const auto u = v.get<std::uint64_t>();
     if (u > max) fail(f, std::to_string(u) + " exceeds " + std::to_string(max));
     return u;
@@ -47,7 +48,8 @@ struct Reader {
     if (!v.is_array() || v.size() != 3) fail(f, "must be an array of 3 numbers");
     Vec3 out;
     for (int i = 0; i < 3; ++i) {
-      if (!v[i].is_number() || !std::isfinite(v[i].get<double>())) fail(f, "must be an array of 3 finite numbers");
+      if (!v[i].is_number() || !std::isfinite(v[i].get<double>()))
+        fail(f, "must be an array of 3 finite numbers");
       out[i] = v[i].get<double>();
     }
     return out;
@@ -55,7 +57,7 @@ struct Reader {
   Vec3 unit3(const json& obj, const std::string& parent, const char* key) const {
     const Vec3 v = vec3(obj, parent, key);
     if (v.norm() < 1e-9) fail(parent + "." + key, "must not be the zero vector");
-    return std::abs(v.norm() - 1.0) < 1e-12 ? v : v.normalized();   // keep written unit vectors bit-exact
+    return std::abs(v.norm() - 1.0) < 1e-12 ? v : v.normalized();  // keep written unit vectors bit-exact
   }
 };
 
@@ -64,18 +66,32 @@ struct Reader {
 nlohmann::json calibration_to_json(const ScannerCalibration& c) {
   const auto& cam = c.camera;
   json R = json::array();
-  for (int r = 0; r < 3; ++r) R.push_back(json::array({cam.R_world_cam(r, 0), cam.R_world_cam(r, 1), cam.R_world_cam(r, 2)}));
+  for (int r = 0; r < 3; ++r)
+    R.push_back(json::array({cam.R_world_cam(r, 0), cam.R_world_cam(r, 1), cam.R_world_cam(r, 2)}));
   return json{{"format", "facetscan-calibration"},
               {"version", 1},
               {"units", "mm"},
               {"camera",
-               {{"width", cam.width}, {"height", cam.height}, {"fx", cam.fx}, {"fy", cam.fy}, {"cx", cam.cx},
-                {"cy", cam.cy}, {"k1", cam.k1}, {"k2", cam.k2}, {"k3", cam.k3}, {"p1", cam.p1}, {"p2", cam.p2},
-                {"R_world_cam", R}, {"t_world_cam", vec(cam.t_world_cam)}}},
+               {{"width", cam.width},
+                {"height", cam.height},
+                {"fx", cam.fx},
+                {"fy", cam.fy},
+                {"cx", cam.cx},
+                {"cy", cam.cy},
+                {"k1", cam.k1},
+                {"k2", cam.k2},
+                {"k3", cam.k3},
+                {"p1", cam.p1},
+                {"p2", cam.p2},
+                {"R_world_cam", R},
+                {"t_world_cam", vec(cam.t_world_cam)}}},
               {"laser",
-               {{"axis_point", vec(c.laser.axis_point)}, {"axis_dir", vec(c.laser.axis_dir)},
-                {"normal_at_zero", vec(c.laser.normal_at_zero)}, {"optical_gain", c.laser.optical_gain},
-                {"mirror_angle_at_step0", c.laser.mirror_angle_at_step0}, {"rad_per_step", c.laser.rad_per_step}}},
+               {{"axis_point", vec(c.laser.axis_point)},
+                {"axis_dir", vec(c.laser.axis_dir)},
+                {"normal_at_zero", vec(c.laser.normal_at_zero)},
+                {"optical_gain", c.laser.optical_gain},
+                {"mirror_angle_at_step0", c.laser.mirror_angle_at_step0},
+                {"rad_per_step", c.laser.rad_per_step}}},
               {"first_step", c.first_step},
               {"step_count", c.step_count},
               {"table", {{"n", vec(c.table.n)}, {"d", c.table.d}}}};
@@ -100,7 +116,9 @@ ScannerCalibration calibration_from_json(const nlohmann::json& j, const std::str
   c.camera.cx = r.num(cam, "camera", "cx");
   c.camera.cy = r.num(cam, "camera", "cy");
   for (const char* k : {"k1", "k2", "k3", "p1", "p2"}) {
-    double& dst = k[0] == 'k' ? (k[1] == '1' ? c.camera.k1 : k[1] == '2' ? c.camera.k2 : c.camera.k3)
+    double& dst = k[0] == 'k' ? (k[1] == '1'   ? c.camera.k1
+                                 : k[1] == '2' ? c.camera.k2
+                                               : c.camera.k3)
                               : (k[1] == '1' ? c.camera.p1 : c.camera.p2);
     dst = cam.contains(k) ? r.num(cam, "camera", k) : 0.0;
   }
@@ -128,7 +146,8 @@ ScannerCalibration calibration_from_json(const nlohmann::json& j, const std::str
   c.laser.mirror_angle_at_step0 = r.num(las, "laser", "mirror_angle_at_step0");
   c.laser.rad_per_step = r.num(las, "laser", "rad_per_step");
   const json& fs = r.member(j, "", "first_step");
-  if (!fs.is_number_integer() || std::abs(fs.get<std::int64_t>()) > (1 << 30)) r.fail("first_step", "is not an integer in range");
+  if (!fs.is_number_integer() || std::abs(fs.get<std::int64_t>()) > (1 << 30))
+    r.fail("first_step", "is not an integer in range");
   c.first_step = static_cast<std::int32_t>(fs.get<std::int64_t>());
   c.step_count = static_cast<std::uint32_t>(r.uint(j, "", "step_count", 65536));
   if (c.step_count == 0) r.fail("step_count", "must be positive");
@@ -147,7 +166,8 @@ ScannerCalibration read_calibration_file(const std::string& path) {
   return calibration_from_json(parse_json_text(ss.str(), path), path);
 }
 
-void write_calibration_file(const std::string& path, const ScannerCalibration& c, const nlohmann::json& extra) {
+void write_calibration_file(const std::string& path, const ScannerCalibration& c,
+                            const nlohmann::json& extra) {
   nlohmann::json j = calibration_to_json(c);
   for (auto it = extra.begin(); it != extra.end(); ++it) j[it.key()] = it.value();
   std::ofstream f(path, std::ios::trunc);

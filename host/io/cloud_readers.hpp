@@ -20,8 +20,8 @@
 namespace fs::host {
 
 struct CloudReadOptions {
-  std::uint64_t max_points = std::uint64_t(1) << 26;   // refuse larger clouds (absurd header sizes)
-  bool load_labels = true;                             // copy a "label" field into OrganizedCloud::labels
+  std::uint64_t max_points = std::uint64_t(1) << 26;  // refuse larger clouds (absurd header sizes)
+  bool load_labels = true;                            // copy a "label" field into OrganizedCloud::labels
 };
 
 void read_pcd(std::span<const std::byte> data, const std::string& name, OrganizedCloud& out,

@@ -24,7 +24,8 @@ void put(std::string& s, T v) {
 
 std::string lower_ext(const std::string& path) {
   std::string e = std::filesystem::path(path).extension().string();
-  std::transform(e.begin(), e.end(), e.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  std::transform(e.begin(), e.end(), e.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   return e;
 }
 
@@ -32,10 +33,9 @@ std::string lower_ext(const std::string& path) {
 
 std::uint32_t label_colour(std::int32_t label) {
   if (label <= 0) return 0x808080;
-  static constexpr std::uint32_t palette[] = {0xe6194b, 0x3cb44b, 0xffe119, 0x4363d8, 0xf58231, 0x911eb4,
-                                              0x46f0f0, 0xf032e6, 0xbcf60c, 0xfabebe, 0x008080, 0xe6beff,
-                                              0x9a6324, 0xfffac8, 0x800000, 0xaaffc3, 0x808000, 0xffd8b1,
-                                              0x000075, 0xc0c0c0};
+  static constexpr std::uint32_t palette[] = {
+      0xe6194b, 0x3cb44b, 0xffe119, 0x4363d8, 0xf58231, 0x911eb4, 0x46f0f0, 0xf032e6, 0xbcf60c, 0xfabebe,
+      0x008080, 0xe6beff, 0x9a6324, 0xfffac8, 0x800000, 0xaaffc3, 0x808000, 0xffd8b1, 0x000075, 0xc0c0c0};
   return palette[static_cast<std::uint32_t>(label) % (sizeof(palette) / sizeof(palette[0]))];
 }
 
@@ -44,22 +44,25 @@ std::string encode_pcd(const OrganizedCloud& cloud, PcdEncoding encoding, const 
   const bool rgb = options.colours_from_labels && cloud.has_labels();
   const std::size_t n = cloud.points.size();
   const auto& q = cloud.viewpoint_orientation;
-  std::string s = "# .PCD v0.7 - Point Cloud Data file format (written by facetscan, millimetres)\nVERSION 0.7\n";
+  std::string s =
+      "# .PCD v0.7 - Point Cloud Data file format (written by facetscan, millimetres)\nVERSION 0.7\n";
   s += std::string("FIELDS x y z") + (labels ? " label" : "") + (rgb ? " rgb" : "") + "\n";
   s += std::string("SIZE 4 4 4") + (labels ? " 4" : "") + (rgb ? " 4" : "") + "\n";
   s += std::string("TYPE F F F") + (labels ? " I" : "") + (rgb ? " U" : "") + "\n";
   s += std::string("COUNT 1 1 1") + (labels ? " 1" : "") + (rgb ? " 1" : "") + "\n";
   s += fmt::format("WIDTH {}\nHEIGHT {}\n", cloud.width, cloud.height);
-  s += fmt::format("VIEWPOINT {} {} {} {} {} {} {}\n", cloud.viewpoint.x(), cloud.viewpoint.y(), cloud.viewpoint.z(),
-                   q.w(), q.x(), q.y(), q.z());
+  s += fmt::format("VIEWPOINT {} {} {} {} {} {} {}\n", cloud.viewpoint.x(), cloud.viewpoint.y(),
+                   cloud.viewpoint.z(), q.w(), q.x(), q.y(), q.z());
   s += fmt::format("POINTS {}\n", n);
   auto colour = [&](std::size_t i) { return label_colour(cloud.labels[i]); };
   if (encoding == PcdEncoding::Ascii) {
     s += "DATA ascii\n";
     for (std::size_t i = 0; i < n; ++i) {
       const auto& p = cloud.points[i];
-      if (OrganizedCloud::valid(p)) s += fmt::format("{} {} {}", p.x(), p.y(), p.z());
-      else s += "nan nan nan";
+      if (OrganizedCloud::valid(p))
+        s += fmt::format("{} {} {}", p.x(), p.y(), p.z());
+      else
+        s += "nan nan nan";
       if (labels) s += fmt::format(" {}", cloud.labels[i]);
       if (rgb) s += fmt::format(" {}", colour(i));
       s += '\n';
@@ -79,7 +82,7 @@ std::string encode_pcd(const OrganizedCloud& cloud, PcdEncoding encoding, const 
     return s;
   }
   s += "DATA binary_compressed\n";
-  std::string raw;   // one block per field
+  std::string raw;  // one block per field
   raw.reserve(n * 20);
   for (int c = 0; c < 3; ++c)
     for (std::size_t i = 0; i < n; ++i) put(raw, cloud.points[i][c]);
@@ -114,13 +117,14 @@ std::string encode_ply(const OrganizedCloud& cloud, const CloudWriteOptions& opt
   // The sensor pose (PCD's VIEWPOINT): segmentation orients normals and scales its noise model by the range
   // from it, so a cloud read back without it would segment differently.
   const auto& q = cloud.viewpoint_orientation;
-  s += fmt::format("comment facetscan_viewpoint {} {} {} {} {} {} {}\n", cloud.viewpoint.x(), cloud.viewpoint.y(),
-                   cloud.viewpoint.z(), q.w(), q.x(), q.y(), q.z());
+  s += fmt::format("comment facetscan_viewpoint {} {} {} {} {} {} {}\n", cloud.viewpoint.x(),
+                   cloud.viewpoint.y(), cloud.viewpoint.z(), q.w(), q.x(), q.y(), q.z());
   if (grid) s += fmt::format("obj_info num_cols {}\nobj_info num_rows {}\n", cloud.width, cloud.height);
   s += fmt::format("element vertex {}\nproperty float x\nproperty float y\nproperty float z\n", nv);
   if (rgb) s += "property uchar red\nproperty uchar green\nproperty uchar blue\n";
   if (labels) s += "property int label\n";
-  if (grid) s += fmt::format("element range_grid {}\nproperty list uchar int vertex_indices\n", cloud.points.size());
+  if (grid)
+    s += fmt::format("element range_grid {}\nproperty list uchar int vertex_indices\n", cloud.points.size());
   s += "end_header\n";
   for (std::size_t i = 0; i < cloud.points.size(); ++i) {
     if (vertex_of_cell[i] < 0) continue;
@@ -161,9 +165,12 @@ void write_cloud(const std::string& path, const OrganizedCloud& cloud, const Clo
                  PcdEncoding pcd_encoding) {
   const std::string ext = lower_ext(path);
   std::string bytes;
-  if (ext == ".pcd") bytes = encode_pcd(cloud, pcd_encoding, options);
-  else if (ext == ".ply") bytes = encode_ply(cloud, options);
-  else throw Error(path + ": unknown output format '" + ext + "' (expected .pcd or .ply)");
+  if (ext == ".pcd")
+    bytes = encode_pcd(cloud, pcd_encoding, options);
+  else if (ext == ".ply")
+    bytes = encode_ply(cloud, options);
+  else
+    throw Error(path + ": unknown output format '" + ext + "' (expected .pcd or .ply)");
   std::ofstream f(path, std::ios::binary | std::ios::trunc);
   if (!f) throw Error(path + ": cannot open for writing");
   f.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));

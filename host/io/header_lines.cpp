@@ -40,7 +40,8 @@ std::uint64_t HeaderLines::as_u64(std::size_t i, std::uint64_t max_value) const 
   const std::string key = tokens_.empty() ? std::string() : std::string(tokens_[0]);
   if (i >= tokens_.size()) fail(key + ": missing value");
   std::uint64_t v = 0;
-  if (!parse_u64(tokens_[i], v)) fail(key + ": '" + std::string(tokens_[i]) + "' is not a non-negative integer");
+  if (!parse_u64(tokens_[i], v))
+    fail(key + ": '" + std::string(tokens_[i]) + "' is not a non-negative integer");
   if (v > max_value) fail(key + ": " + std::to_string(v) + " exceeds the limit " + std::to_string(max_value));
   return v;
 }

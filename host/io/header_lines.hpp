@@ -17,8 +17,8 @@ class HeaderLines {
   // Next line (without the line break; a trailing '\r' is dropped). Returns false at end of data.
   // max_line bounds a header line so binary garbage cannot make us scan megabytes as a "line".
   bool next(std::size_t max_line = 4096);
-  std::uint64_t line_offset() const { return line_offset_; }   // byte offset of the current line
-  std::uint64_t offset() const { return pos_; }                // byte offset just past the current line
+  std::uint64_t line_offset() const { return line_offset_; }  // byte offset of the current line
+  std::uint64_t offset() const { return pos_; }               // byte offset just past the current line
   std::string_view line() const { return line_; }
   const std::vector<std::string_view>& tokens() const { return tokens_; }
   const std::string& file() const { return file_; }

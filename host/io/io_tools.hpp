@@ -12,8 +12,8 @@
 namespace fs::host {
 
 struct ExportArgs {
-  std::string input;                 // .fscan | .pcd | .ply
-  std::string output;                // .pcd | .ply
+  std::string input;   // .fscan | .pcd | .ply
+  std::string output;  // .pcd | .ply
   LoadOptions load;
   CloudWriteOptions write;
   PcdEncoding pcd_encoding = PcdEncoding::BinaryCompressed;

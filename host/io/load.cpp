@@ -28,14 +28,15 @@ const char* segment_profile_for(const LoadInfo& info) {
 void scale_cloud(OrganizedCloud& cloud, double scale) {
   if (scale == 1.0) return;
   const float s = static_cast<float>(scale);
-  for (auto& p : cloud.points) p *= s;   // NaN stays NaN
+  for (auto& p : cloud.points) p *= s;  // NaN stays NaN
   cloud.viewpoint *= scale;
 }
 
 namespace {
 std::string lower_extension(const std::string& path) {
   std::string ext = std::filesystem::path(path).extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   return ext;
 }
 }  // namespace

@@ -19,29 +19,29 @@ enum class Units { Auto, Millimetres, Metres };
 
 struct LoadOptions {
   Units units = Units::Auto;
-  double scale = 0.0;               // > 0: mm per file unit, overrides units
-  bool load_labels = true;          // dataset labels ("label" field) into OrganizedCloud::labels
+  double scale = 0.0;       // > 0: mm per file unit, overrides units
+  bool load_labels = true;  // dataset labels ("label" field) into OrganizedCloud::labels
   std::uint64_t max_points = std::uint64_t(1) << 26;
-  TriangulationOptions triangulation;   // .fscan input
+  TriangulationOptions triangulation;  // .fscan input
   static constexpr double kAutoMetresBelow = 20.0;
 };
 
 struct LoadInfo {
-  std::string format;               // "pcd", "ply" or "fscan"
-  double scale = 1.0;               // applied: mm per file unit
+  std::string format;  // "pcd", "ply" or "fscan"
+  double scale = 1.0;  // applied: mm per file unit
   std::size_t valid_points = 0;
-  bool complete_scan = true;        // .fscan: false for a partial (aborted / disconnected) scan
-  std::string scan_status;          // .fscan: to_string(ScanStatus)
-  TriangulationStats triangulation; // .fscan
+  bool complete_scan = true;         // .fscan: false for a partial (aborted / disconnected) scan
+  std::string scan_status;           // .fscan: to_string(ScanStatus)
+  TriangulationStats triangulation;  // .fscan
 };
 
 // Throws fs::Error naming the file (and byte offset) for unreadable or malformed input.
 LoadInfo load_cloud(const std::string& path, OrganizedCloud& out, const LoadOptions& options = {});
 
 // The segmentation profile (seg::SegmentParams::by_name) that suits a loaded input: "laser" for scans and for
-// clouds in millimetres (e.g. a scan exported to PLY/PCD by `facetscan export`), "kinect" for clouds in metres
-// (Kinect / PCL files such as the mOSD scans). `facetscan graph --preset auto` applies this rule; a PLY export
-// of a laser scan segmented with the kinect profile loses recognition confidence.
+// clouds in millimetres (e.g. a scan exported to PLY/PCD by `facetscan export`), "kinect" for clouds in
+// metres (Kinect / PCL files such as the mOSD scans). `facetscan graph --preset auto` applies this rule; a
+// PLY export of a laser scan segmented with the kinect profile loses recognition confidence.
 const char* segment_profile_for(const LoadInfo& info);
 
 // The scale load_cloud would apply to an already-read cloud (exposed for tests and the CLI).

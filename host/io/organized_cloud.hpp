@@ -14,13 +14,14 @@
 namespace fs::host {
 
 struct OrganizedCloud {
-  std::uint32_t width = 0;    // columns
-  std::uint32_t height = 0;   // rows
-  std::vector<Eigen::Vector3f> points;   // row-major: index = row * width + col
-  std::vector<std::int32_t> labels;      // optional per-point labels (ground truth / dataset), empty if none
-  Eigen::Vector3d viewpoint = Eigen::Vector3d::Zero();   // sensor position, same frame as the points
-  Eigen::Quaterniond viewpoint_orientation = Eigen::Quaterniond::Identity();  // sensor orientation (PCD VIEWPOINT)
-  bool organized = true;                 // false: points have no grid neighbourhood (height == 1)
+  std::uint32_t width = 0;              // columns
+  std::uint32_t height = 0;             // rows
+  std::vector<Eigen::Vector3f> points;  // row-major: index = row * width + col
+  std::vector<std::int32_t> labels;     // optional per-point labels (ground truth / dataset), empty if none
+  Eigen::Vector3d viewpoint = Eigen::Vector3d::Zero();  // sensor position, same frame as the points
+  Eigen::Quaterniond viewpoint_orientation =
+      Eigen::Quaterniond::Identity();  // sensor orientation (PCD VIEWPOINT)
+  bool organized = true;               // false: points have no grid neighbourhood (height == 1)
 
   void reserve(std::size_t max_points) {
     points.reserve(max_points);
@@ -32,8 +33,10 @@ struct OrganizedCloud {
     organized = true;
     const float nan = std::numeric_limits<float>::quiet_NaN();
     points.assign(static_cast<std::size_t>(w) * h, Eigen::Vector3f(nan, nan, nan));
-    if (with_labels) labels.assign(static_cast<std::size_t>(w) * h, -1);
-    else labels.clear();
+    if (with_labels)
+      labels.assign(static_cast<std::size_t>(w) * h, -1);
+    else
+      labels.clear();
   }
   std::size_t size() const { return points.size(); }
   bool has_labels() const { return !labels.empty(); }

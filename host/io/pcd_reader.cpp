@@ -27,7 +27,7 @@ struct PcdField {
   std::string name;
   ScalarType type;
   std::uint32_t count = 1;
-  std::uint32_t offset = 0;   // byte offset inside an interleaved record
+  std::uint32_t offset = 0;  // byte offset inside an interleaved record
 };
 
 enum class PcdData { Ascii, Binary, Compressed };
@@ -38,7 +38,7 @@ struct PcdHeader {
   bool have_width = false, have_height = false, have_points = false, have_size = false, have_type = false;
   double viewpoint[7] = {0, 0, 0, 1, 0, 0, 0};
   PcdData data = PcdData::Ascii;
-  std::uint64_t data_offset = 0;    // first byte after the DATA line
+  std::uint64_t data_offset = 0;  // first byte after the DATA line
   std::uint32_t point_size = 0;
   int ix = -1, iy = -1, iz = -1, ilabel = -1;
 };
@@ -67,14 +67,19 @@ PcdHeader parse_header(HeaderLines& in, const CloudReadOptions& options) {
         auto& f = h.fields[i];
         if (key == "SIZE") {
           const auto s = in.as_u64(i + 1, 8);
-          if (s != 1 && s != 2 && s != 4 && s != 8) in.fail("SIZE of field '" + f.name + "' must be 1, 2, 4 or 8");
+          if (s != 1 && s != 2 && s != 4 && s != 8)
+            in.fail("SIZE of field '" + f.name + "' must be 1, 2, 4 or 8");
           f.type.size = static_cast<std::uint8_t>(s);
           h.have_size = true;
         } else if (key == "TYPE") {
-          if (t[i + 1] == "F") f.type.kind = ScalarKind::Float;
-          else if (t[i + 1] == "I") f.type.kind = ScalarKind::Int;
-          else if (t[i + 1] == "U") f.type.kind = ScalarKind::UInt;
-          else in.fail("TYPE of field '" + f.name + "' must be F, I or U, not '" + std::string(t[i + 1]) + "'");
+          if (t[i + 1] == "F")
+            f.type.kind = ScalarKind::Float;
+          else if (t[i + 1] == "I")
+            f.type.kind = ScalarKind::Int;
+          else if (t[i + 1] == "U")
+            f.type.kind = ScalarKind::UInt;
+          else
+            in.fail("TYPE of field '" + f.name + "' must be F, I or U, not '" + std::string(t[i + 1]) + "'");
           h.have_type = true;
         } else {
           const auto c = in.as_u64(i + 1, kMaxCount);
@@ -96,10 +101,14 @@ PcdHeader parse_header(HeaderLines& in, const CloudReadOptions& options) {
       for (int i = 0; i < 7; ++i) h.viewpoint[i] = in.as_finite_double(static_cast<std::size_t>(i) + 1);
     } else if (key == "DATA") {
       if (t.size() != 2) in.fail("DATA needs one of ascii, binary, binary_compressed");
-      if (t[1] == "ascii") h.data = PcdData::Ascii;
-      else if (t[1] == "binary") h.data = PcdData::Binary;
-      else if (t[1] == "binary_compressed") h.data = PcdData::Compressed;
-      else in.fail("DATA '" + std::string(t[1]) + "' is not ascii, binary or binary_compressed");
+      if (t[1] == "ascii")
+        h.data = PcdData::Ascii;
+      else if (t[1] == "binary")
+        h.data = PcdData::Binary;
+      else if (t[1] == "binary_compressed")
+        h.data = PcdData::Compressed;
+      else
+        in.fail("DATA '" + std::string(t[1]) + "' is not ascii, binary or binary_compressed");
       h.data_offset = in.offset();
       saw_data = true;
       break;
@@ -107,7 +116,9 @@ PcdHeader parse_header(HeaderLines& in, const CloudReadOptions& options) {
       in.fail("unknown header keyword '" + std::string(key.substr(0, 40)) + "'");
     }
   }
-  if (!saw_data) throw error_at_offset(in.file(), in.offset(), "header ends without a DATA line (truncated or not a PCD file)");
+  if (!saw_data)
+    throw error_at_offset(in.file(), in.offset(),
+                          "header ends without a DATA line (truncated or not a PCD file)");
   if (!have_fields) in.fail("no FIELDS line in the header");
   if (!h.have_size || !h.have_type) in.fail("SIZE and TYPE lines are required");
   if (!h.have_width) in.fail("no WIDTH line in the header");
@@ -118,7 +129,8 @@ PcdHeader parse_header(HeaderLines& in, const CloudReadOptions& options) {
             std::to_string(options.max_points) + " points");
   if (!h.have_points) h.points = h.width * h.height;
   if (h.points != h.width * h.height)
-    in.fail("POINTS " + std::to_string(h.points) + " != WIDTH x HEIGHT = " + std::to_string(h.width * h.height));
+    in.fail("POINTS " + std::to_string(h.points) +
+            " != WIDTH x HEIGHT = " + std::to_string(h.width * h.height));
   std::uint64_t off = 0;
   for (std::size_t i = 0; i < h.fields.size(); ++i) {
     auto& f = h.fields[i];
@@ -126,12 +138,17 @@ PcdHeader parse_header(HeaderLines& in, const CloudReadOptions& options) {
       in.fail("field '" + f.name + "': float fields must have SIZE 4 or 8");
     f.offset = static_cast<std::uint32_t>(off);
     off += std::uint64_t(f.type.size) * f.count;
-    if (off > kMaxPointBytes) in.fail("point record larger than " + std::to_string(kMaxPointBytes) + " bytes");
+    if (off > kMaxPointBytes)
+      in.fail("point record larger than " + std::to_string(kMaxPointBytes) + " bytes");
     const int idx = static_cast<int>(i);
-    if (f.name == "x") h.ix = idx;
-    else if (f.name == "y") h.iy = idx;
-    else if (f.name == "z") h.iz = idx;
-    else if (f.name == "label" && f.type.kind != ScalarKind::Float) h.ilabel = idx;
+    if (f.name == "x")
+      h.ix = idx;
+    else if (f.name == "y")
+      h.iy = idx;
+    else if (f.name == "z")
+      h.iz = idx;
+    else if (f.name == "label" && f.type.kind != ScalarKind::Float)
+      h.ilabel = idx;
   }
   h.point_size = static_cast<std::uint32_t>(off);
   if (h.ix < 0 || h.iy < 0 || h.iz < 0) in.fail("FIELDS must include x, y and z");
@@ -149,7 +166,8 @@ std::int32_t to_label(std::int64_t v) {
   return static_cast<std::int32_t>(v);
 }
 
-void read_ascii(std::span<const std::byte> data, const std::string& name, const PcdHeader& h, OrganizedCloud& out) {
+void read_ascii(std::span<const std::byte> data, const std::string& name, const PcdHeader& h,
+                OrganizedCloud& out) {
   std::uint64_t values_per_point = 0;
   for (const auto& f : h.fields) values_per_point += f.count;
   std::vector<std::size_t> first(h.fields.size());
@@ -168,12 +186,14 @@ void read_ascii(std::span<const std::byte> data, const std::string& name, const 
     if (t.empty()) continue;
     const std::uint64_t at = lines.line_offset();
     if (t.size() != values_per_point)
-      throw error_at_offset(name, at, "point " + std::to_string(n) + ": " + std::to_string(t.size()) +
-                                          " values, expected " + std::to_string(values_per_point));
+      throw error_at_offset(name, at,
+                            "point " + std::to_string(n) + ": " + std::to_string(t.size()) +
+                                " values, expected " + std::to_string(values_per_point));
     for (std::size_t k = 0; k < t.size(); ++k) {
       if (!io_detail::parse_double(t[k], vals[k]))
-        throw error_at_offset(name, at, "point " + std::to_string(n) + ": '" + std::string(t[k].substr(0, 32)) +
-                                            "' is not a number");
+        throw error_at_offset(
+            name, at,
+            "point " + std::to_string(n) + ": '" + std::string(t[k].substr(0, 32)) + "' is not a number");
     }
     store_point(out, n, vals[first[h.ix]], vals[first[h.iy]], vals[first[h.iz]]);
     if (labels) {
@@ -183,8 +203,9 @@ void read_ascii(std::span<const std::byte> data, const std::string& name, const 
     ++n;
   }
   if (n < h.points)
-    throw error_at_offset(name, data.size(), "truncated ascii data: " + std::to_string(n) + " of " +
-                                                 std::to_string(h.points) + " points");
+    throw error_at_offset(
+        name, data.size(),
+        "truncated ascii data: " + std::to_string(n) + " of " + std::to_string(h.points) + " points");
 }
 
 // Interleaved records (binary) or one block per field (binary_compressed, after decompression).
@@ -200,8 +221,8 @@ void read_records(const std::byte* base, bool field_blocks, const PcdHeader& h, 
     return field_blocks ? base + h.points * f.offset + i * stride : base + i * h.point_size + f.offset;
   };
   const bool fast = !field_blocks && fx.type.kind == ScalarKind::Float && fx.type.size == 4 &&
-                    fy.type.kind == ScalarKind::Float && fy.type.size == 4 && fz.type.kind == ScalarKind::Float &&
-                    fz.type.size == 4;
+                    fy.type.kind == ScalarKind::Float && fy.type.size == 4 &&
+                    fz.type.kind == ScalarKind::Float && fz.type.size == 4;
   for (std::uint64_t i = 0; i < h.points; ++i) {
     if (fast) {
       float x, y, z;
@@ -211,8 +232,8 @@ void read_records(const std::byte* base, bool field_blocks, const PcdHeader& h, 
       std::memcpy(&z, p + fz.offset, 4);
       store_point(out, i, x, y, z);
     } else {
-      store_point(out, i, io_detail::load_scalar(addr(fx, i), fx.type), io_detail::load_scalar(addr(fy, i), fy.type),
-                  io_detail::load_scalar(addr(fz, i), fz.type));
+      store_point(out, i, io_detail::load_scalar(addr(fx, i), fx.type),
+                  io_detail::load_scalar(addr(fy, i), fy.type), io_detail::load_scalar(addr(fz, i), fz.type));
     }
     if (labels) out.labels[i] = to_label(io_detail::load_integer(addr(*fl, i), fl->type));
   }
@@ -226,35 +247,39 @@ void read_pcd(std::span<const std::byte> data, const std::string& name, Organize
   const PcdHeader h = parse_header(in, options);
   const bool with_labels = options.load_labels && h.ilabel >= 0;
 
-  const std::uint64_t payload = h.points * h.point_size;   // <= 2^26 * 2^20, no overflow
+  const std::uint64_t payload = h.points * h.point_size;  // <= 2^26 * 2^20, no overflow
   const std::byte* records = nullptr;
   std::vector<std::byte> inflated;
   if (h.data == PcdData::Binary) {
     if (data.size() - h.data_offset < payload)
-      throw error_at_offset(name, data.size(), "truncated binary data: need " + std::to_string(payload) +
-                                                   " bytes after the header at byte " + std::to_string(h.data_offset) +
-                                                   ", file has " + std::to_string(data.size() - h.data_offset));
+      throw error_at_offset(name, data.size(),
+                            "truncated binary data: need " + std::to_string(payload) +
+                                " bytes after the header at byte " + std::to_string(h.data_offset) +
+                                ", file has " + std::to_string(data.size() - h.data_offset));
     records = data.data() + h.data_offset;
   } else if (h.data == PcdData::Compressed) {
     if (data.size() - h.data_offset < 8)
-      throw error_at_offset(name, h.data_offset, "truncated binary_compressed data: missing the 8-byte size header");
+      throw error_at_offset(name, h.data_offset,
+                            "truncated binary_compressed data: missing the 8-byte size header");
     const std::uint32_t csize = io_detail::load_as<std::uint32_t>(data.data() + h.data_offset, false);
     const std::uint32_t usize = io_detail::load_as<std::uint32_t>(data.data() + h.data_offset + 4, false);
     if (usize != payload)
-      throw error_at_offset(name, h.data_offset + 4, "binary_compressed: uncompressed size " + std::to_string(usize) +
-                                                         " != POINTS x point size = " + std::to_string(payload));
+      throw error_at_offset(name, h.data_offset + 4,
+                            "binary_compressed: uncompressed size " + std::to_string(usize) +
+                                " != POINTS x point size = " + std::to_string(payload));
     if (csize > data.size() - h.data_offset - 8)
-      throw error_at_offset(name, h.data_offset, "truncated binary_compressed data: compressed size " +
-                                                     std::to_string(csize) + " but only " +
-                                                     std::to_string(data.size() - h.data_offset - 8) + " bytes follow");
+      throw error_at_offset(name, h.data_offset,
+                            "truncated binary_compressed data: compressed size " + std::to_string(csize) +
+                                " but only " + std::to_string(data.size() - h.data_offset - 8) +
+                                " bytes follow");
     inflated.resize(payload);
     const unsigned got = payload == 0 ? 0
-                                      : lzf_decompress(data.data() + h.data_offset + 8, csize, inflated.data(),
-                                                       static_cast<unsigned>(payload));
+                                      : lzf_decompress(data.data() + h.data_offset + 8, csize,
+                                                       inflated.data(), static_cast<unsigned>(payload));
     if (got != payload)
-      throw error_at_offset(name, h.data_offset + 8, "binary_compressed: corrupt LZF data (decompressed " +
-                                                         std::to_string(got) + " of " + std::to_string(payload) +
-                                                         " bytes)");
+      throw error_at_offset(name, h.data_offset + 8,
+                            "binary_compressed: corrupt LZF data (decompressed " + std::to_string(got) +
+                                " of " + std::to_string(payload) + " bytes)");
     records = inflated.data();
   }
 
@@ -262,8 +287,10 @@ void read_pcd(std::span<const std::byte> data, const std::string& name, Organize
   out.viewpoint = Eigen::Vector3d(h.viewpoint[0], h.viewpoint[1], h.viewpoint[2]);
   Eigen::Quaterniond q(h.viewpoint[3], h.viewpoint[4], h.viewpoint[5], h.viewpoint[6]);
   out.viewpoint_orientation = q.norm() > 1e-12 ? q.normalized() : Eigen::Quaterniond::Identity();
-  if (h.data == PcdData::Ascii) read_ascii(data, name, h, out);
-  else read_records(records, h.data == PcdData::Compressed, h, out);
+  if (h.data == PcdData::Ascii)
+    read_ascii(data, name, h, out);
+  else
+    read_records(records, h.data == PcdData::Compressed, h, out);
 }
 
 std::vector<std::byte> read_file_bytes(const std::string& path) {

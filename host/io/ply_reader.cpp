@@ -39,11 +39,15 @@ struct PlyElement {
 enum class PlyFormat { Ascii, BinaryLE, BinaryBE };
 
 bool parse_type(std::string_view s, ScalarType& t) {
-  struct Entry { std::string_view a, b; ScalarKind k; std::uint8_t size; };
+  struct Entry {
+    std::string_view a, b;
+    ScalarKind k;
+    std::uint8_t size;
+  };
   static constexpr Entry table[] = {
-      {"char", "int8", ScalarKind::Int, 1},     {"uchar", "uint8", ScalarKind::UInt, 1},
-      {"short", "int16", ScalarKind::Int, 2},   {"ushort", "uint16", ScalarKind::UInt, 2},
-      {"int", "int32", ScalarKind::Int, 4},     {"uint", "uint32", ScalarKind::UInt, 4},
+      {"char", "int8", ScalarKind::Int, 1},       {"uchar", "uint8", ScalarKind::UInt, 1},
+      {"short", "int16", ScalarKind::Int, 2},     {"ushort", "uint16", ScalarKind::UInt, 2},
+      {"int", "int32", ScalarKind::Int, 4},       {"uint", "uint32", ScalarKind::UInt, 4},
       {"float", "float32", ScalarKind::Float, 4}, {"double", "float64", ScalarKind::Float, 8}};
   for (const auto& e : table) {
     if (s == e.a || s == e.b) {
@@ -58,12 +62,16 @@ bool parse_type(std::string_view s, ScalarType& t) {
 class Body {
  public:
   Body(std::span<const std::byte> data, std::size_t pos, PlyFormat fmt, const std::string& file)
-      : data_(data), pos_(pos), fmt_(fmt), file_(file),
+      : data_(data),
+        pos_(pos),
+        fmt_(fmt),
+        file_(file),
         swap_((fmt == PlyFormat::BinaryBE) == (std::endian::native == std::endian::little)) {}
 
   double scalar(ScalarType t) {
     if (fmt_ == PlyFormat::Ascii) return ascii_value();
-    if (data_.size() - pos_ < t.size) throw error_at_offset(file_, pos_, "truncated data (element " + where_ + ")");
+    if (data_.size() - pos_ < t.size)
+      throw error_at_offset(file_, pos_, "truncated data (element " + where_ + ")");
     const double v = io_detail::load_scalar(data_.data() + pos_, t, swap_);
     pos_ += t.size;
     return v;
@@ -74,7 +82,8 @@ class Body {
       if (!(std::abs(v) < 9e15)) throw error_at_offset(file_, token_at_, "integer value out of range");
       return static_cast<std::int64_t>(v);
     }
-    if (data_.size() - pos_ < t.size) throw error_at_offset(file_, pos_, "truncated data (element " + where_ + ")");
+    if (data_.size() - pos_ < t.size)
+      throw error_at_offset(file_, pos_, "truncated data (element " + where_ + ")");
     const std::int64_t v = io_detail::load_integer(data_.data() + pos_, t, swap_);
     pos_ += t.size;
     return v;
@@ -82,16 +91,21 @@ class Body {
   std::size_t pos() const { return pos_; }
   std::size_t remaining() const { return data_.size() - pos_; }
   void set_where(std::string w) { where_ = std::move(w); }
-  [[noreturn]] void fail_here(const std::string& what) const { throw error_at_offset(file_, token_at_, what); }
+  [[noreturn]] void fail_here(const std::string& what) const {
+    throw error_at_offset(file_, token_at_, what);
+  }
 
  private:
   double ascii_value() {
     const char* base = reinterpret_cast<const char*>(data_.data());
-    while (pos_ < data_.size() && (base[pos_] == ' ' || base[pos_] == '\t' || base[pos_] == '\n' || base[pos_] == '\r'))
+    while (pos_ < data_.size() &&
+           (base[pos_] == ' ' || base[pos_] == '\t' || base[pos_] == '\n' || base[pos_] == '\r'))
       ++pos_;
-    if (pos_ >= data_.size()) throw error_at_offset(file_, pos_, "truncated ascii data (element " + where_ + ")");
+    if (pos_ >= data_.size())
+      throw error_at_offset(file_, pos_, "truncated ascii data (element " + where_ + ")");
     std::size_t end = pos_;
-    while (end < data_.size() && base[end] != ' ' && base[end] != '\t' && base[end] != '\n' && base[end] != '\r') {
+    while (end < data_.size() && base[end] != ' ' && base[end] != '\t' && base[end] != '\n' &&
+           base[end] != '\r') {
       if (end - pos_ > 64) throw error_at_offset(file_, pos_, "ascii value longer than 64 characters");
       ++end;
     }
@@ -99,7 +113,8 @@ class Body {
     double v = 0;
     const std::string_view tok(base + pos_, end - pos_);
     if (!io_detail::parse_double(tok, v))
-      throw error_at_offset(file_, pos_, "'" + std::string(tok) + "' is not a number (element " + where_ + ")");
+      throw error_at_offset(file_, pos_,
+                            "'" + std::string(tok) + "' is not a number (element " + where_ + ")");
     pos_ = end;
     return v;
   }
@@ -118,7 +133,8 @@ class Body {
 void read_ply(std::span<const std::byte> data, const std::string& name, OrganizedCloud& out,
               const CloudReadOptions& options) {
   HeaderLines in(data, name);
-  if (!in.next() || in.line() != "ply") throw error_at_offset(name, 0, "not a PLY file (missing 'ply' magic line)");
+  if (!in.next() || in.line() != "ply")
+    throw error_at_offset(name, 0, "not a PLY file (missing 'ply' magic line)");
   PlyFormat fmt = PlyFormat::Ascii;
   bool have_format = false, have_end = false;
   std::vector<PlyElement> elements;
@@ -144,13 +160,18 @@ void read_ply(std::span<const std::byte> data, const std::string& name, Organize
     } else if (key == "obj_info") {
       // PCL writes "obj_info num_cols 640" / "obj_info num_rows 480"; also accept width/height.
       if (t.size() >= 3 && (t[1] == "num_cols" || t[1] == "width")) grid_w = in.as_u64(2, options.max_points);
-      if (t.size() >= 3 && (t[1] == "num_rows" || t[1] == "height")) grid_h = in.as_u64(2, options.max_points);
+      if (t.size() >= 3 && (t[1] == "num_rows" || t[1] == "height"))
+        grid_h = in.as_u64(2, options.max_points);
     } else if (key == "format") {
       if (t.size() != 3) in.fail("format line needs '<ascii|binary_little_endian|binary_big_endian> 1.0'");
-      if (t[1] == "ascii") fmt = PlyFormat::Ascii;
-      else if (t[1] == "binary_little_endian") fmt = PlyFormat::BinaryLE;
-      else if (t[1] == "binary_big_endian") fmt = PlyFormat::BinaryBE;
-      else in.fail("unknown PLY format '" + std::string(t[1]) + "'");
+      if (t[1] == "ascii")
+        fmt = PlyFormat::Ascii;
+      else if (t[1] == "binary_little_endian")
+        fmt = PlyFormat::BinaryLE;
+      else if (t[1] == "binary_big_endian")
+        fmt = PlyFormat::BinaryBE;
+      else
+        in.fail("unknown PLY format '" + std::string(t[1]) + "'");
       if (t[2] != "1.0") in.fail("unsupported PLY version '" + std::string(t[2]) + "'");
       have_format = true;
     } else if (key == "element") {
@@ -161,7 +182,8 @@ void read_ply(std::span<const std::byte> data, const std::string& name, Organize
     } else if (key == "property") {
       if (elements.empty()) in.fail("property before any element");
       auto& props = elements.back().props;
-      if (props.size() >= kMaxProperties) in.fail("more than " + std::to_string(kMaxProperties) + " properties");
+      if (props.size() >= kMaxProperties)
+        in.fail("more than " + std::to_string(kMaxProperties) + " properties");
       PlyProperty p;
       if (t.size() == 5 && t[1] == "list") {
         p.is_list = true;
@@ -196,17 +218,22 @@ void read_ply(std::span<const std::byte> data, const std::string& name, Organize
       const auto& p = e.props[i];
       const int idx = static_cast<int>(i);
       if (p.is_list) continue;
-      if (p.name == "x") ix = idx;
-      else if (p.name == "y") iy = idx;
-      else if (p.name == "z") iz = idx;
-      else if (p.name == "label" && p.type.kind != ScalarKind::Float) ilabel = idx;
+      if (p.name == "x")
+        ix = idx;
+      else if (p.name == "y")
+        iy = idx;
+      else if (p.name == "z")
+        iz = idx;
+      else if (p.name == "label" && p.type.kind != ScalarKind::Float)
+        ilabel = idx;
     }
   }
   if (!vertex) throw error_at_offset(name, in.offset(), "no vertex element");
   if (ix < 0 || iy < 0 || iz < 0) throw error_at_offset(name, in.offset(), "vertex element lacks x, y or z");
   if (vertex->count > options.max_points)
-    throw error_at_offset(name, in.offset(), std::to_string(vertex->count) + " vertices exceed the limit of " +
-                                                 std::to_string(options.max_points));
+    throw error_at_offset(name, in.offset(),
+                          std::to_string(vertex->count) + " vertices exceed the limit of " +
+                              std::to_string(options.max_points));
   const bool want_labels = options.load_labels && ilabel >= 0;
   // A PCL "camera" element (pcl::PLYWriter): its view_px/py/pz give the sensor origin.
   const PlyElement* camera = nullptr;
@@ -229,7 +256,7 @@ void read_ply(std::span<const std::byte> data, const std::string& name, Organize
 
   std::vector<Eigen::Vector3f> pts;
   std::vector<std::int32_t> labs;
-  std::vector<std::int64_t> grid;   // range_grid cell -> vertex index or -1
+  std::vector<std::int64_t> grid;  // range_grid cell -> vertex index or -1
   bool have_grid = false;
   const float nan = std::numeric_limits<float>::quiet_NaN();
   Body body(data, in.offset(), fmt, name);
@@ -252,16 +279,19 @@ void read_ply(std::span<const std::byte> data, const std::string& name, Organize
     }
     for (std::uint64_t n = 0; n < e.count; ++n) {
       if (body.remaining() == 0)
-        throw error_at_offset(name, body.pos(), "truncated data: element '" + e.name + "' " + std::to_string(n) +
-                                                    " of " + std::to_string(e.count));
+        throw error_at_offset(name, body.pos(),
+                              "truncated data: element '" + e.name + "' " + std::to_string(n) + " of " +
+                                  std::to_string(e.count));
       for (std::size_t k = 0; k < e.props.size(); ++k) {
         const auto& p = e.props[k];
         if (p.is_list) {
           const std::int64_t len = body.integer(p.count_type);
           if (len < 0 || static_cast<std::uint64_t>(len) > body.remaining())
-            body.fail_here("list length " + std::to_string(len) + " is negative or beyond the end of the file");
+            body.fail_here("list length " + std::to_string(len) +
+                           " is negative or beyond the end of the file");
           if (is_grid) {
-            if (len > 1) body.fail_here("range_grid cell with " + std::to_string(len) + " vertices (expected 0 or 1)");
+            if (len > 1)
+              body.fail_here("range_grid cell with " + std::to_string(len) + " vertices (expected 0 or 1)");
             std::int64_t idx = -1;
             if (len == 1) {
               idx = body.integer(p.type);
@@ -276,7 +306,8 @@ void read_ply(std::span<const std::byte> data, const std::string& name, Organize
           if (static_cast<int>(k) == ilabel && want_labels) {
             const std::int64_t l = body.integer(p.type);
             vals[k] = 0.0;
-            labs.push_back(l > std::numeric_limits<std::int32_t>::max() || l < std::numeric_limits<std::int32_t>::min()
+            labs.push_back(l > std::numeric_limits<std::int32_t>::max() ||
+                                   l < std::numeric_limits<std::int32_t>::min()
                                ? -1
                                : static_cast<std::int32_t>(l));
           } else {
@@ -304,8 +335,9 @@ void read_ply(std::span<const std::byte> data, const std::string& name, Organize
     if (grid_w == 0 || grid_h == 0)
       throw error_at_offset(name, 0, "range_grid element without 'obj_info num_cols/num_rows' in the header");
     if (grid_w * grid_h != grid.size())
-      throw error_at_offset(name, 0, "range_grid has " + std::to_string(grid.size()) + " cells, header grid is " +
-                                         std::to_string(grid_w) + " x " + std::to_string(grid_h));
+      throw error_at_offset(name, 0,
+                            "range_grid has " + std::to_string(grid.size()) + " cells, header grid is " +
+                                std::to_string(grid_w) + " x " + std::to_string(grid_h));
     out.reset(static_cast<std::uint32_t>(grid_w), static_cast<std::uint32_t>(grid_h), want_labels);
     for (std::size_t c = 0; c < grid.size(); ++c) {
       if (grid[c] < 0) continue;
@@ -314,8 +346,9 @@ void read_ply(std::span<const std::byte> data, const std::string& name, Organize
     }
   } else if (grid_w > 0 && grid_h > 0) {
     if (grid_w * grid_h != pts.size())
-      throw error_at_offset(name, 0, "header grid " + std::to_string(grid_w) + " x " + std::to_string(grid_h) +
-                                         " does not match " + std::to_string(pts.size()) + " vertices");
+      throw error_at_offset(name, 0,
+                            "header grid " + std::to_string(grid_w) + " x " + std::to_string(grid_h) +
+                                " does not match " + std::to_string(pts.size()) + " vertices");
     out.reset(static_cast<std::uint32_t>(grid_w), static_cast<std::uint32_t>(grid_h), want_labels);
     std::copy(pts.begin(), pts.end(), out.points.begin());
     if (want_labels) std::copy(labs.begin(), labs.end(), out.labels.begin());
@@ -327,7 +360,8 @@ void read_ply(std::span<const std::byte> data, const std::string& name, Organize
   }
   if (camera && !have_viewpoint) {
     for (double v : camera_view)
-      if (!std::isfinite(v)) throw error_at_offset(name, camera_offset, "camera element: view point is not finite");
+      if (!std::isfinite(v))
+        throw error_at_offset(name, camera_offset, "camera element: view point is not finite");
     viewpoint[0] = camera_view[0];
     viewpoint[1] = camera_view[1];
     viewpoint[2] = camera_view[2];

@@ -11,7 +11,7 @@ enum class ScalarKind : std::uint8_t { Int, UInt, Float };
 
 struct ScalarType {
   ScalarKind kind = ScalarKind::Float;
-  std::uint8_t size = 4;   // 1, 2, 4 or 8 bytes
+  std::uint8_t size = 4;  // 1, 2, 4 or 8 bytes
 };
 
 template <typename T>
@@ -38,17 +38,25 @@ inline double load_scalar(const std::byte* p, ScalarType t, bool swap = false) {
       return t.size == 8 ? load_as<double>(p, swap) : static_cast<double>(load_as<float>(p, swap));
     case ScalarKind::Int:
       switch (t.size) {
-        case 1: return load_as<std::int8_t>(p, swap);
-        case 2: return load_as<std::int16_t>(p, swap);
-        case 4: return load_as<std::int32_t>(p, swap);
-        default: return static_cast<double>(load_as<std::int64_t>(p, swap));
+        case 1:
+          return load_as<std::int8_t>(p, swap);
+        case 2:
+          return load_as<std::int16_t>(p, swap);
+        case 4:
+          return load_as<std::int32_t>(p, swap);
+        default:
+          return static_cast<double>(load_as<std::int64_t>(p, swap));
       }
     case ScalarKind::UInt:
       switch (t.size) {
-        case 1: return load_as<std::uint8_t>(p, swap);
-        case 2: return load_as<std::uint16_t>(p, swap);
-        case 4: return load_as<std::uint32_t>(p, swap);
-        default: return static_cast<double>(load_as<std::uint64_t>(p, swap));
+        case 1:
+          return load_as<std::uint8_t>(p, swap);
+        case 2:
+          return load_as<std::uint16_t>(p, swap);
+        case 4:
+          return load_as<std::uint32_t>(p, swap);
+        default:
+          return static_cast<double>(load_as<std::uint64_t>(p, swap));
       }
   }
   return 0.0;
@@ -56,7 +64,8 @@ inline double load_scalar(const std::byte* p, ScalarType t, bool swap = false) {
 
 // Integer scalars read exactly (labels); floats are truncated.
 inline std::int64_t load_integer(const std::byte* p, ScalarType t, bool swap = false) {
-  if (t.kind == ScalarKind::UInt && t.size == 8) return static_cast<std::int64_t>(load_as<std::uint64_t>(p, swap));
+  if (t.kind == ScalarKind::UInt && t.size == 8)
+    return static_cast<std::int64_t>(load_as<std::uint64_t>(p, swap));
   if (t.kind == ScalarKind::Int && t.size == 8) return load_as<std::int64_t>(p, swap);
   const double v = load_scalar(p, t, swap);
   if (!(v == v) || v > 9.2e18 || v < -9.2e18) return 0;

@@ -8,12 +8,18 @@ namespace fs::host {
 
 const char* to_string(ScanStatus s) {
   switch (s) {
-    case ScanStatus::InProgress: return "in progress";
-    case ScanStatus::Complete: return "complete";
-    case ScanStatus::Aborted: return "aborted by the scanner";
-    case ScanStatus::MissingStripes: return "missing stripes";
-    case ScanStatus::Disconnected: return "disconnected before ScanEnd";
-    case ScanStatus::Superseded: return "superseded by a new scan";
+    case ScanStatus::InProgress:
+      return "in progress";
+    case ScanStatus::Complete:
+      return "complete";
+    case ScanStatus::Aborted:
+      return "aborted by the scanner";
+    case ScanStatus::MissingStripes:
+      return "missing stripes";
+    case ScanStatus::Disconnected:
+      return "disconnected before ScanEnd";
+    case ScanStatus::Superseded:
+      return "superseded by a new scan";
   }
   return "?";
 }
@@ -34,8 +40,8 @@ void Scan::start(const msg::ScanBegin& begin, const ScanLimits& limits) {
     throw Error("ScanBegin of scan " + std::to_string(begin.scan_id) + ": camera height " +
                 std::to_string(cal.camera.height) + " out of range");
   // One point per image row per step is the normal case; storage beyond that comes from reserve().
-  const std::uint64_t want = std::min<std::uint64_t>(std::uint64_t(cal.step_count) * cal.camera.height,
-                                                     limits.max_total_points);
+  const std::uint64_t want =
+      std::min<std::uint64_t>(std::uint64_t(cal.step_count) * cal.camera.height, limits.max_total_points);
   reserve(cal.step_count, want);
   begin_.scan_id = begin.scan_id;
   begin_.scanner_model = begin.scanner_model;
@@ -61,8 +67,10 @@ bool Scan::add_stripe(const msg::Stripe& stripe) {
     return false;
   }
   Slot& s = slots_[static_cast<std::size_t>(slot)];
-  if (s.present) ++duplicates_;   // a repeated step: the newer stripe wins
-  else ++received_;
+  if (s.present)
+    ++duplicates_;  // a repeated step: the newer stripe wins
+  else
+    ++received_;
   s.header = h;
   s.first = used_;
   s.count = static_cast<std::uint32_t>(stripe.points.size());
@@ -76,9 +84,12 @@ void Scan::finish(const msg::ScanEnd& end) {
   if (!started_ || status_ != ScanStatus::InProgress) return;
   end_ = end;
   has_end_ = true;
-  if (!end.completed) status_ = ScanStatus::Aborted;
-  else if (received_ < slot_count()) status_ = ScanStatus::MissingStripes;
-  else status_ = ScanStatus::Complete;
+  if (!end.completed)
+    status_ = ScanStatus::Aborted;
+  else if (received_ < slot_count())
+    status_ = ScanStatus::MissingStripes;
+  else
+    status_ = ScanStatus::Complete;
 }
 
 void Scan::interrupt(ScanStatus why) {

@@ -12,12 +12,12 @@
 namespace fs::host {
 
 enum class ScanStatus : std::uint8_t {
-  InProgress,       // no ScanEnd yet
-  Complete,         // ScanEnd(completed) and all steps present
-  Aborted,          // ScanEnd says the firmware aborted
-  MissingStripes,   // ScanEnd(completed) but some steps never arrived (dropped frames / stripes)
-  Disconnected,     // the stream / file ended before ScanEnd
-  Superseded,       // a new ScanBegin arrived before ScanEnd
+  InProgress,      // no ScanEnd yet
+  Complete,        // ScanEnd(completed) and all steps present
+  Aborted,         // ScanEnd says the firmware aborted
+  MissingStripes,  // ScanEnd(completed) but some steps never arrived (dropped frames / stripes)
+  Disconnected,    // the stream / file ended before ScanEnd
+  Superseded,      // a new ScanBegin arrived before ScanEnd
 };
 const char* to_string(ScanStatus s);
 
@@ -49,7 +49,7 @@ class Scan {
   bool has_end() const { return has_end_; }
   std::uint64_t scan_id() const { return begin_.scan_id; }
 
-  std::uint32_t slot_count() const { return begin_.calibration.step_count; }   // columns
+  std::uint32_t slot_count() const { return begin_.calibration.step_count; }  // columns
   bool has_stripe(std::uint32_t slot) const { return slot < slot_count() && slots_[slot].present; }
   const msg::StripeHeader& stripe_header(std::uint32_t slot) const { return slots_[slot].header; }
   std::span<const msg::StripePoint> stripe_points(std::uint32_t slot) const {
@@ -73,7 +73,7 @@ class Scan {
   msg::ScanBegin begin_;
   msg::ScanEnd end_;
   std::vector<Slot> slots_;
-  std::vector<msg::StripePoint> points_;   // size() = capacity in use; used_ = filled
+  std::vector<msg::StripePoint> points_;  // size() = capacity in use; used_ = filled
   std::uint64_t used_ = 0;
   std::uint32_t received_ = 0, rejected_ = 0, duplicates_ = 0, faults_ = 0, last_fault_code_ = 0;
   ScanStatus status_ = ScanStatus::InProgress;

@@ -5,21 +5,34 @@
 
 namespace fs::host {
 
-ScanAssembler::ScanAssembler(Callback on_scan, ScanLimits limits) : on_scan_(std::move(on_scan)), limits_(limits) {}
+ScanAssembler::ScanAssembler(Callback on_scan, ScanLimits limits)
+    : on_scan_(std::move(on_scan)), limits_(limits) {}
 
 void ScanAssembler::on_message(const wire::DecodedMessage& m) {
   switch (m.type) {
-    case msg::Type::ScanBegin: on_scan_begin(m.scan_begin); break;
-    case msg::Type::Stripe: on_stripe(m.stripe); break;
-    case msg::Type::ScanEnd: on_scan_end(m.scan_end); break;
-    case msg::Type::Heartbeat: on_heartbeat(m.heartbeat); break;
-    case msg::Type::Fault: on_fault(m.fault); break;
+    case msg::Type::ScanBegin:
+      on_scan_begin(m.scan_begin);
+      break;
+    case msg::Type::Stripe:
+      on_stripe(m.stripe);
+      break;
+    case msg::Type::ScanEnd:
+      on_scan_end(m.scan_end);
+      break;
+    case msg::Type::Heartbeat:
+      on_heartbeat(m.heartbeat);
+      break;
+    case msg::Type::Fault:
+      on_fault(m.fault);
+      break;
   }
 }
 
 void ScanAssembler::deliver() {
-  if (scan_.complete()) ++stats_.scans_complete;
-  else ++stats_.scans_partial;
+  if (scan_.complete())
+    ++stats_.scans_complete;
+  else
+    ++stats_.scans_partial;
   if (on_scan_) on_scan_(scan_);
 }
 

@@ -15,11 +15,11 @@ namespace fs::host {
 struct AssemblerStats {
   std::uint64_t scans_complete = 0;
   std::uint64_t scans_partial = 0;
-  std::uint64_t orphan_stripes = 0;   // stripes / ends with no matching ScanBegin
+  std::uint64_t orphan_stripes = 0;  // stripes / ends with no matching ScanBegin
   std::uint64_t heartbeats = 0;
   std::uint64_t faults = 0;
   std::int64_t last_heartbeat_ns = 0;
-  std::uint8_t last_state = 0;        // firmware state from the last heartbeat
+  std::uint8_t last_state = 0;  // firmware state from the last heartbeat
 };
 
 class ScanAssembler {
@@ -38,7 +38,7 @@ class ScanAssembler {
 
   bool in_scan() const { return scan_.started() && scan_.status() == ScanStatus::InProgress; }
   const Scan& current() const { return scan_; }
-  Scan& storage() { return scan_; }   // to reserve() up front
+  Scan& storage() { return scan_; }  // to reserve() up front
   const AssemblerStats& stats() const { return stats_; }
 
  private:

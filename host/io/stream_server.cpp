@@ -11,9 +11,9 @@
 #include <cerrno>
 #include <cstring>
 
-#include "common/monotonic_time.hpp"
 #include "common/error.hpp"
 #include "common/host_port.hpp"
+#include "common/monotonic_time.hpp"
 
 namespace fs::host {
 
@@ -27,7 +27,8 @@ StreamServer::StreamServer(StreamServerOptions options, ScanAssembler::Callback 
       decoder_("tcp " + opt_.listen),
       rx_(64 * 1024),
       tx_(wire::kFrameOverhead + wire::kHeartbeatSize + 16) {
-  if (::pipe2(wake_, O_NONBLOCK | O_CLOEXEC) != 0) throw Error(std::string("stream server: pipe: ") + std::strerror(errno));
+  if (::pipe2(wake_, O_NONBLOCK | O_CLOEXEC) != 0)
+    throw Error(std::string("stream server: pipe: ") + std::strerror(errno));
 }
 
 StreamServer::~StreamServer() {
@@ -104,7 +105,8 @@ bool StreamServer::poll_once(int timeout_ms) {
       }
     }
     if (fds[1].revents & POLLIN) accept_client();
-    if (client_ >= 0 && fds[2].fd == client_ && (fds[2].revents & (POLLIN | POLLHUP | POLLERR))) read_client();
+    if (client_ >= 0 && fds[2].fd == client_ && (fds[2].revents & (POLLIN | POLLHUP | POLLERR)))
+      read_client();
   }
   check_timers();
   return !stop_;
@@ -112,13 +114,13 @@ bool StreamServer::poll_once(int timeout_ms) {
 
 void StreamServer::accept_client() {
   const int fd = ::accept4(listen_fd_, nullptr, nullptr, SOCK_NONBLOCK | SOCK_CLOEXEC);
-  if (fd < 0) return;   // EAGAIN / ECONNABORTED: nothing to do
-  if (client_ >= 0) drop_client(false);   // the scanner re-dialled: the new connection wins
+  if (fd < 0) return;                    // EAGAIN / ECONNABORTED: nothing to do
+  if (client_ >= 0) drop_client(false);  // the scanner re-dialled: the new connection wins
   const int one = 1;
   ::setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &one, sizeof(one));
   client_ = fd;
   ++stats_.connections;
-  decoder_.reset(0);   // a frame cut by the old connection is resent whole by the scanner
+  decoder_.reset(0);  // a frame cut by the old connection is resent whole by the scanner
   last_rx_ns_ = now();
   disconnected_at_ns_ = -1;
   send_heartbeat();
@@ -165,8 +167,10 @@ void StreamServer::drop_client(bool timeout) {
   if (client_ < 0) return;
   ::close(client_);
   client_ = -1;
-  if (timeout) ++stats_.link_timeouts;
-  else ++stats_.disconnects;
+  if (timeout)
+    ++stats_.link_timeouts;
+  else
+    ++stats_.disconnects;
   disconnected_at_ns_ = now();
   if (opt_.reconnect_grace_ms <= 0) assembler_.end_of_stream();
 }
@@ -179,7 +183,8 @@ void StreamServer::send_heartbeat() {
   hb.state = 0;
   const std::size_t n = wire::encode(tx_, tx_seq_++, hb);
   // Best effort: a full socket buffer just skips this heartbeat.
-  if (::send(client_, tx_.data(), n, MSG_DONTWAIT | MSG_NOSIGNAL) == static_cast<ssize_t>(n)) ++stats_.heartbeats_sent;
+  if (::send(client_, tx_.data(), n, MSG_DONTWAIT | MSG_NOSIGNAL) == static_cast<ssize_t>(n))
+    ++stats_.heartbeats_sent;
   last_hb_ns_ = now();
 }
 
@@ -187,7 +192,8 @@ void StreamServer::check_timers() {
   const std::int64_t t = now();
   if (client_ >= 0) {
     if (opt_.link_timeout_ms > 0 && t - last_rx_ns_ > opt_.link_timeout_ms * 1'000'000) {
-      stats_.last_error = "link timeout: nothing received for " + std::to_string(opt_.link_timeout_ms) + " ms";
+      stats_.last_error =
+          "link timeout: nothing received for " + std::to_string(opt_.link_timeout_ms) + " ms";
       drop_client(true);
     } else if (opt_.heartbeat_interval_ms > 0 && t - last_hb_ns_ >= opt_.heartbeat_interval_ms * 1'000'000) {
       send_heartbeat();

@@ -26,19 +26,19 @@
 namespace fs::host {
 
 struct StreamServerOptions {
-  std::string listen = "127.0.0.1:5555";   // ADDR:PORT; port 0 picks a free port (see port())
+  std::string listen = "127.0.0.1:5555";  // ADDR:PORT; port 0 picks a free port (see port())
   std::int64_t heartbeat_interval_ms = 500;
   std::int64_t link_timeout_ms = 3000;
   std::int64_t reconnect_grace_ms = 5000;
   ScanLimits limits;
-  std::function<std::int64_t()> now_ns;    // monotonic clock; default CLOCK_MONOTONIC
+  std::function<std::int64_t()> now_ns;  // monotonic clock; default CLOCK_MONOTONIC
 };
 
 struct StreamServerStats {
   std::uint64_t connections = 0;
-  std::uint64_t disconnects = 0;        // peer closed or errored
-  std::uint64_t link_timeouts = 0;      // closed for silence
-  std::uint64_t protocol_errors = 0;    // closed for a malformed frame
+  std::uint64_t disconnects = 0;      // peer closed or errored
+  std::uint64_t link_timeouts = 0;    // closed for silence
+  std::uint64_t protocol_errors = 0;  // closed for a malformed frame
   std::uint64_t bytes = 0;
   std::uint64_t frames = 0;
   std::uint64_t heartbeats_sent = 0;
@@ -60,7 +60,7 @@ class StreamServer {
   bool poll_once(int timeout_ms);
   // poll_once() until stop().
   void run();
-  void stop();   // thread-safe
+  void stop();  // thread-safe
   // Shutdown: closes the connection and delivers a scan in progress as partial.
   void close_all();
 

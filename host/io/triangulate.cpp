@@ -139,7 +139,7 @@ void Triangulator::add_stripe(const msg::StripeHeader& header, std::span<const m
 const float* Triangulator::smooth_columns(std::span<const msg::StripePoint> points) const {
   const int w = static_cast<int>(options_.smooth_half_window);
   if (w == 0 || points.size() < 3) return nullptr;
-  if (smoothed_.size() < points.size()) smoothed_.resize(points.size());   // only for oversized stripes
+  if (smoothed_.size() < points.size()) smoothed_.resize(points.size());  // only for oversized stripes
   const float jump = options_.smooth_max_jump_px;
   const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(points.size());
   const msg::StripePoint* pt = points.data();

@@ -65,7 +65,10 @@ std::vector<std::uint32_t> weld(const std::vector<Vec3>& P, const Vec3& lo, doub
           auto it = grid.find({k[0] + dx, k[1] + dy, k[2] + dz});
           if (it == grid.end()) continue;
           for (auto r : it->second)
-            if ((out[r] - P[i]).norm() <= tol) { found = r; break; }
+            if ((out[r] - P[i]).norm() <= tol) {
+              found = r;
+              break;
+            }
         }
     if (found >= 0) {
       map[i] = static_cast<std::uint32_t>(found);
@@ -84,13 +87,16 @@ struct HalfEdges {
   bool nonmanifold = false;
 };
 
-// Pairs every half-edge a->b with one b->a (or a->b when the winding is inconsistent) of another facet. Around
-// an edge shared by more than two facets the pairing follows the solid: each facet is paired with its angular
-// neighbour on its material side (needs outward winding there).
+// Pairs every half-edge a->b with one b->a (or a->b when the winding is inconsistent) of another facet.
+// Around an edge shared by more than two facets the pairing follows the solid: each facet is paired with its
+// angular neighbour on its material side (needs outward winding there).
 HalfEdges pair_edges(std::vector<Facet>& facets, const std::vector<Vec3>& P, const std::string& src,
                      bool allow_open, std::size_t& boundary_edges) {
   HalfEdges he;
-  struct Rec { std::uint64_t key; std::uint32_t h; };
+  struct Rec {
+    std::uint64_t key;
+    std::uint32_t h;
+  };
   std::vector<Rec> recs;
   std::uint32_t n = 0;
   for (std::uint32_t f = 0; f < facets.size(); ++f) {
@@ -109,9 +115,8 @@ HalfEdges pair_edges(std::vector<Facet>& facets, const std::vector<Vec3>& P, con
     a = f.v[i];
     b = f.v[(i + 1) % f.v.size()];
   };
-  std::sort(recs.begin(), recs.end(), [](const Rec& x, const Rec& y) {
-    return x.key != y.key ? x.key < y.key : x.h < y.h;
-  });
+  std::sort(recs.begin(), recs.end(),
+            [](const Rec& x, const Rec& y) { return x.key != y.key ? x.key < y.key : x.h < y.h; });
   boundary_edges = 0;
   for (std::size_t i = 0; i < recs.size();) {
     std::size_t j = i;
@@ -122,9 +127,10 @@ HalfEdges pair_edges(std::vector<Facet>& facets, const std::vector<Vec3>& P, con
     if (k == 1) {
       ++boundary_edges;
       if (!allow_open)
-        throw Error(fmt::format("{}: open mesh: the edge {} - {} belongs to one facet only (facet {}); "
-                                "the mesh must be closed (or use the allow-open option)",
-                                src, vtx(P[lo]), vtx(P[hi]), facets[he.facet[recs[i].h]].mesh_index));
+        throw Error(
+            fmt::format("{}: open mesh: the edge {} - {} belongs to one facet only (facet {}); "
+                        "the mesh must be closed (or use the allow-open option)",
+                        src, vtx(P[lo]), vtx(P[hi]), facets[he.facet[recs[i].h]].mesh_index));
     } else if (k == 2) {
       if (he.facet[recs[i].h] == he.facet[recs[i + 1].h])
         throw Error(fmt::format("{}: facet {} uses the edge {} - {} twice", src,
@@ -140,7 +146,12 @@ HalfEdges pair_edges(std::vector<Facet>& facets, const std::vector<Vec3>& P, con
       if (k % 2) throw fail("odd number of facets");
       const Vec3 t = (P[hi] - P[lo]).normalized();
       const Vec3 b1 = t.unitOrthogonal(), b2 = t.cross(b1);
-      struct Around { double theta; std::uint32_t h; bool material_up; bool forward; };
+      struct Around {
+        double theta;
+        std::uint32_t h;
+        bool material_up;
+        bool forward;
+      };
       std::vector<Around> around;
       for (std::size_t r = i; r < j; ++r) {
         const std::uint32_t h = recs[r].h;
@@ -154,7 +165,8 @@ HalfEdges pair_edges(std::vector<Facet>& facets, const std::vector<Vec3>& P, con
         const Vec3 n = f.newell.normalized();
         around.push_back({std::atan2(w.dot(b2), w.dot(b1)), h, (-n).dot(t.cross(w)) > 0, a == lo});
       }
-      std::sort(around.begin(), around.end(), [](const Around& x, const Around& y) { return x.theta < y.theta; });
+      std::sort(around.begin(), around.end(),
+                [](const Around& x, const Around& y) { return x.theta < y.theta; });
       for (std::size_t r = 0; r < k; ++r) {
         const std::size_t q = around[r].material_up ? (r + 1) % k : (r + k - 1) % k;
         const std::size_t back = around[q].material_up ? (q + 1) % k : (q + k - 1) % k;
@@ -214,7 +226,8 @@ double Model::total_border() const {
 Model build_model(const Mesh& mesh, const BuildOptions& options) {
   const std::string src = mesh.name.empty() ? std::string("mesh") : mesh.name;
   if (mesh.vertices.empty() || mesh.faces.empty())
-    throw Error(fmt::format("{}: empty mesh ({} vertices, {} faces)", src, mesh.vertices.size(), mesh.faces.size()));
+    throw Error(
+        fmt::format("{}: empty mesh ({} vertices, {} faces)", src, mesh.vertices.size(), mesh.faces.size()));
   if (!(options.scale > 0) || !std::isfinite(options.scale))
     throw Error(fmt::format("{}: scale must be a positive number (got {})", src, options.scale));
 
@@ -228,7 +241,8 @@ Model build_model(const Mesh& mesh, const BuildOptions& options) {
   }
   const double diag = (hi - lo).norm();
   if (!(diag > 0)) throw Error(fmt::format("{}: all vertices coincide", src));
-  if (!(diag < 1e100) || diag < 1e-100 || lo.cwiseAbs().maxCoeff() > 1e100 || hi.cwiseAbs().maxCoeff() > 1e100)
+  if (!(diag < 1e100) || diag < 1e-100 || lo.cwiseAbs().maxCoeff() > 1e100 ||
+      hi.cwiseAbs().maxCoeff() > 1e100)
     throw Error(fmt::format("{}: coordinates out of range (bounding-box diagonal {:g})", src, diag));
   if (!(options.weld_tolerance >= 0) || !(options.merge_angle_deg >= 0))
     throw Error(fmt::format("{}: weld tolerance and merge angle must be >= 0", src));
@@ -294,8 +308,8 @@ Model build_model(const Mesh& mesh, const BuildOptions& options) {
           component[g] = components;
           members.push_back(g);
         } else if (flipped[g] != want) {
-          throw Error(fmt::format("{}: non-orientable surface (facets {} and {} around the edge {} - {})", src,
-                                  facets[f].mesh_index, facets[g].mesh_index, vtx(P[v[i]]),
+          throw Error(fmt::format("{}: non-orientable surface (facets {} and {} around the edge {} - {})",
+                                  src, facets[f].mesh_index, facets[g].mesh_index, vtx(P[v[i]]),
                                   vtx(P[v[(i + 1) % v.size()]])));
         }
       }
@@ -304,15 +318,24 @@ Model build_model(const Mesh& mesh, const BuildOptions& options) {
   }
   bool any_flip = false;
   for (std::size_t f = 0; f < facets.size(); ++f)
-    if (flipped[f]) { flip(facets[f]); any_flip = true; }
+    if (flipped[f]) {
+      flip(facets[f]);
+      any_flip = true;
+    }
   for (int c = 0; c < components; ++c) {
     std::vector<Facet> part;
     std::vector<std::size_t> idx;
     for (std::size_t f = 0; f < facets.size(); ++f)
-      if (component[f] == c) { part.push_back(facets[f]); idx.push_back(f); }
+      if (component[f] == c) {
+        part.push_back(facets[f]);
+        idx.push_back(f);
+      }
     Vec3 origin = Vec3::Zero();
     double w = 0;
-    for (const auto& f : part) { origin += facet_centroid(f, P) * f.newell.norm(); w += f.newell.norm(); }
+    for (const auto& f : part) {
+      origin += facet_centroid(f, P) * f.newell.norm();
+      w += f.newell.norm();
+    }
     origin /= w;
     if (signed_volume6(part, P, origin) < 0) {
       for (auto f : idx) flip(facets[f]);
@@ -326,9 +349,8 @@ Model build_model(const Mesh& mesh, const BuildOptions& options) {
   const double cos_tol = std::cos(options.merge_angle_deg * std::numbers::pi / 180.0);
   std::vector<std::uint32_t> order(facets.size());
   for (std::uint32_t i = 0; i < order.size(); ++i) order[i] = i;
-  std::stable_sort(order.begin(), order.end(), [&](auto a, auto b) {
-    return facets[a].newell.norm() > facets[b].newell.norm();
-  });
+  std::stable_sort(order.begin(), order.end(),
+                   [&](auto a, auto b) { return facets[a].newell.norm() > facets[b].newell.norm(); });
   std::vector<int> region(facets.size(), -1);
   std::vector<Vec3> region_newell;
   for (auto seed : order) {
@@ -411,13 +433,17 @@ Model build_model(const Mesh& mesh, const BuildOptions& options) {
         if (next_v == edges[s].first) break;
         std::size_t next = edges.size();
         for (auto [it, end] = from.equal_range(next_v); it != end; ++it)
-          if (!used[it->second]) { next = it->second; break; }
+          if (!used[it->second]) {
+            next = it->second;
+            break;
+          }
         if (next == edges.size())
           throw Error(fmt::format("{}: the boundary of face {} is not closed at {}", src, r, vtx(P[next_v])));
         e = next;
       }
       loop = simplify_loop(loop, lin_tol);
-      for (std::size_t i = 0; i < loop.size(); ++i) model.faces[r].perimeter += (loop[(i + 1) % loop.size()] - loop[i]).norm();
+      for (std::size_t i = 0; i < loop.size(); ++i)
+        model.faces[r].perimeter += (loop[(i + 1) % loop.size()] - loop[i]).norm();
       model.faces[r].loops.push_back(std::move(loop));
     }
     // Outer loops (counter-clockwise about the normal) first.

@@ -36,11 +36,22 @@ std::uint32_t crc32(const std::uint8_t* p, std::size_t n) {
 struct Writer {
   std::vector<std::uint8_t> out;
   void u8(std::uint8_t v) { out.push_back(v); }
-  void u32(std::uint32_t v) { for (int i = 0; i < 4; ++i) out.push_back(static_cast<std::uint8_t>(v >> (8 * i))); }
-  void u64(std::uint64_t v) { for (int i = 0; i < 8; ++i) out.push_back(static_cast<std::uint8_t>(v >> (8 * i))); }
+  void u32(std::uint32_t v) {
+    for (int i = 0; i < 4; ++i) out.push_back(static_cast<std::uint8_t>(v >> (8 * i)));
+  }
+  void u64(std::uint64_t v) {
+    for (int i = 0; i < 8; ++i) out.push_back(static_cast<std::uint8_t>(v >> (8 * i)));
+  }
   void f64(double v) { u64(std::bit_cast<std::uint64_t>(v)); }
-  void vec(const Vec3& v) { f64(v.x()); f64(v.y()); f64(v.z()); }
-  void str(const std::string& s) { u32(static_cast<std::uint32_t>(s.size())); out.insert(out.end(), s.begin(), s.end()); }
+  void vec(const Vec3& v) {
+    f64(v.x());
+    f64(v.y());
+    f64(v.z());
+  }
+  void str(const std::string& s) {
+    u32(static_cast<std::uint32_t>(s.size()));
+    out.insert(out.end(), s.begin(), s.end());
+  }
 };
 
 struct Reader {
@@ -50,9 +61,13 @@ struct Reader {
 
   Error fail(const std::string& what) const { return error_at_offset(src, pos, what); }
   void need(std::size_t n, const char* what) const {
-    if (b.size() - pos < n) throw fail(fmt::format("truncated: {} needs {} bytes, {} left", what, n, b.size() - pos));
+    if (b.size() - pos < n)
+      throw fail(fmt::format("truncated: {} needs {} bytes, {} left", what, n, b.size() - pos));
   }
-  std::uint8_t u8(const char* what) { need(1, what); return b[pos++]; }
+  std::uint8_t u8(const char* what) {
+    need(1, what);
+    return b[pos++];
+  }
   std::uint32_t u32(const char* what) {
     need(4, what);
     std::uint32_t v = 0;
@@ -82,7 +97,8 @@ struct Reader {
     const std::size_t at = pos;
     const std::uint32_t n = u32(what);
     if (static_cast<std::uint64_t>(n) * min_bytes > b.size() - pos)
-      throw error_at_offset(src, at, fmt::format("{} {} does not fit in the remaining {} bytes", what, n, b.size() - pos));
+      throw error_at_offset(
+          src, at, fmt::format("{} {} does not fit in the remaining {} bytes", what, n, b.size() - pos));
     return n;
   }
 };
@@ -155,15 +171,17 @@ Library Library::from_bytes(std::span<const std::uint8_t> bytes, const std::stri
   const std::size_t vpos = r.pos;
   const std::uint32_t version = r.u32("version");
   if (version != kFslibVersion)
-    throw error_at_offset(source, vpos, fmt::format("unsupported .fslib version {} (this build reads {})", version,
-                                                    kFslibVersion));
+    throw error_at_offset(
+        source, vpos,
+        fmt::format("unsupported .fslib version {} (this build reads {})", version, kFslibVersion));
   const std::uint32_t nmodels = r.u32("model count");
   const std::size_t spos = r.pos;
   const std::uint64_t size = r.u64("payload size");
   const std::uint32_t crc = r.u32("payload CRC");
   if (size != bytes.size() - kHeaderSize)
-    throw error_at_offset(source, spos, fmt::format("payload size {} but {} bytes follow the header", size,
-                                                    bytes.size() - kHeaderSize));
+    throw error_at_offset(
+        source, spos,
+        fmt::format("payload size {} but {} bytes follow the header", size, bytes.size() - kHeaderSize));
   if (crc32(bytes.data() + kHeaderSize, bytes.size() - kHeaderSize) != crc)
     throw error_at_offset(source, kHeaderSize, "payload CRC mismatch (file corrupt)");
   if (static_cast<std::uint64_t>(nmodels) * 17 > size)
@@ -188,7 +206,8 @@ Library Library::from_bytes(std::span<const std::uint8_t> bytes, const std::stri
     for (auto& f : m.faces) {
       const std::size_t npos = r.pos;
       f.normal = r.vec("face normal");
-      if (std::abs(f.normal.norm() - 1.0) > 1e-6) throw error_at_offset(source, npos, "face normal is not a unit vector");
+      if (std::abs(f.normal.norm() - 1.0) > 1e-6)
+        throw error_at_offset(source, npos, "face normal is not a unit vector");
       f.offset = r.f64("face offset");
       const std::size_t apos = r.pos;
       f.area = r.f64("face area");
@@ -202,7 +221,8 @@ Library Library::from_bytes(std::span<const std::uint8_t> bytes, const std::stri
         if (nv < 3) throw error_at_offset(source, lpos, fmt::format("a face loop has {} vertices (< 3)", nv));
         loop.resize(nv);
         for (auto& v : loop) v = r.vec("loop vertex");
-        for (std::size_t i = 0; i < loop.size(); ++i) f.perimeter += (loop[(i + 1) % loop.size()] - loop[i]).norm();
+        for (std::size_t i = 0; i < loop.size(); ++i)
+          f.perimeter += (loop[(i + 1) % loop.size()] - loop[i]).norm();
       }
     }
     const std::uint32_t na = r.count("arc count", 16);
@@ -213,7 +233,8 @@ Library Library::from_bytes(std::span<const std::uint8_t> bytes, const std::stri
       const std::uint32_t x = r.u32("arc node"), y = r.u32("arc node");
       a.border = r.f64("arc border");
       if (x >= nf || y >= nf || x == y)
-        throw error_at_offset(source, apos, fmt::format("arc ({}, {}) does not join two faces of {}", x, y, nf));
+        throw error_at_offset(source, apos,
+                              fmt::format("arc ({}, {}) does not join two faces of {}", x, y, nf));
       if (a.border < 0) throw error_at_offset(source, apos + 8, "negative arc border");
       a.a = static_cast<int>(x);
       a.b = static_cast<int>(y);

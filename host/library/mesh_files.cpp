@@ -13,7 +13,8 @@ namespace stdfs = std::filesystem;
 
 bool is_mesh_file(const stdfs::path& p) {
   std::string ext = p.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   return ext == ".off" || ext == ".obj" || ext == ".stl" || ext == ".ply";
 }
 
@@ -21,8 +22,9 @@ std::vector<stdfs::path> collect_mesh_files(const std::vector<std::string>& inpu
   return collect_files(inputs, is_mesh_file, ".off/.obj/.stl/.ply meshes");
 }
 
-Library load_or_build_library(const std::vector<std::string>& inputs, const BuildOptions& options,
-                              const std::function<void(std::size_t, std::size_t, const std::string&)>& progress) {
+Library load_or_build_library(
+    const std::vector<std::string>& inputs, const BuildOptions& options,
+    const std::function<void(std::size_t, std::size_t, const std::string&)>& progress) {
   if (inputs.size() == 1 && stdfs::path(inputs[0]).extension() == ".fslib") return Library::load(inputs[0]);
   const auto files = collect_mesh_files(inputs);
   Library lib;

@@ -16,7 +16,8 @@ std::vector<std::filesystem::path> collect_mesh_files(const std::vector<std::str
 
 // One .fslib file -> Library::load; otherwise meshes / directories -> build_model for each (progress(i, name)
 // is called before each model).
-Library load_or_build_library(const std::vector<std::string>& inputs, const BuildOptions& options = {},
-                              const std::function<void(std::size_t, std::size_t, const std::string&)>& progress = {});
+Library load_or_build_library(
+    const std::vector<std::string>& inputs, const BuildOptions& options = {},
+    const std::function<void(std::size_t, std::size_t, const std::string&)>& progress = {});
 
 }  // namespace fs::host

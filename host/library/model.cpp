@@ -66,7 +66,8 @@ void finish_model(Model& model, const std::vector<PfrgArc>& arcs, const BuildOpt
   model.bounding_radius = 0;
   for (const auto& f : model.faces)
     for (const auto& loop : f.loops)
-      for (const auto& p : loop) model.bounding_radius = std::max(model.bounding_radius, (p - model.center).norm());
+      for (const auto& p : loop)
+        model.bounding_radius = std::max(model.bounding_radius, (p - model.center).norm());
   if (with_symmetries) model.symmetries = compute_symmetries(model, options.symmetry_tolerance);
 }
 
@@ -159,8 +160,12 @@ std::vector<Mat3> compute_symmetries(const Model& model, double tol) {
           found = static_cast<int>(j);
           break;
         }
-        if (found < 0) ok = false;
-        else { perm[i] = found; taken[static_cast<std::size_t>(found)] = true; }
+        if (found < 0)
+          ok = false;
+        else {
+          perm[i] = found;
+          taken[static_cast<std::size_t>(found)] = true;
+        }
       }
       for (const auto& a : model.graph.arcs) {
         if (!ok) break;

@@ -24,11 +24,11 @@ struct ModelFace {
 };
 
 struct BuildOptions {
-  double scale = 1.0;               // multiply all coordinates (e.g. file in metres -> mm: 1000)
-  double merge_angle_deg = 0.5;     // adjacent facets whose normals differ less than this are one face
-  double weld_tolerance = 1e-7;     // vertices closer than this * bounding-box diagonal are one vertex
-  bool allow_open = false;          // accept meshes with boundary edges (Model::open is then set)
-  double symmetry_tolerance = 5e-3; // relative (lengths / bounding radius, areas / largest face, angles rad)
+  double scale = 1.0;                // multiply all coordinates (e.g. file in metres -> mm: 1000)
+  double merge_angle_deg = 0.5;      // adjacent facets whose normals differ less than this are one face
+  double weld_tolerance = 1e-7;      // vertices closer than this * bounding-box diagonal are one vertex
+  bool allow_open = false;           // accept meshes with boundary edges (Model::open is then set)
+  double symmetry_tolerance = 5e-3;  // relative (lengths / bounding radius, areas / largest face, angles rad)
 };
 
 struct Model {
@@ -41,16 +41,16 @@ struct Model {
   // center + S (x - center). Includes the identity (first). A pose (R, t) of the model is equivalent to
   // (R S, t + R (I - S) center) for every S.
   std::vector<Mat3> symmetries;
-  Vec3 center = Vec3::Zero();       // volume centroid (area centroid of the surface when open)
-  double total_area = 0.0;          // mm^2
-  double volume = 0.0;              // mm^3 (0 when open)
-  double bounding_radius = 0.0;     // max distance of a vertex from center (mm)
-  bool open = false;                // built from an open mesh: faces may be missing
+  Vec3 center = Vec3::Zero();    // volume centroid (area centroid of the surface when open)
+  double total_area = 0.0;       // mm^2
+  double volume = 0.0;           // mm^3 (0 when open)
+  double bounding_radius = 0.0;  // max distance of a vertex from center (mm)
+  bool open = false;             // built from an open mesh: faces may be missing
 
   std::size_t face_count() const { return faces.size(); }
   std::size_t arc_count() const { return graph.arcs.size(); }
   std::size_t symmetry_order() const { return symmetries.size(); }
-  double total_border() const;      // sum of arc border lengths (mm)
+  double total_border() const;  // sum of arc border lengths (mm)
 };
 
 // Builds a model from a polygon mesh (any winding, triangulated or not). Coplanar adjacent facets are merged

@@ -14,7 +14,9 @@ namespace {
 Polycube normalized(Polycube c) {
   Cell lo{INT32_MAX, INT32_MAX, INT32_MAX};
   for (const auto& x : c)
-    for (int k = 0; k < 3; ++k) lo[static_cast<std::size_t>(k)] = std::min(lo[static_cast<std::size_t>(k)], x[static_cast<std::size_t>(k)]);
+    for (int k = 0; k < 3; ++k)
+      lo[static_cast<std::size_t>(k)] =
+          std::min(lo[static_cast<std::size_t>(k)], x[static_cast<std::size_t>(k)]);
   for (auto& x : c)
     for (std::size_t k = 0; k < 3; ++k) x[k] -= lo[k];
   std::sort(c.begin(), c.end());
@@ -125,7 +127,9 @@ Mesh polycube_mesh(const Polycube& cells, double edge, const std::string& name) 
   return m;
 }
 
-std::string polycube_name(int volume, std::size_t index) { return fmt::format("polycube-{}-{:03}", volume, index); }
+std::string polycube_name(int volume, std::size_t index) {
+  return fmt::format("polycube-{}-{:03}", volume, index);
+}
 
 Model polycube_model(const Polycube& cells, double edge, const std::string& name) {
   return build_model(polycube_mesh(cells, edge, name));

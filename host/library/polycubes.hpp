@@ -12,7 +12,8 @@
 namespace fs::host {
 
 using Cell = std::array<int, 3>;
-using Polycube = std::vector<Cell>;  // canonical: sorted cells, translated to min 0, least over the 24 rotations
+using Polycube =
+    std::vector<Cell>;  // canonical: sorted cells, translated to min 0, least over the 24 rotations
 
 // The 24 proper rotations of the cube lattice (signed permutation matrices with determinant +1).
 const std::array<Mat3, 24>& cube_rotations();

@@ -35,9 +35,12 @@ Pfrg partial_view(const Model& model, const Mat3& R, const Vec3& view_dir, const
   std::map<int, double> to_super;  // visible face -> border with invisible faces
   for (const auto& a : model.graph.arcs) {
     const bool sa = seen[static_cast<std::size_t>(a.a)], sb = seen[static_cast<std::size_t>(a.b)];
-    if (sa && sb) g.arcs.push_back(a);
-    else if (sa) to_super[a.a] += a.border;
-    else if (sb) to_super[a.b] += a.border;
+    if (sa && sb)
+      g.arcs.push_back(a);
+    else if (sa)
+      to_super[a.a] += a.border;
+    else if (sb)
+      to_super[a.b] += a.border;
   }
   if (options.supernode && !to_super.empty()) {
     PfrgNode s;

@@ -34,7 +34,8 @@ void CompactGraph::load(const Pfrg& g, bool include_supernodes) {
   for (const auto& a : g.arcs) {
     const int i = index_of(a.a), k = index_of(a.b);
     if (i < 0 || k < 0) {
-      if (!include_supernodes && (g.find(a.a) != nullptr && g.find(a.b) != nullptr)) continue;  // supernode arc
+      if (!include_supernodes && (g.find(a.a) != nullptr && g.find(a.b) != nullptr))
+        continue;  // supernode arc
       throw Error((g.name.empty() ? std::string("graph") : g.name) + ": arc " + std::to_string(a.a) + "-" +
                   std::to_string(a.b) + " names an unknown node");
     }

@@ -11,20 +11,20 @@ namespace fs::host::match {
 
 struct CompactGraph {
   int n = 0;
-  std::array<int, kMaxNodes> id{};            // PFRG node id of index i
+  std::array<int, kMaxNodes> id{};  // PFRG node id of index i
   std::array<bool, kMaxNodes> supernode{};
   std::array<double, kMaxNodes> area{};
   std::array<Vec3, kMaxNodes> normal{};
-  std::array<int, kMaxNodes> degree{};        // number of adjacent nodes (supernode included)
+  std::array<int, kMaxNodes> degree{};  // number of adjacent nodes (supernode included)
   std::array<NodeSet, kMaxNodes> adj{};
-  NodeSet real;                               // non-supernode nodes
-  std::array<std::array<float, kMaxNodes>, kMaxNodes> border{};   // mm, 0 when not adjacent
-  Vec3 observer = Vec3::Zero();               // unit, toward the sensor (scene graphs)
+  NodeSet real;                                                  // non-supernode nodes
+  std::array<std::array<float, kMaxNodes>, kMaxNodes> border{};  // mm, 0 when not adjacent
+  Vec3 observer = Vec3::Zero();                                  // unit, toward the sensor (scene graphs)
 
   // Throws fs::Error (naming g.name) when g has more than kMaxNodes nodes or an arc names an unknown node.
   // include_supernodes = false drops supernodes and their arcs (exact matching of pure graphs).
   void load(const Pfrg& g, bool include_supernodes = true);
-  int index_of(int node_id) const;            // -1 when absent
+  int index_of(int node_id) const;  // -1 when absent
 };
 
 }  // namespace fs::host::match

@@ -2,8 +2,8 @@
 
 #include <algorithm>
 #include <chrono>
-#include <cstdio>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <numbers>
 
@@ -21,14 +21,16 @@ namespace {
 class SteadyClock final : public MatchClock {
  public:
   std::int64_t now_ns() const override {
-    return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch())
+    return std::chrono::duration_cast<std::chrono::nanoseconds>(
+               std::chrono::steady_clock::now().time_since_epoch())
         .count();
   }
 };
 
 std::uint64_t pair_key(int r, int s) {
   // splitmix64 of the pair index: order-independent match-set hash = XOR of pair keys (Zobrist hashing).
-  std::uint64_t z = static_cast<std::uint64_t>(r) * kMaxNodes + static_cast<std::uint64_t>(s) + 0x9E3779B97F4A7C15ULL;
+  std::uint64_t z =
+      static_cast<std::uint64_t>(r) * kMaxNodes + static_cast<std::uint64_t>(s) + 0x9E3779B97F4A7C15ULL;
   z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
   z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
   return z ^ (z >> 31);
@@ -41,23 +43,23 @@ double rel_diss(double a, double b) {
 
 // Hot fields first (heap keys, tree links, flags), the rotation fit matrices last.
 struct State {
-  double cost = 0;                 // exact when fitted; otherwise a lower bound (see lazy fits below)
+  double cost = 0;  // exact when fitted; otherwise a lower bound (see lazy fits below)
   double sum_gamma = 0, d_area = 0, d_border = 0, rotfit = 0;
-  double lambda = 0;               // smallest eigenvalue of B: lower bound of the children's
+  double lambda = 0;  // smallest eigenvalue of B: lower bound of the children's
   std::uint64_t hash = 0;
   int parent = -1, child_index = 0, level = 0, r = -1, s = -1;
   int am = 0, ai = 0, ad = 0, children = 0, first_r = -1;
   bool expanded = false, degenerate = true;
-  bool fitted = true;              // R, q, lambda, rotfit and cost are final
-  NodeSet cr, cs, tr, ts;          // core / terminal sets (reference, scene); rest = complement
+  bool fitted = true;      // R, q, lambda, rotfit and cost are final
+  NodeSet cr, cs, tr, ts;  // core / terminal sets (reference, scene); rest = complement
 };
 
-// The rotation fit data of a state, kept apart from State so that the tree walks, duplicate tests and heap keys
-// touch less memory.
+// The rotation fit data of a state, kept apart from State so that the tree walks, duplicate tests and heap
+// keys touch less memory.
 struct FitData {
-  Mat4 B = Mat4::Zero();           // accumulated sum gamma A (7.5.8)
-  Mat3 R = Mat3::Identity();       // best fitting rotation
-  Eigen::Vector4d q{0, 0, 0, 1};   // its quaternion (x y z w): warm start of the children's fits
+  Mat4 B = Mat4::Zero();          // accumulated sum gamma A (7.5.8)
+  Mat3 R = Mat3::Identity();      // best fitting rotation
+  Eigen::Vector4d q{0, 0, 0, 1};  // its quaternion (x y z w): warm start of the children's fits
 };
 
 // Priority queue entry: the ordering key is copied out of the state (no pool access while sifting).
@@ -66,7 +68,8 @@ struct HeapItem {
   int level;
   int id;
 };
-// Lowest cost first; among equal costs the deeper state (favours well developed paths, 7.2.4), then the older one.
+// Lowest cost first; among equal costs the deeper state (favours well developed paths, 7.2.4), then the older
+// one.
 inline bool heap_less(const HeapItem& x, const HeapItem& y) {
   if (x.cost != y.cost) return x.cost < y.cost;
   if (x.level != y.level) return x.level > y.level;
@@ -77,10 +80,14 @@ inline bool heap_less(const HeapItem& x, const HeapItem& y) {
 
 std::string_view stop_name(StopReason r) {
   switch (r) {
-    case StopReason::kNoStates: return "no states left";
-    case StopReason::kSolutionsFound: return "solutions found";
-    case StopReason::kStateBudget: return "state budget";
-    case StopReason::kTimeBudget: return "time budget";
+    case StopReason::kNoStates:
+      return "no states left";
+    case StopReason::kSolutionsFound:
+      return "solutions found";
+    case StopReason::kStateBudget:
+      return "state budget";
+    case StopReason::kTimeBudget:
+      return "time budget";
   }
   return "?";
 }
@@ -92,21 +99,24 @@ const MatchClock& steady_match_clock() {
 
 // Speed (issue 9), without changing any result:
 //  - Lazy rotation fits. A new state of level >= 2 is created with B and
-//    sum gamma but without its eigen solve when the conditions that need e_rotfit (8 cost threshold, 9.3 rotation
-//    fit similarity) are already decided by bounds of lambda_min(B): from below the parent's lambda_min (Weyl:
-//    B = B_parent + gamma A, A PSD), from above the Rayleigh quotient of B at the parent's quaternion, both
-//    widened by 1e-9 trace(B) (far above the solver's error). Such a state enters the priority queue with the
-//    cost lower bound; when it reaches the top it is fitted (same solver, same inputs, so bit-identical) and
-//    re-queued if another state now comes first, so states are expanded in exactly the original order. Most
-//    created states are never expanded, and their fits are saved. Reported solutions are fitted on demand, and
-//    selected by a lazy top-k over the cost lower bounds instead of sorting every candidate.
+//    sum gamma but without its eigen solve when the conditions that need e_rotfit (8 cost threshold, 9.3
+//    rotation fit similarity) are already decided by bounds of lambda_min(B): from below the parent's
+//    lambda_min (Weyl: B = B_parent + gamma A, A PSD), from above the Rayleigh quotient of B at the parent's
+//    quaternion, both widened by 1e-9 trace(B) (far above the solver's error). Such a state enters the
+//    priority queue with the cost lower bound; when it reaches the top it is fitted (same solver, same
+//    inputs, so bit-identical) and re-queued if another state now comes first, so states are expanded in
+//    exactly the original order. Most created states are never expanded, and their fits are saved. Reported
+//    solutions are fitted on demand, and selected by a lazy top-k over the cost lower bounds instead of
+//    sorting every candidate.
 //  - The visibility check of new level-2 states (the one check that needs a rotation before the state exists)
 //    uses the closed-form two-pair fit (two_pair_fit, rotation_fit.hpp) when it is well conditioned and both
 //    rotated normals are more than 1e-7 away from the cone (the solver's rotation differs by < 1e-9 there);
 //    otherwise the solver, as before. lambda_min is then known in closed form (bounds +- 1e-9 trace B).
-//  - The duplicate-test table starts at 4096 slots and doubles inside its reserved memory; a 16 KB Bloom filter
+//  - The duplicate-test table starts at 4096 slots and doubles inside its reserved memory; a 16 KB Bloom
+//  filter
 //    answers most misses without a table probe; the slot is prefetched once the match-set hash is known.
-//  - The rotation data (B, R, q) lives in a parallel array (FitData): tree walks, duplicate tests and heap keys
+//  - The rotation data (B, R, q) lives in a parallel array (FitData): tree walks, duplicate tests and heap
+//  keys
 //    touch smaller states.
 //  - Per-match tables of the pair-static quantities (gamma, D_area term, node degree condition), supernode
 //    candidates counted in bulk, heap entries that carry their key, hash slots that carry the hash, and the
@@ -114,21 +124,21 @@ const MatchClock& steady_match_clock() {
 struct InexactMatcher::Impl {
   MatcherLimits limits;
   const MatchClock* clock = &steady_match_clock();
-  std::unique_ptr<CompactGraph> S = std::make_unique<CompactGraph>();   // scene
-  std::unique_ptr<CompactGraph> G = std::make_unique<CompactGraph>();   // reference
+  std::unique_ptr<CompactGraph> S = std::make_unique<CompactGraph>();  // scene
+  std::unique_ptr<CompactGraph> G = std::make_unique<CompactGraph>();  // reference
   std::vector<State> pool;
-  std::vector<FitData> fitdata;      // parallel to pool
-  std::vector<HeapItem> heap;        // open states, min key first
+  std::vector<FitData> fitdata;  // parallel to pool
+  std::vector<HeapItem> heap;    // open states, min key first
   struct Slot {
     std::uint64_t hash = 0;
     std::uint32_t gen = 0;
     int state = -1;
   };
-  std::vector<Slot> table;           // duplicate test (new match condition)
+  std::vector<Slot> table;  // duplicate test (new match condition)
   std::uint64_t mask = 0;
   std::uint32_t gen = 0;
-  std::vector<int> leaves;           // solution candidates
-  std::vector<int> sorted;           // counting sort buffer of the leaves
+  std::vector<int> leaves;  // solution candidates
+  std::vector<int> sorted;  // counting sort buffer of the leaves
   // Kept complete solutions of the subset condition, contiguous (core sets and level copied out of the pool).
   struct KeptCore {
     NodeSet cr, cs;
@@ -137,16 +147,16 @@ struct InexactMatcher::Impl {
   std::vector<KeptCore> kept_cores;
   // Inverted index of kept_cores by match pair (r * kMaxNodes + s): each list holds, in insertion (= level-
   // descending) order, the kept complete solutions that contain the pair. A leaf can only be a subset of a
-  // solution in the list of each of its pairs, so it scans the shortest one. Entries live in a fixed array; when
-  // it is full the scan falls back to all of kept_cores (same answers).
+  // solution in the list of each of its pairs, so it scans the shortest one. Entries live in a fixed array;
+  // when it is full the scan falls back to all of kept_cores (same answers).
   struct PairEntry {
     int next, kept;
   };
   std::vector<PairEntry> pair_entries;
   std::vector<int> pair_head, pair_tail, pair_count;
   std::vector<int> pair_touched;
-  std::vector<HeapItem> topk;        // lazy top-k selection of the reported solutions
-  std::vector<int> ranked;           // the reported solutions' states, best first
+  std::vector<HeapItem> topk;  // lazy top-k selection of the reported solutions
+  std::vector<int> ranked;     // the reported solutions' states, best first
   std::vector<Solution> solutions;
   std::vector<NodeMatch> match_buf;
   std::vector<int> path_buf;
@@ -154,18 +164,18 @@ struct InexactMatcher::Impl {
   // Pair tables (index r * kMaxNodes + s), filled per match for the graphs' sizes.
   std::vector<double> pair_gamma, pair_darea;
   std::vector<std::uint8_t> pair_degree_fail;
-  std::vector<std::uint8_t> pair_area_fail;   // one-sided area condition (th_area_ratio)
-  bool unit_normals = false;         // every real normal of both graphs has length 1 within 1e-12
+  std::vector<std::uint8_t> pair_area_fail;  // one-sided area condition (th_area_ratio)
+  bool unit_normals = false;                 // every real normal of both graphs has length 1 within 1e-12
   MatchResult result;
   const MatchParams* P = nullptr;
-  int n_states = 0;                  // used pool entries (root included)
+  int n_states = 0;  // used pool entries (root included)
   std::int64_t budget = 0;
 
   explicit Impl(const MatcherLimits& l) : limits(l) {
     if (limits.max_states < 1) limits.max_states = 1;
     if (limits.max_reported < 1) limits.max_reported = 1;
     const auto cap = static_cast<std::size_t>(limits.max_states) + 1;
-    pool.resize(cap + 1);            // + 1: the scratch entry a candidate is built in when the pool is full
+    pool.resize(cap + 1);  // + 1: the scratch entry a candidate is built in when the pool is full
     fitdata.resize(cap + 1);
     heap.reserve(cap);
     std::size_t t = 16;
@@ -197,7 +207,8 @@ struct InexactMatcher::Impl {
   // ---- priority queue (binary heap of keyed entries) ----
   void heap_push(int x) {
     const State& st = pool[static_cast<std::size_t>(x)];
-    heap.push_back(HeapItem{st.cost, st.level, x});   // capacity reserved for every pool entry: never reallocates
+    heap.push_back(
+        HeapItem{st.cost, st.level, x});  // capacity reserved for every pool entry: never reallocates
     std::size_t i = heap.size() - 1;
     const HeapItem item = heap[i];
     while (i > 0) {
@@ -229,7 +240,8 @@ struct InexactMatcher::Impl {
   }
 
   // ---- duplicate test ----
-  // True when a created state has the same match set as (parent's matches + (r, s)); r2s holds the parent's map.
+  // True when a created state has the same match set as (parent's matches + (r, s)); r2s holds the parent's
+  // map.
   bool same_matches(const State& e, int r, int s) const {
     for (int k = static_cast<int>(&e - pool.data()); k > 0; k = pool[static_cast<std::size_t>(k)].parent) {
       const State& x = pool[static_cast<std::size_t>(k)];
@@ -238,7 +250,7 @@ struct InexactMatcher::Impl {
     return true;
   }
   bool exists(std::uint64_t h, const NodeSet& cr, const NodeSet& cs, int r, int s) const {
-    if (!bloom_test(h)) return false;   // most candidates: no table probe
+    if (!bloom_test(h)) return false;  // most candidates: no table probe
     for (std::uint64_t i = h & mask;; i = (i + 1) & mask) {
       const Slot& sl = table[i];
       if (sl.gen != gen) return false;
@@ -251,7 +263,7 @@ struct InexactMatcher::Impl {
   // reserved up front when it becomes half full: a new generation, and the created states re-inserted.
   static constexpr std::uint64_t kInitialSlots = 4096;
   void next_gen() {
-    if (++gen == 0) {   // wrapped: clear the table once every 2^32 generations
+    if (++gen == 0) {  // wrapped: clear the table once every 2^32 generations
       for (auto& sl : table) sl = Slot{};
       gen = 1;
     }
@@ -300,7 +312,9 @@ struct InexactMatcher::Impl {
     if (arcs > 0) cost += (P->beta * c.d_border + P->gamma * c.ai + P->delta * c.ad) / arcs;
     return cost;
   }
-  static double rotfit_of(const State& c, double lambda) { return c.sum_gamma > 0 ? lambda / (2.0 * c.sum_gamma) : 0.0; }
+  static double rotfit_of(const State& c, double lambda) {
+    return c.sum_gamma > 0 ? lambda / (2.0 * c.sum_gamma) : 0.0;
+  }
 
   FastFitStats fit_stats;
   void fit(int ci, int pi) {
@@ -329,7 +343,8 @@ struct InexactMatcher::Impl {
     unit_normals = true;
     for (const CompactGraph* g : {&gr, &gs})
       for (int i = 0; i < g->n; ++i)
-        if (!g->supernode[static_cast<std::size_t>(i)] && !(std::abs(g->normal[static_cast<std::size_t>(i)].squaredNorm() - 1.0) <= 1e-12))
+        if (!g->supernode[static_cast<std::size_t>(i)] &&
+            !(std::abs(g->normal[static_cast<std::size_t>(i)].squaredNorm() - 1.0) <= 1e-12))
           unit_normals = false;
     NodeSet gs_super;
     for (int i = 0; i < gs.n; ++i)
@@ -341,8 +356,9 @@ struct InexactMatcher::Impl {
         const std::size_t k = ur * kMaxNodes + us;
         pair_gamma[k] = std::sqrt(gs.area[us] * gr.area[ur]);
         pair_darea[k] = rel_diss(gr.area[ur], gs.area[us]);
-        // 6 node degree (7.3.6: only faces not adjacent to invisible parts have comparable degrees; a scene face
-        // bordering the supernode may have lost neighbours, so for it only a surplus of scene neighbours counts.)
+        // 6 node degree (7.3.6: only faces not adjacent to invisible parts have comparable degrees; a scene
+        // face bordering the supernode may have lost neighbours, so for it only a surplus of scene neighbours
+        // counts.)
         const int dr = gr.degree[ur], ds = gs.degree[us];
         const bool open = (gs.adj[us] & gs_super).any();
         pair_degree_fail[k] = open ? (ds - 1 - dr > p.th_nodedegree) : (std::abs(dr - ds) > p.th_nodedegree);
@@ -365,7 +381,7 @@ struct InexactMatcher::Impl {
     const bool super_on = p.on(Condition::kSupernode);
     const bool cost_on = p.on(Condition::kCostThreshold);
     const bool rotsim_on = p.on(Condition::kRotfitSimilarity);
-    const bool lazy_ok = p.epsilon >= 0;   // the cost bounds need a cost non-decreasing in e_rotfit
+    const bool lazy_ok = p.epsilon >= 0;  // the cost bounds need a cost non-decreasing in e_rotfit
     const Vec3 obs = gs.observer;
     const std::int64_t t0 = clock->now_ns();
     const bool timed = std::isfinite(p.max_time_ms);
@@ -447,11 +463,12 @@ struct InexactMatcher::Impl {
           return;
         }
         const Vec3 nr = gr.normal[ur];
-        const Vec3 pred = pf.R * nr;   // predicted scene normal
+        const Vec3 pred = pf.R * nr;  // predicted scene normal
         const bool pred_invisible = vis_forward && pred.dot(obs) < cos_vis;
         // |angle(r0, r) - angle(s0, s)| <= TH_omega  <=>  cos(difference) = c_r c_s + s_r s_s >= cos TH_omega
         // (both angles in [0, pi]), so no acos in the candidate loop.
-        const double cr0 = rigid_pair ? std::clamp(gr.normal[static_cast<std::size_t>(par.r)].dot(nr), -1.0, 1.0) : 0.0;
+        const double cr0 =
+            rigid_pair ? std::clamp(gr.normal[static_cast<std::size_t>(par.r)].dot(nr), -1.0, 1.0) : 0.0;
         const double sr0 = std::sqrt(std::max(0.0, 1.0 - cr0 * cr0));
         int stop_s = -1;
         scan_s.for_each([&](int s) {
@@ -469,10 +486,11 @@ struct InexactMatcher::Impl {
           // 4 visibility: forward from level >= 2 parents; backward check of new level-2 states
           if (pred_invisible) return removed(Condition::kVisibility);
           const std::size_t pk = ur * kMaxNodes + us;
-          // The match-set hash, and its table slot fetched early (probed by condition 5, written on creation).
+          // The match-set hash, and its table slot fetched early (probed by condition 5, written on
+          // creation).
           const std::uint64_t h = par.hash ^ pair_key(r, s);
           __builtin_prefetch(&table[h & mask]);
-          State& c = pool[static_cast<std::size_t>(n_states)];   // built in place; committed by ++n_states
+          State& c = pool[static_cast<std::size_t>(n_states)];  // built in place; committed by ++n_states
           FitData& cf = fitdata[static_cast<std::size_t>(n_states)];
           c.level = par.level + 1;
           bool built = false;
@@ -485,16 +503,19 @@ struct InexactMatcher::Impl {
             rot_hi = rotfit_of(c, lam_hi + tol);
             lazy = true;
           };
-          // Weyl: lambda_min(B) >= the parent's; the Rayleigh quotient at the parent's quaternion bounds it above.
+          // Weyl: lambda_min(B) >= the parent's; the Rayleigh quotient at the parent's quaternion bounds it
+          // above.
           auto lazy_from_parent = [&] { lazy_bounds(par.lambda, pf.q.dot(cf.B * pf.q)); };
-          auto build = [&] {   // B and the flags; the fit separately (fit_now)
+          auto build = [&] {  // B and the flags; the fit separately (fit_now)
             c.sum_gamma = par.sum_gamma;
             cf.B = pf.B;
             const double g = pair_gamma[pk];
             add_pair(cf.B, nr, ns, g);
             c.sum_gamma += g;
             c.first_r = root ? r : par.first_r;
-            c.degenerate = root || (par.degenerate && nr.cross(gr.normal[static_cast<std::size_t>(c.first_r)]).norm() < sin_degen);
+            c.degenerate =
+                root || (par.degenerate &&
+                         nr.cross(gr.normal[static_cast<std::size_t>(c.first_r)]).norm() < sin_degen);
             built = true;
           };
           auto fit_now = [&] {
@@ -512,13 +533,14 @@ struct InexactMatcher::Impl {
           if (vis_backward) {
             build();
             if (c.degenerate && lazy_ok) {
-              lazy_from_parent();   // no visibility check for a degenerate pair: no fit needed yet
+              lazy_from_parent();  // no visibility check for a degenerate pair: no fit needed yet
             } else {
-              const std::size_t pk1 = static_cast<std::size_t>(par.r) * kMaxNodes + static_cast<std::size_t>(par.s);
+              const std::size_t pk1 =
+                  static_cast<std::size_t>(par.r) * kMaxNodes + static_cast<std::size_t>(par.s);
               const Vec3& n1 = gr.normal[static_cast<std::size_t>(par.r)];
               const TwoPairFit tp = unit_normals && lazy_ok && !c.degenerate
-                                        ? two_pair_fit(n1, gs.normal[static_cast<std::size_t>(par.s)], pair_gamma[pk1],
-                                                       nr, ns, pair_gamma[pk])
+                                        ? two_pair_fit(n1, gs.normal[static_cast<std::size_t>(par.s)],
+                                                       pair_gamma[pk1], nr, ns, pair_gamma[pk])
                                         : TwoPairFit{};
               // The closed form decides when both rotated normals are clearly (1e-7) on one side of the cone.
               const double d1 = tp.ok ? tp.Rr1.dot(obs) : 0.0, d2 = tp.ok ? tp.Rr2.dot(obs) : 0.0;
@@ -541,7 +563,8 @@ struct InexactMatcher::Impl {
           // 6 node degree
           if (p.on(Condition::kNodeDegree) && pair_degree_fail[pk]) return removed(Condition::kNodeDegree);
           // 9.1 node similarity, one-sided area part (cheap, decided per pair)
-          if (p.on(Condition::kNodeSimilarity) && pair_area_fail[pk]) return removed(Condition::kNodeSimilarity);
+          if (p.on(Condition::kNodeSimilarity) && pair_area_fail[pk])
+            return removed(Condition::kNodeSimilarity);
           // arcs to the core: matched / inserted (reference only) / deleted (scene only)
           int dam = 0, dai = 0;
           double dborder = 0;
@@ -550,14 +573,16 @@ struct InexactMatcher::Impl {
             const int sc = r2s[static_cast<std::size_t>(rc)];
             if (gs.adj[us].test(sc)) {
               ++dam;
-              dborder += rel_diss(gr.border[ur][static_cast<std::size_t>(rc)], gs.border[us][static_cast<std::size_t>(sc)]);
+              dborder += rel_diss(gr.border[ur][static_cast<std::size_t>(rc)],
+                                  gs.border[us][static_cast<std::size_t>(sc)]);
             } else {
               ++dai;
             }
           });
           const int dad = (gs.adj[us] & par.cs).count() - dam;
           // 7 neighbour match
-          if (p.on(Condition::kNeighborMatch) && par.level >= 1 && dam == 0) return removed(Condition::kNeighborMatch);
+          if (p.on(Condition::kNeighborMatch) && par.level >= 1 && dam == 0)
+            return removed(Condition::kNeighborMatch);
           c.am = par.am + dam;
           c.ai = par.ai + dai;
           c.ad = par.ad + dad;
@@ -565,8 +590,8 @@ struct InexactMatcher::Impl {
           c.d_area = par.d_area + darea;
           c.d_border = par.d_border + dborder;
           if (!built) {
-            // 8 cost threshold, early: the cost without the rotation fit term (epsilon e_rotfit / level >= 0) is
-            // a lower bound, so a candidate failing it fails condition 8 anyway; skip its eigen solve.
+            // 8 cost threshold, early: the cost without the rotation fit term (epsilon e_rotfit / level >= 0)
+            // is a lower bound, so a candidate failing it fails condition 8 anyway; skip its eigen solve.
             if (cost_on && p.epsilon >= 0) {
               if (cost_with(c, 0.0) - par.cost > p.th_cost) return removed(Condition::kCostThreshold);
             }
@@ -580,7 +605,7 @@ struct InexactMatcher::Impl {
           if (cost_on) {
             if (lazy) {
               if (cost_with(c, rot_lo) - par.cost > p.th_cost) return removed(Condition::kCostThreshold);
-              if (cost_with(c, rot_hi) - par.cost > p.th_cost) {   // undecided by the bounds: fit now
+              if (cost_with(c, rot_hi) - par.cost > p.th_cost) {  // undecided by the bounds: fit now
                 fit_now();
                 lazy = false;
               }
@@ -588,8 +613,10 @@ struct InexactMatcher::Impl {
             if (!lazy && cost_of(c) - par.cost > p.th_cost) return removed(Condition::kCostThreshold);
           }
           // 9.1 node, 9.2 arc attribute, 9.3 rotation fit similarity
-          if (p.on(Condition::kNodeSimilarity) && darea > p.th_node) return removed(Condition::kNodeSimilarity);
-          if (p.on(Condition::kArcSimilarity) && dborder > p.th_arcatt) return removed(Condition::kArcSimilarity);
+          if (p.on(Condition::kNodeSimilarity) && darea > p.th_node)
+            return removed(Condition::kNodeSimilarity);
+          if (p.on(Condition::kArcSimilarity) && dborder > p.th_arcatt)
+            return removed(Condition::kArcSimilarity);
           if (rotsim_on) {
             if (lazy) {
               if (rot_lo - par.rotfit > p.th_rotfit) return removed(Condition::kRotfitSimilarity);
@@ -601,7 +628,8 @@ struct InexactMatcher::Impl {
             if (!lazy && c.rotfit - par.rotfit > p.th_rotfit) return removed(Condition::kRotfitSimilarity);
           }
           // 10 search depth
-          if (p.on(Condition::kSearchDepth) && c.level > p.th_maxlevel) return removed(Condition::kSearchDepth);
+          if (p.on(Condition::kSearchDepth) && c.level > p.th_maxlevel)
+            return removed(Condition::kSearchDepth);
           // create the state
           if (n_states > budget) {
             st.stop = StopReason::kStateBudget;
@@ -611,7 +639,7 @@ struct InexactMatcher::Impl {
           }
           if (lazy) {
             c.rotfit = rot_lo;
-            c.cost = cost_with(c, rot_lo);   // a lower bound of the exact cost: the heap key until fitted
+            c.cost = cost_with(c, rot_lo);  // a lower bound of the exact cost: the heap key until fitted
             c.fitted = false;
           } else {
             c.cost = cost_of(c);
@@ -650,7 +678,7 @@ struct InexactMatcher::Impl {
       State& pm = pool[static_cast<std::size_t>(pi)];
       pm.children = created;
       if (stop) {
-        if (created == 0) heap_push(pi);   // not expanded: stays an incomplete solution candidate
+        if (created == 0) heap_push(pi);  // not expanded: stays an incomplete solution candidate
         break;
       }
       pm.expanded = true;
@@ -675,18 +703,21 @@ struct InexactMatcher::Impl {
     if (a.level >= b.level || !a.cr.subset_of(b.cr) || !a.cs.subset_of(b.cs)) return false;
     const int bi = static_cast<int>(&b - pool.data());
     for (int k = bi; k > 0; k = pool[static_cast<std::size_t>(k)].parent)
-      mark[static_cast<std::size_t>(pool[static_cast<std::size_t>(k)].r)] = pool[static_cast<std::size_t>(k)].s;
+      mark[static_cast<std::size_t>(pool[static_cast<std::size_t>(k)].r)] =
+          pool[static_cast<std::size_t>(k)].s;
     bool ok = true;
-    for (int k = static_cast<int>(&a - pool.data()); k > 0 && ok; k = pool[static_cast<std::size_t>(k)].parent)
-      ok = mark[static_cast<std::size_t>(pool[static_cast<std::size_t>(k)].r)] == pool[static_cast<std::size_t>(k)].s;
+    for (int k = static_cast<int>(&a - pool.data()); k > 0 && ok;
+         k = pool[static_cast<std::size_t>(k)].parent)
+      ok = mark[static_cast<std::size_t>(pool[static_cast<std::size_t>(k)].r)] ==
+           pool[static_cast<std::size_t>(k)].s;
     for (int k = bi; k > 0; k = pool[static_cast<std::size_t>(k)].parent)
       mark[static_cast<std::size_t>(pool[static_cast<std::size_t>(k)].r)] = -1;
     return ok;
   }
 
-  // U of the zeta ranking (params.hpp), two sides, each the area share of the real faces adjacent to a match's
-  // faces that it leaves unmatched, weighted by face_weight(i) in [0, 1]: the open area over that plus the
-  // matched area of graph g for the core set `core`.
+  // U of the zeta ranking (params.hpp), two sides, each the area share of the real faces adjacent to a
+  // match's faces that it leaves unmatched, weighted by face_weight(i) in [0, 1]: the open area over that
+  // plus the matched area of graph g for the core set `core`.
   template <class Weight>
   static double open_neighbour_share(const CompactGraph& g, const NodeSet& core, Weight face_weight) {
     NodeSet around;
@@ -696,22 +727,24 @@ struct InexactMatcher::Impl {
       matched += g.area[static_cast<std::size_t>(i)];
     });
     double open = 0.0;
-    (around & g.real).minus(core).for_each([&](int i) { open += face_weight(i) * g.area[static_cast<std::size_t>(i)]; });
+    (around & g.real).minus(core).for_each([&](int i) {
+      open += face_weight(i) * g.area[static_cast<std::size_t>(i)];
+    });
     return open + matched > 0.0 ? open / (open + matched) : 0.0;
   }
   // Scene side: every unmatched scene face next to the match counts.
   double unexplained(const State& x) const {
     return open_neighbour_share(*S, x.cs, [](int) { return 1.0; });
   }
-  // Model side (needs x's rotation, so 0 until x is fitted): unmatched reference faces next to the match count as
-  // far as the rotation turns them toward the sensor (weight 1 within 60 deg of the observer, falling to 0 at
-  // 90 deg, where faces are seen edge-on): in a wrong pose of a part that looks like another part, such faces
-  // should have been seen next to the match.
+  // Model side (needs x's rotation, so 0 until x is fitted): unmatched reference faces next to the match
+  // count as far as the rotation turns them toward the sensor (weight 1 within 60 deg of the observer,
+  // falling to 0 at 90 deg, where faces are seen edge-on): in a wrong pose of a part that looks like another
+  // part, such faces should have been seen next to the match.
   double unexplained_model(int id) const {
     const State& x = pool[static_cast<std::size_t>(id)];
     if (!x.fitted || x.degenerate) return 0.0;
     const Mat3& R = fitdata[static_cast<std::size_t>(id)].R;
-    constexpr double kCosFull = 0.5;   // cos 60 deg
+    constexpr double kCosFull = 0.5;  // cos 60 deg
     return open_neighbour_share(*G, x.cr, [&](int i) {
       return std::clamp((R * G->normal[static_cast<std::size_t>(i)]).dot(S->observer) / kCosFull, 0.0, 1.0);
     });
@@ -723,16 +756,16 @@ struct InexactMatcher::Impl {
     for (int i = 1; i < n_states; ++i) {
       const State& x = pool[static_cast<std::size_t>(i)];
       const bool leaf = x.expanded && x.children == 0 && x.level >= p.th_minlevel;
-      const bool incomplete = !x.expanded && st.stop != StopReason::kNoStates &&
-                              (x.level >= p.th_minlevel || p.keep_partial);
+      const bool incomplete =
+          !x.expanded && st.stop != StopReason::kNoStates && (x.level >= p.th_minlevel || p.keep_partial);
       if (leaf || incomplete) leaves.push_back(i);
     }
     st.leaf_solutions = static_cast<std::int64_t>(leaves.size());
     // Subset condition (7.7.2, 7.7.3): a traditional solution is dropped when its match set is a subset of
     // another traditional solution's; an incomplete one when it is a subset of a traditional solution's.
     // Traditional (complete) solutions first, by level descending, then the incomplete ones.
-    // (Counting sort by that key: leaves are gathered by ascending state number, so the result is the order of
-    // a comparison sort by (complete first, level descending, state number).)
+    // (Counting sort by that key: leaves are gathered by ascending state number, so the result is the order
+    // of a comparison sort by (complete first, level descending, state number).)
     {
       std::array<int, 2 * (kMaxNodes + 1) + 1> start{};
       auto bucket = [&](int id) {
@@ -741,12 +774,14 @@ struct InexactMatcher::Impl {
       };
       for (int id : leaves) ++start[static_cast<std::size_t>(bucket(id)) + 1];
       for (std::size_t b = 1; b < start.size(); ++b) start[b] += start[b - 1];
-      sorted.resize(leaves.size());   // capacity reserved for every pool entry: no allocation
-      for (int id : leaves) sorted[static_cast<std::size_t>(start[static_cast<std::size_t>(bucket(id))]++)] = id;
+      sorted.resize(leaves.size());  // capacity reserved for every pool entry: no allocation
+      for (int id : leaves)
+        sorted[static_cast<std::size_t>(start[static_cast<std::size_t>(bucket(id))]++)] = id;
       leaves.swap(sorted);
     }
     std::size_t n_complete = 0;
-    while (n_complete < leaves.size() && pool[static_cast<std::size_t>(leaves[n_complete])].expanded) ++n_complete;
+    while (n_complete < leaves.size() && pool[static_cast<std::size_t>(leaves[n_complete])].expanded)
+      ++n_complete;
     // Each leaf is compared with the complete solutions kept so far that have a higher level (a subset has a
     // lower level). Those are kept in level-descending order; the leaf scans the shortest pair list of the
     // inverted index (or, when the index is full, all of kept_cores), filters by the core sets, and only the
@@ -766,7 +801,7 @@ struct InexactMatcher::Impl {
       const State& a = pool[static_cast<std::size_t>(id)];
       // Candidates come in level-descending order; those of a level <= a's cannot hold it.
       bool sub = false;
-      auto check = [&](const KeptCore& b) {   // true: stop scanning
+      auto check = [&](const KeptCore& b) {  // true: stop scanning
         if (b.level <= a.level) return true;
         sub = covered(a, b);
         return sub;
@@ -778,11 +813,13 @@ struct InexactMatcher::Impl {
         int best = -1, best_count = std::numeric_limits<int>::max();
         for (int q = id; q > 0 && best_count > 0; q = pool[static_cast<std::size_t>(q)].parent) {
           const int k = static_cast<int>(pair_key(pool[static_cast<std::size_t>(q)]));
-          if (pair_count[static_cast<std::size_t>(k)] < best_count) best = k, best_count = pair_count[static_cast<std::size_t>(k)];
+          if (pair_count[static_cast<std::size_t>(k)] < best_count)
+            best = k, best_count = pair_count[static_cast<std::size_t>(k)];
         }
         for (int e = best_count > 0 ? pair_head[static_cast<std::size_t>(best)] : -1; e >= 0;
              e = pair_entries[static_cast<std::size_t>(e)].next)
-          if (check(kept_cores[static_cast<std::size_t>(pair_entries[static_cast<std::size_t>(e)].kept)])) break;
+          if (check(kept_cores[static_cast<std::size_t>(pair_entries[static_cast<std::size_t>(e)].kept)]))
+            break;
       }
       if (sub) {
         ++st.subset_removed;
@@ -816,14 +853,17 @@ struct InexactMatcher::Impl {
       pair_count[static_cast<std::size_t>(k)] = 0;
     }
     pair_touched.clear();
-    leaves.resize(kept);   // shrinking: no allocation
+    leaves.resize(kept);  // shrinking: no allocation
     st.solutions = static_cast<std::int64_t>(kept);
     // The best n by (cost, state number), as a full sort would give them: a min-heap over the keys, where a
     // lazily created state's key is its cost lower bound until it reaches the top and is fitted.
     const std::size_t n = std::min(kept, solutions.size());
-    auto later = [](const HeapItem& a, const HeapItem& b) { return a.cost > b.cost || (a.cost == b.cost && a.id > b.id); };
-    // Ranking key: cost + zeta U. For a state not fitted yet its cost is a lower bound and U_model is 0 (it needs
-    // the rotation; it is >= 0 once fitted), so the key is a lower bound of the final one, as the lazy top-k needs.
+    auto later = [](const HeapItem& a, const HeapItem& b) {
+      return a.cost > b.cost || (a.cost == b.cost && a.id > b.id);
+    };
+    // Ranking key: cost + zeta U. For a state not fitted yet its cost is a lower bound and U_model is 0 (it
+    // needs the rotation; it is >= 0 once fitted), so the key is a lower bound of the final one, as the lazy
+    // top-k needs.
     auto key = [&](const State& x) {
       if (p.zeta <= 0) return x.cost;
       const int id = static_cast<int>(&x - pool.data());
@@ -891,7 +931,9 @@ struct InexactMatcher::Impl {
 
 InexactMatcher::InexactMatcher(const MatcherLimits& limits) : impl_(std::make_unique<Impl>(limits)) {}
 InexactMatcher::~InexactMatcher() = default;
-void InexactMatcher::set_clock(const MatchClock* clock) { impl_->clock = clock ? clock : &steady_match_clock(); }
+void InexactMatcher::set_clock(const MatchClock* clock) {
+  impl_->clock = clock ? clock : &steady_match_clock();
+}
 const MatcherLimits& InexactMatcher::limits() const { return impl_->limits; }
 
 const MatchResult& InexactMatcher::match(const Pfrg& scene, const Pfrg& ref, const MatchParams& params) {

@@ -50,7 +50,7 @@ struct NodeSet {
       if (w[i] & ~o.w[i]) return false;
     return true;
   }
-  bool operator==(const NodeSet& o) const {   // word by word (the defaulted one may call memcmp)
+  bool operator==(const NodeSet& o) const {  // word by word (the defaulted one may call memcmp)
     std::uint64_t d = 0;
     for (int i = 0; i < kWords; ++i) d |= w[i] ^ o.w[i];
     return d == 0;

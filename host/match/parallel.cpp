@@ -18,8 +18,8 @@ int ParallelMatcher::threads() const { return static_cast<int>(matchers_.size())
 std::vector<ReferenceResult> ParallelMatcher::match(const Pfrg& scene, std::span<const Pfrg> refs,
                                                     const MatchParams& params, std::size_t max_solutions) {
   std::vector<ReferenceResult> results(refs.size());
-  // Largest references first (their searches take longest), so that no thread is left with a big one at the end;
-  // results stay in reference order, so the order of work does not show.
+  // Largest references first (their searches take longest), so that no thread is left with a big one at the
+  // end; results stay in reference order, so the order of work does not show.
   std::vector<std::size_t> order(refs.size());
   for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
   std::stable_sort(order.begin(), order.end(),

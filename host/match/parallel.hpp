@@ -11,7 +11,7 @@
 namespace fs::host::match {
 
 struct ReferenceResult {
-  std::vector<OwnedSolution> solutions;   // best first
+  std::vector<OwnedSolution> solutions;  // best first
   MatchStats stats;
 };
 

@@ -15,8 +15,9 @@ namespace fs::host::match {
 namespace {
 
 constexpr std::array<std::string_view, kConditionCount> kNames = {
-    "connectivity", "supernode",  "rigidity",        "visibility",     "new_match",      "node_degree",
-    "neighbor_match", "cost_threshold", "node_similarity", "arc_similarity", "rotfit_similarity", "search_depth"};
+    "connectivity",    "supernode",      "rigidity",          "visibility",
+    "new_match",       "node_degree",    "neighbor_match",    "cost_threshold",
+    "node_similarity", "arc_similarity", "rotfit_similarity", "search_depth"};
 
 MatchParams base(const char* name, double alpha, double beta, double gamma, double delta, double epsilon,
                  double omega, int nd, double th_cost, double th_rotfit) {
@@ -63,12 +64,12 @@ MatchParams preset(std::string_view name) {
     return p;
   }
   if (name == "scan") {
-    // For scanned scenes: t7.34 (all attributes) with solutions ranked by cost + zeta * unexplained neighbour area
-    // (params.hpp), rotation-fit increments <= 0.005 (a matched normal off by ~6 deg at most; t7.34: 1, no limit),
-    // TH_omega 10 deg with the rigidity test from level-1 parents too (normals of scanned planes err by a few
-    // degrees at most, not 20), the one-sided area condition (a face is never seen larger than 1.3x + 30 mm2) and
-    // a 10000-state budget (a search of a many-faced reference with congruent faces can otherwise spend 50000
-    // states before its first leaf).
+    // For scanned scenes: t7.34 (all attributes) with solutions ranked by cost + zeta * unexplained neighbour
+    // area (params.hpp), rotation-fit increments <= 0.005 (a matched normal off by ~6 deg at most; t7.34: 1,
+    // no limit), TH_omega 10 deg with the rigidity test from level-1 parents too (normals of scanned planes
+    // err by a few degrees at most, not 20), the one-sided area condition (a face is never seen larger
+    // than 1.3x + 30 mm2) and a 10000-state budget (a search of a many-faced reference with congruent faces
+    // can otherwise spend 50000 states before its first leaf).
     MatchParams p = base("scan", 5e-2, 4e-2, 1e-2, 1e-2, 0.9, 10, 2, 1, 0.005);
     p.zeta = 0.1;
     p.rigidity_pairs = true;
@@ -78,7 +79,8 @@ MatchParams preset(std::string_view name) {
     return p;
   }
   if (name == "t9.3") return base("t9.3", 0.0, 0.0, 1e-2, 1e-2, 0.8, 20, 6, 0.1, 1);
-  throw Error("unknown match parameter preset '" + std::string(name) + "' (known: t7.19 t7.28 t7.30 t7.32 t7.34 "
+  throw Error("unknown match parameter preset '" + std::string(name) +
+              "' (known: t7.19 t7.28 t7.30 t7.32 t7.34 "
               "t7.41 t9.3 fast scan default)");
 }
 
@@ -114,27 +116,48 @@ MatchParams params_from_json(const nlohmann::json& j, const std::string& source)
     const auto& v = it.value();
     if (k == "preset" || k == "name") {
       if (k == "name" && v.is_string()) p.name = v.get<std::string>();
-    } else if (k == "alpha") p.alpha = nonneg(v, k);
-    else if (k == "beta") p.beta = nonneg(v, k);
-    else if (k == "gamma") p.gamma = nonneg(v, k);
-    else if (k == "delta") p.delta = nonneg(v, k);
-    else if (k == "epsilon") p.epsilon = nonneg(v, k);
-    else if (k == "th_omega_deg") p.th_omega_deg = nonneg(v, k);
-    else if (k == "th_visibility_deg") p.th_visibility_deg = nonneg(v, k);
-    else if (k == "th_maxlevel") p.th_maxlevel = static_cast<int>(integer(v, k, 1, std::numeric_limits<int>::max()));
-    else if (k == "th_minlevel") p.th_minlevel = static_cast<int>(integer(v, k, 1, std::numeric_limits<int>::max()));
-    else if (k == "th_nodedegree") p.th_nodedegree = static_cast<int>(integer(v, k, 0, std::numeric_limits<int>::max()));
-    else if (k == "th_cost") p.th_cost = num(v, k);
-    else if (k == "th_node") p.th_node = num(v, k);
-    else if (k == "th_area_ratio") p.th_area_ratio = num(v, k);
-    else if (k == "th_area_slack_mm2") p.th_area_slack_mm2 = num(v, k);
-    else if (k == "th_arcatt") p.th_arcatt = num(v, k);
-    else if (k == "th_rotfit") p.th_rotfit = num(v, k);
-    else if (k == "degenerate_deg") p.degenerate_deg = nonneg(v, k);
-    else if (k == "zeta") p.zeta = nonneg(v, k);
-    else if (k == "max_solutions") p.max_solutions = integer(v, k, 1, std::numeric_limits<std::int64_t>::max());
-    else if (k == "max_states") p.max_states = integer(v, k, 1, std::numeric_limits<std::int64_t>::max());
-    else if (k == "max_time_ms") p.max_time_ms = nonneg(v, k);
+    } else if (k == "alpha")
+      p.alpha = nonneg(v, k);
+    else if (k == "beta")
+      p.beta = nonneg(v, k);
+    else if (k == "gamma")
+      p.gamma = nonneg(v, k);
+    else if (k == "delta")
+      p.delta = nonneg(v, k);
+    else if (k == "epsilon")
+      p.epsilon = nonneg(v, k);
+    else if (k == "th_omega_deg")
+      p.th_omega_deg = nonneg(v, k);
+    else if (k == "th_visibility_deg")
+      p.th_visibility_deg = nonneg(v, k);
+    else if (k == "th_maxlevel")
+      p.th_maxlevel = static_cast<int>(integer(v, k, 1, std::numeric_limits<int>::max()));
+    else if (k == "th_minlevel")
+      p.th_minlevel = static_cast<int>(integer(v, k, 1, std::numeric_limits<int>::max()));
+    else if (k == "th_nodedegree")
+      p.th_nodedegree = static_cast<int>(integer(v, k, 0, std::numeric_limits<int>::max()));
+    else if (k == "th_cost")
+      p.th_cost = num(v, k);
+    else if (k == "th_node")
+      p.th_node = num(v, k);
+    else if (k == "th_area_ratio")
+      p.th_area_ratio = num(v, k);
+    else if (k == "th_area_slack_mm2")
+      p.th_area_slack_mm2 = num(v, k);
+    else if (k == "th_arcatt")
+      p.th_arcatt = num(v, k);
+    else if (k == "th_rotfit")
+      p.th_rotfit = num(v, k);
+    else if (k == "degenerate_deg")
+      p.degenerate_deg = nonneg(v, k);
+    else if (k == "zeta")
+      p.zeta = nonneg(v, k);
+    else if (k == "max_solutions")
+      p.max_solutions = integer(v, k, 1, std::numeric_limits<std::int64_t>::max());
+    else if (k == "max_states")
+      p.max_states = integer(v, k, 1, std::numeric_limits<std::int64_t>::max());
+    else if (k == "max_time_ms")
+      p.max_time_ms = nonneg(v, k);
     else if (k == "rigidity_pairs") {
       if (!v.is_boolean()) throw Error(source + ": rigidity_pairs: expected true or false");
       p.rigidity_pairs = v.get<bool>();
@@ -148,7 +171,8 @@ MatchParams params_from_json(const nlohmann::json& j, const std::string& source)
         for (int i = 0; i < kConditionCount; ++i)
           if (kNames[static_cast<std::size_t>(i)] == c.key()) idx = i;
         if (idx < 0) throw Error(source + ": conditions." + c.key() + ": unknown condition");
-        if (!c.value().is_boolean()) throw Error(source + ": conditions." + c.key() + ": expected true or false");
+        if (!c.value().is_boolean())
+          throw Error(source + ": conditions." + c.key() + ": expected true or false");
         p.enabled[static_cast<std::size_t>(idx)] = c.value().get<bool>();
       }
     } else {
@@ -172,22 +196,36 @@ nlohmann::json to_json(const MatchParams& p) {
     if (std::isinf(d)) return "inf";
     return d;
   };
-  nlohmann::json j = {{"name", p.name},          {"alpha", p.alpha},
-                      {"beta", p.beta},          {"gamma", p.gamma},
-                      {"delta", p.delta},        {"epsilon", p.epsilon},
-                      {"th_omega_deg", p.th_omega_deg}, {"th_visibility_deg", p.th_visibility_deg},
-                      {"th_minlevel", p.th_minlevel},   {"th_nodedegree", p.th_nodedegree},
-                      {"th_cost", num(p.th_cost)},      {"th_node", num(p.th_node)},
-                      {"th_area_ratio", num(p.th_area_ratio)}, {"th_area_slack_mm2", num(p.th_area_slack_mm2)},
-                      {"th_arcatt", num(p.th_arcatt)},  {"th_rotfit", num(p.th_rotfit)},
-                      {"degenerate_deg", p.degenerate_deg}, {"max_states", p.max_states},
-                      {"max_time_ms", num(p.max_time_ms)},  {"keep_partial", p.keep_partial},
-                      {"zeta", p.zeta},                 {"rigidity_pairs", p.rigidity_pairs}};
-  j["th_maxlevel"] = p.th_maxlevel == std::numeric_limits<int>::max() ? nlohmann::json("inf") : nlohmann::json(p.th_maxlevel);
-  j["max_solutions"] = p.max_solutions == std::numeric_limits<std::int64_t>::max() ? nlohmann::json("inf")
-                                                                                     : nlohmann::json(p.max_solutions);
+  nlohmann::json j = {{"name", p.name},
+                      {"alpha", p.alpha},
+                      {"beta", p.beta},
+                      {"gamma", p.gamma},
+                      {"delta", p.delta},
+                      {"epsilon", p.epsilon},
+                      {"th_omega_deg", p.th_omega_deg},
+                      {"th_visibility_deg", p.th_visibility_deg},
+                      {"th_minlevel", p.th_minlevel},
+                      {"th_nodedegree", p.th_nodedegree},
+                      {"th_cost", num(p.th_cost)},
+                      {"th_node", num(p.th_node)},
+                      {"th_area_ratio", num(p.th_area_ratio)},
+                      {"th_area_slack_mm2", num(p.th_area_slack_mm2)},
+                      {"th_arcatt", num(p.th_arcatt)},
+                      {"th_rotfit", num(p.th_rotfit)},
+                      {"degenerate_deg", p.degenerate_deg},
+                      {"max_states", p.max_states},
+                      {"max_time_ms", num(p.max_time_ms)},
+                      {"keep_partial", p.keep_partial},
+                      {"zeta", p.zeta},
+                      {"rigidity_pairs", p.rigidity_pairs}};
+  j["th_maxlevel"] = p.th_maxlevel == std::numeric_limits<int>::max() ? nlohmann::json("inf")
+                                                                      : nlohmann::json(p.th_maxlevel);
+  j["max_solutions"] = p.max_solutions == std::numeric_limits<std::int64_t>::max()
+                           ? nlohmann::json("inf")
+                           : nlohmann::json(p.max_solutions);
   nlohmann::json c = nlohmann::json::object();
-  for (int i = 0; i < kConditionCount; ++i) c[std::string(kNames[static_cast<std::size_t>(i)])] = p.enabled[static_cast<std::size_t>(i)];
+  for (int i = 0; i < kConditionCount; ++i)
+    c[std::string(kNames[static_cast<std::size_t>(i)])] = p.enabled[static_cast<std::size_t>(i)];
   j["conditions"] = c;
   return j;
 }

@@ -30,10 +30,11 @@ std::string format_result(const MatchResult& r, std::string_view prefix, std::si
     out += fmt::format("  {:>12.5E} ; node diss\n", s.node_diss);
     out += fmt::format("  {:>12.5E} ; arc attr diss\n", s.arc_attr_diss);
     out += fmt::format("  {:>12.5E} ; arc stru diss\n", s.arc_struct_diss);
-    out += fmt::format("  {:>12.5E} ; rot diss{}\n", s.rotfit_error, s.degenerate ? " (degenerate normal set)" : "");
+    out += fmt::format("  {:>12.5E} ; rot diss{}\n", s.rotfit_error,
+                       s.degenerate ? " (degenerate normal set)" : "");
     for (int i = 0; i < 3; ++i)
-      out += fmt::format("  {:7.3f} {:7.3f} {:7.3f}{}\n", s.rotation(i, 0), s.rotation(i, 1), s.rotation(i, 2),
-                         i == 0 ? " ; R matrix" : "");
+      out += fmt::format("  {:7.3f} {:7.3f} {:7.3f}{}\n", s.rotation(i, 0), s.rotation(i, 1),
+                         s.rotation(i, 2), i == 0 ? " ; R matrix" : "");
     out += fmt::format("  {:>12.5E} ; cost\n", s.cost);
     out += fmt::format("  {:>12.5E} ; unexplained neighbour area share\n", s.unexplained);
     bool first = true;

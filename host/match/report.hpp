@@ -1,5 +1,6 @@
 #pragma once
-// Printing match results: the solution listing of thesis fig. 7.21 (text) and JSON (`facetscan match --json`).
+// Printing match results: the solution listing of thesis fig. 7.21 (text) and JSON (`facetscan match
+// --json`).
 #include <string>
 #include <string_view>
 

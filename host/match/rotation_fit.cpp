@@ -28,12 +28,14 @@ Mat4 quaternion_pair_matrix(const Vec3& r, const Vec3& s) {
   return A;
 }
 
-void add_pair(Mat4& B, const Vec3& r, const Vec3& s, double gamma) { B.noalias() += gamma * quaternion_pair_matrix(r, s); }
+void add_pair(Mat4& B, const Vec3& r, const Vec3& s, double gamma) {
+  B.noalias() += gamma * quaternion_pair_matrix(r, s);
+}
 
 RotationFit solve_rotation(const Mat4& B) {
-  Eigen::SelfAdjointEigenSolver<Mat4> es(B);   // eigenvalues ascending
+  Eigen::SelfAdjointEigenSolver<Mat4> es(B);  // eigenvalues ascending
   const Eigen::Vector4d p = es.eigenvectors().col(0);
-  Eigen::Quaterniond q(p(3), p(0), p(1), p(2));   // (w, x, y, z) from P = (x, y, z, w)
+  Eigen::Quaterniond q(p(3), p(0), p(1), p(2));  // (w, x, y, z) from P = (x, y, z, w)
   q.normalize();
   RotationFit f;
   f.R = q.toRotationMatrix();
@@ -57,7 +59,8 @@ Eigen::Vector4d rotation_quaternion(const Mat3& R) {
   return Eigen::Vector4d(q.x(), q.y(), q.z(), q.w());
 }
 
-RotationFit solve_rotation_fast(const Mat4& B, double lambda_lower, const Eigen::Vector4d& hint, FastFitStats* stats) {
+RotationFit solve_rotation_fast(const Mat4& B, double lambda_lower, const Eigen::Vector4d& hint,
+                                FastFitStats* stats) {
   auto fallback = [&] {
     if (stats) ++stats->fallback;
     return solve_rotation(B);
@@ -81,9 +84,9 @@ RotationFit solve_rotation_fast(const Mat4& B, double lambda_lower, const Eigen:
   bool converged = false;
   for (int it = 0; it < 40; ++it) {
     const double pv = poly(l, dp);
-    if (!(dp < 0)) break;   // at / beyond a root or a stationary point: let the checks below decide
+    if (!(dp < 0)) break;  // at / beyond a root or a stationary point: let the checks below decide
     const double step = -pv / dp;
-    if (!(step > 1e-15 * tr)) {   // converged to rounding level (or a slightly negative step from rounding)
+    if (!(step > 1e-15 * tr)) {  // converged to rounding level (or a slightly negative step from rounding)
       converged = true;
       break;
     }
@@ -136,7 +139,8 @@ RotationFit solve_rotation_fast(const Mat4& B, double lambda_lower, const Eigen:
   return f;
 }
 
-TwoPairFit two_pair_fit(const Vec3& r1, const Vec3& s1, double g1, const Vec3& r2, const Vec3& s2, double g2) {
+TwoPairFit two_pair_fit(const Vec3& r1, const Vec3& s1, double g1, const Vec3& r2, const Vec3& s2,
+                        double g2) {
   TwoPairFit f;
   const Vec3 sxs = s1.cross(s2);
   const double car = r1.dot(r2), sar = r1.cross(r2).norm(), cas = s1.dot(s2), sas = sxs.norm();

@@ -1,7 +1,7 @@
 #pragma once
 // Rotation fitting (thesis ch. 7.5): the weighted Horn/Davenport quaternion method. Each normal pair (r, s)
-// (reference, scene) contributes gamma * A(r, s) (table 7.14) to the symmetric 4x4 matrix B; the best rotation
-// R (R r ~ s) is the eigenvector of B's smallest eigenvalue, which equals sum gamma |R r - s|^2.
+// (reference, scene) contributes gamma * A(r, s) (table 7.14) to the symmetric 4x4 matrix B; the best
+// rotation R (R r ~ s) is the eigenvector of B's smallest eigenvalue, which equals sum gamma |R r - s|^2.
 // Quaternion component order of table 7.14: P = (x, y, z, w).
 #include <span>
 
@@ -20,10 +20,10 @@ Mat4 quaternion_pair_matrix(const Vec3& r, const Vec3& s);
 void add_pair(Mat4& B, const Vec3& r, const Vec3& s, double gamma);
 
 struct RotationFit {
-  Mat3 R = Mat3::Identity();     // maps reference normals onto scene normals
-  double lambda_min = 0.0;       // weighted squared error sum gamma |R r - s|^2 (clamped >= 0)
-  double lambda_gap = 0.0;       // second smallest minus smallest eigenvalue
-  Eigen::Vector4d q{0, 0, 0, 1}; // unit quaternion of R, P = (x, y, z, w) (the eigenvector, sign arbitrary)
+  Mat3 R = Mat3::Identity();      // maps reference normals onto scene normals
+  double lambda_min = 0.0;        // weighted squared error sum gamma |R r - s|^2 (clamped >= 0)
+  double lambda_gap = 0.0;        // second smallest minus smallest eigenvalue
+  Eigen::Vector4d q{0, 0, 0, 1};  // unit quaternion of R, P = (x, y, z, w) (the eigenvector, sign arbitrary)
 };
 
 // Minimizes P^t B P with Eigen's SelfAdjointEigenSolver (no heap allocation).
@@ -31,8 +31,8 @@ RotationFit solve_rotation(const Mat4& B);
 
 // Same answer as solve_rotation, much cheaper (used once per search state):
 //  1. Newton on the characteristic polynomial det(B - l I) from a lower bound of the smallest eigenvalue
-//     (B is positive semi-definite, and B_n = B_{n-1} + gamma A_n with A_n PSD, so the parent's lambda_min is a
-//     lower bound, Weyl): the iterates increase monotonically to the smallest root, never to another one;
+//     (B is positive semi-definite, and B_n = B_{n-1} + gamma A_n with A_n PSD, so the parent's lambda_min is
+//     a lower bound, Weyl): the iterates increase monotonically to the smallest root, never to another one;
 //  2. two steps of shifted inverse iteration (shift just below that root), warm-started from the hint
 //     (the parent's quaternion), then the Rayleigh quotient as lambda_min.
 // Falls back to solve_rotation when Newton does not converge, the residual check fails, or the eigen gap is
@@ -45,15 +45,16 @@ RotationFit solve_rotation_fast(const Mat4& B, double lambda_lower, const Eigen:
                                 FastFitStats* stats = nullptr);
 
 // The optimal rotation of two weighted normal pairs (r1 -> s1 weight g1, r2 -> s2 weight g2; unit normals) in
-// closed form, the two-observation Wahba problem: R maps r1 x r2 onto the direction of s1 x s2 and turns about
-// it by phi, tan phi = g2 sin d / (g1 + g2 cos d), d = angle(s1, s2) - angle(r1, r2). The eigenvalues of B are
-// 2 (g1 + g2) -+ 2 rho and 2 (g1 + g2) -+ 2 rho', rho = |g1 + g2 e^{i d}|, rho' = |g1 + g2 e^{i (angle(s1, s2) +
-// angle(r1, r2))}|: lambda_min = 2 (g1 + g2 - rho), gap to the next 2 (rho - rho'). ok = false (no answer) when
-// the scene normals are parallel (|s1 x s2| <= 1e-6) or the gap is below 1e-4 (g1 + g2) (= 1.25e-5 trace B);
-// otherwise solve_rotation's R r1, R r2 and lambda_min agree to ~1e-12. About 60 flops, no eigen solve.
+// closed form, the two-observation Wahba problem: R maps r1 x r2 onto the direction of s1 x s2 and turns
+// about it by phi, tan phi = g2 sin d / (g1 + g2 cos d), d = angle(s1, s2) - angle(r1, r2). The eigenvalues
+// of B are 2 (g1 + g2) -+ 2 rho and 2 (g1 + g2) -+ 2 rho', rho = |g1 + g2 e^{i d}|, rho' = |g1 + g2 e^{i
+// (angle(s1, s2) + angle(r1, r2))}|: lambda_min = 2 (g1 + g2 - rho), gap to the next 2 (rho - rho'). ok =
+// false (no answer) when the scene normals are parallel (|s1 x s2| <= 1e-6) or the gap is below 1e-4 (g1 +
+// g2) (= 1.25e-5 trace B); otherwise solve_rotation's R r1, R r2 and lambda_min agree to ~1e-12. About 60
+// flops, no eigen solve.
 struct TwoPairFit {
   bool ok = false;
-  Vec3 Rr1 = Vec3::Zero(), Rr2 = Vec3::Zero();   // R r1, R r2
+  Vec3 Rr1 = Vec3::Zero(), Rr2 = Vec3::Zero();  // R r1, R r2
   double lambda = 0.0;                          // lambda_min of B = g1 A(r1, s1) + g2 A(r2, s2)
 };
 TwoPairFit two_pair_fit(const Vec3& r1, const Vec3& s1, double g1, const Vec3& r2, const Vec3& s2, double g2);

@@ -12,8 +12,13 @@ namespace {
 class Ullmann {
  public:
   Ullmann(const CompactGraph& t, const CompactGraph& r, ExactMode mode, const ExactMappingFn& fn)
-      : t_(t), r_(r), mode_(mode), fn_(fn), levels_(static_cast<std::size_t>(t.n) + 1),
-        assigned_(static_cast<std::size_t>(t.n), -1), pairs_(static_cast<std::size_t>(t.n)) {}
+      : t_(t),
+        r_(r),
+        mode_(mode),
+        fn_(fn),
+        levels_(static_cast<std::size_t>(t.n) + 1),
+        assigned_(static_cast<std::size_t>(t.n), -1),
+        pairs_(static_cast<std::size_t>(t.n)) {}
 
   ExactStats run() {
     if (t_.n == 0 || t_.n > r_.n) return stats_;
@@ -23,7 +28,7 @@ class Ullmann {
       for (int j = 0; j < r_.n; ++j) {
         // Node-degree condition (ch. 5.3.2.2): equal for graphs of equal size, <= otherwise.
         const bool ok = (t_.n == r_.n && mode_ == ExactMode::kInduced) ? t_.degree[i] == r_.degree[j]
-                                                                         : t_.degree[i] <= r_.degree[j];
+                                                                       : t_.degree[i] <= r_.degree[j];
         if (ok) m0[i].set(j);
       }
     }
@@ -110,7 +115,8 @@ class Ullmann {
 
 }  // namespace
 
-ExactStats count_isomorphisms(const Pfrg& test, const Pfrg& ref, ExactMode mode, const ExactMappingFn& on_mapping) {
+ExactStats count_isomorphisms(const Pfrg& test, const Pfrg& ref, ExactMode mode,
+                              const ExactMappingFn& on_mapping) {
   auto t = std::make_unique<CompactGraph>();
   auto r = std::make_unique<CompactGraph>();
   t->load(test, /*include_supernodes=*/false);

@@ -12,13 +12,13 @@
 namespace fs::host::match {
 
 enum class ExactMode {
-  kInduced,        // subgraph isomorphism: T[i,j] == R'[i,j] for all test node pairs (ch. 5.3.1)
-  kMonomorphism,   // subgraph check: every test arc has a reference arc (non-induced)
+  kInduced,       // subgraph isomorphism: T[i,j] == R'[i,j] for all test node pairs (ch. 5.3.1)
+  kMonomorphism,  // subgraph check: every test arc has a reference arc (non-induced)
 };
 
 struct ExactStats {
-  std::uint64_t count = 0;           // mappings found
-  std::uint64_t tree_nodes = 0;      // search tree states visited
+  std::uint64_t count = 0;       // mappings found
+  std::uint64_t tree_nodes = 0;  // search tree states visited
   std::uint64_t refinement_removals = 0;
 };
 

@@ -31,7 +31,8 @@ double get_number(const json& obj, const char* key, const std::string& source, c
     if (required) fail(source, where + "." + key, "missing");
     return fallback;
   }
-  if (!it->is_number()) fail(source, where + "." + key, "expected a number, got " + std::string(it->type_name()));
+  if (!it->is_number())
+    fail(source, where + "." + key, "expected a number, got " + std::string(it->type_name()));
   double v = it->get<double>();
   if (!std::isfinite(v)) fail(source, where + "." + key, "not finite");
   return v;

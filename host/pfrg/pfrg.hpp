@@ -16,17 +16,17 @@ namespace fs::host {
 struct PfrgNode {
   int id = 0;
   bool supernode = false;
-  double area = 0.0;               // mm^2
-  Vec3 normal = Vec3::Zero();      // unit, out of the object (toward the observer for scene faces)
+  double area = 0.0;           // mm^2
+  Vec3 normal = Vec3::Zero();  // unit, out of the object (toward the observer for scene faces)
   // Optional (not part of the minimal JSON contract, written when known):
-  double offset = 0.0;             // plane: normal . x = offset (mm)
-  Vec3 centroid = Vec3::Zero();    // mm
-  bool has_plane = false;          // offset/centroid valid
+  double offset = 0.0;           // plane: normal . x = offset (mm)
+  Vec3 centroid = Vec3::Zero();  // mm
+  bool has_plane = false;        // offset/centroid valid
 };
 
 struct PfrgArc {
-  int a = 0, b = 0;                // node ids
-  double border = 0.0;             // mm
+  int a = 0, b = 0;     // node ids
+  double border = 0.0;  // mm
 };
 
 struct Pfrg {
@@ -45,9 +45,11 @@ struct Pfrg {
 // JSON: {"name":..., "nodes":[{"id","area","normal",["supernode"],["offset","centroid"]}],
 //        "arcs":[{"a","b","border"}], ["observer":[x,y,z]]}. Validation: unique integer ids, finite
 // non-negative areas/borders, non-zero finite normals (normalized on read), arcs between two different
-// existing nodes, no duplicate arcs. Errors name the source and the field (e.g. "s.json: nodes[2].normal: ...").
+// existing nodes, no duplicate arcs. Errors name the source and the field (e.g. "s.json: nodes[2].normal:
+// ...").
 nlohmann::json to_json(const Pfrg& g);
-Pfrg pfrg_from_json(const nlohmann::json& j, const std::string& source);   // throws fs::Error naming source/field
+Pfrg pfrg_from_json(const nlohmann::json& j,
+                    const std::string& source);  // throws fs::Error naming source/field
 Pfrg read_pfrg_json(const std::filesystem::path& path);
 void write_pfrg_json(const Pfrg& g, const std::filesystem::path& path);
 

@@ -59,13 +59,14 @@ int expand(const HypothesisContext& c, Hypothesis& h, std::vector<PlanePair>& sc
     const ModelFace& mf = model.faces[f];
     const Vec3 n = h.R * mf.normal;
     const Vec3 centre = h.R * mf.centroid + h.t;
-    if (n.dot(c.viewpoint - centre) <= 0) continue;   // faces away from the sensor
+    if (n.dot(c.viewpoint - centre) <= 0) continue;  // faces away from the sensor
     const double radius = face_radius(mf) + c.params.expand_dist_mm;
     int best = -1;
     double best_cos = cos_max;
     for (const PfrgNode& s : c.scene.nodes) {
       if (s.supernode || !s.has_plane || uses_scene(h, s.id)) continue;
-      if (taken && s.id >= 0 && static_cast<std::size_t>(s.id) < taken->size() && (*taken)[static_cast<std::size_t>(s.id)])
+      if (taken && s.id >= 0 && static_cast<std::size_t>(s.id) < taken->size() &&
+          (*taken)[static_cast<std::size_t>(s.id)])
         continue;
       const double cs = s.normal.dot(n);
       if (cs < best_cos) continue;
@@ -97,8 +98,8 @@ int merge_compatible(const HypothesisContext& c, std::span<Hypothesis> hyps, std
       const Model& model = c.library.models[static_cast<std::size_t>(a.model)];
       // Compare where the model's centre lands: symmetry-equivalent poses differ in t when the model's origin
       // is off its centre.
-      const bool close_t = ((a.R * model.center + a.t) - (b.R * model.center + b.t)).norm() <=
-                           c.params.merge_translation_mm;
+      const bool close_t =
+          ((a.R * model.center + a.t) - (b.R * model.center + b.t)).norm() <= c.params.merge_translation_mm;
       bool shared_scene = false, shared_ref = false;
       for (const FaceMatch& m : b.matches) {
         shared_scene = shared_scene || uses_scene(a, m.scene);
@@ -129,7 +130,8 @@ int merge_compatible(const HypothesisContext& c, std::span<Hypothesis> hyps, std
 namespace {
 
 // A hypothesis of one face match (scene face -> model face fi) in pose (R, t); the buffers of h are reused.
-void one_face_hypothesis(Hypothesis& h, int model, int scene_face, int fi, const Mat3& R, const Vec3& t, double cost) {
+void one_face_hypothesis(Hypothesis& h, int model, int scene_face, int fi, const Mat3& R, const Vec3& t,
+                         double cost) {
   h.model = model;
   h.rank = 0;
   h.path.clear();
@@ -210,7 +212,7 @@ std::size_t convex_hull_in_place(std::vector<Eigen::Vector2d>& pts, std::vector<
     const double c = (a.x() - o.x()) * (b.y() - o.y()) - (a.y() - o.y()) * (b.x() - o.x());
     return c - 1e-9 * (a - o).norm() * (b - o).norm();
   };
-  scratch.resize(2 * n);   // capacity reserved by the caller: no allocation once warm
+  scratch.resize(2 * n);  // capacity reserved by the caller: no allocation once warm
   std::size_t k = 0;
   for (std::size_t i = 0; i < n; ++i) {
     while (k >= 2 && cross(scratch[k - 2], scratch[k - 1], pts[i]) <= 0) --k;
@@ -220,7 +222,7 @@ std::size_t convex_hull_in_place(std::vector<Eigen::Vector2d>& pts, std::vector<
     while (k >= lower && cross(scratch[k - 2], scratch[k - 1], pts[i]) <= 0) --k;
     scratch[k++] = pts[i];
   }
-  --k;   // the last point repeats the first
+  --k;  // the last point repeats the first
   for (std::size_t i = 0; i < k; ++i) pts[i] = scratch[i];
   return k;
 }
@@ -244,14 +246,15 @@ double boundary_distance(const Eigen::Vector2d& p, const Poly& poly, std::size_t
 }  // namespace
 
 int top_face_hypotheses(const Library& library, const PfrgNode& face, const Plane& table,
-                        std::span<const Eigen::Vector2d> hull, const Vec3& u, const Vec3& v, const TopFaceParams& p,
-                        std::span<Hypothesis> out) {
+                        std::span<const Eigen::Vector2d> hull, const Vec3& u, const Vec3& v,
+                        const TopFaceParams& p, std::span<Hypothesis> out) {
   if (face.supernode || !face.has_plane || hull.size() < 3) return 0;
-  const double height = face.offset - table.d;   // face plane above the table (normals within a few degrees)
+  const double height = face.offset - table.d;  // face plane above the table (normals within a few degrees)
   const double cos_anti = std::cos(p.antiparallel_deg * M_PI / 180.0);
   // Long edges are those of >= 25 % of the longest (hull and polygon alike).
   double hull_max = 0.0;
-  for (std::size_t i = 0; i < hull.size(); ++i) hull_max = std::max(hull_max, (hull[(i + 1) % hull.size()] - hull[i]).norm());
+  for (std::size_t i = 0; i < hull.size(); ++i)
+    hull_max = std::max(hull_max, (hull[(i + 1) % hull.size()] - hull[i]).norm());
   constexpr std::size_t kMaxPoly = 64;
   std::array<Eigen::Vector2d, kMaxPoly> poly{}, turned{};
   struct Turn {
@@ -309,7 +312,8 @@ int top_face_hypotheses(const Library& library, const PfrgNode& face, const Plan
             const double d = std::remainder(best[static_cast<std::size_t>(k)].angle - angle, 2 * M_PI);
             if (std::abs(d) < M_PI / 180.0) {
               dup = true;
-              if (score < best[static_cast<std::size_t>(k)].score) best[static_cast<std::size_t>(k)] = Turn{score, angle, shift};
+              if (score < best[static_cast<std::size_t>(k)].score)
+                best[static_cast<std::size_t>(k)] = Turn{score, angle, shift};
             }
           }
           if (dup) continue;
@@ -319,8 +323,10 @@ int top_face_hypotheses(const Library& library, const PfrgNode& face, const Plan
           } else {
             int worst = 0;
             for (int k = 1; k < nbest; ++k)
-              if (best[static_cast<std::size_t>(k)].score > best[static_cast<std::size_t>(worst)].score) worst = k;
-            if (score < best[static_cast<std::size_t>(worst)].score) best[static_cast<std::size_t>(worst)] = Turn{score, angle, shift};
+              if (best[static_cast<std::size_t>(k)].score > best[static_cast<std::size_t>(worst)].score)
+                worst = k;
+            if (score < best[static_cast<std::size_t>(worst)].score)
+              best[static_cast<std::size_t>(worst)] = Turn{score, angle, shift};
           }
         }
       }
@@ -328,7 +334,8 @@ int top_face_hypotheses(const Library& library, const PfrgNode& face, const Plan
         if (written >= static_cast<int>(out.size())) return written;
         const Turn& tr = best[static_cast<std::size_t>(k)];
         const Mat3 R = Eigen::AngleAxisd(tr.angle, face.normal).toRotationMatrix() * R0;
-        // In-plane: the turned polygon's shift; along the normal (u, v are orthogonal to it): f on the face's plane.
+        // In-plane: the turned polygon's shift; along the normal (u, v are orthogonal to it): f on the face's
+        // plane.
         const Vec3 t = u * tr.shift.x() + v * tr.shift.y() + face.normal * (face.offset - f.offset);
         // Cost: the outline fit (in m) as a tie-break.
         one_face_hypothesis(out[static_cast<std::size_t>(written++)], static_cast<int>(mi), face.id,

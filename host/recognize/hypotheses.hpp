@@ -13,7 +13,7 @@ namespace fs::host::rec {
 struct HypothesisContext {
   const Library& library;
   const Pfrg& scene;
-  const std::vector<int>& scene_index;   // scene node id -> index in scene.nodes, -1 when absent
+  const std::vector<int>& scene_index;  // scene node id -> index in scene.nodes, -1 when absent
   Vec3 viewpoint;
   const RecognizeParams& params;
 };
@@ -22,8 +22,8 @@ struct HypothesisContext {
 void update_translation(const HypothesisContext& c, Hypothesis& h, std::vector<PlanePair>& scratch);
 
 // Adds unmatched scene faces that coincide with predicted, visible, unmatched model faces (marked expanded),
-// then refits the translation. Faces whose id is marked in *taken (by scene node id) are not added. Returns the
-// number of faces added.
+// then refits the translation. Faces whose id is marked in *taken (by scene node id) are not added. Returns
+// the number of faces added.
 int expand(const HypothesisContext& c, Hypothesis& h, std::vector<PlanePair>& scratch,
            const std::vector<char>* taken = nullptr);
 
@@ -33,8 +33,8 @@ int expand(const HypothesisContext& c, Hypothesis& h, std::vector<PlanePair>& sc
 int merge_compatible(const HypothesisContext& c, std::span<Hypothesis> hyps, std::vector<char>& alive,
                      std::vector<PlanePair>& scratch);
 
-// Which model faces may stand for a lone scene face: min_area_ratio * area_f <= area_s <= area_ratio * area_f +
-// slack.
+// Which model faces may stand for a lone scene face: min_area_ratio * area_f <= area_s <= area_ratio * area_f
+// + slack.
 struct FaceAreaFit {
   double min_area_ratio = 0.7;
   double area_ratio = 1.3;
@@ -48,14 +48,14 @@ struct FaceAreaFit {
 // (top_face_hypotheses); a tilted one gets single_face_hypotheses.
 bool parallel_to_table(const PfrgNode& face, const Plane& table, double min_tilt_deg);
 
-// Beyond the thesis: pose hypotheses for a scene face that borders no other scene face (an object that shows a
-// single face, e.g. a pyramid lying on a side with only its base turned up). Such an object rests on the table
-// on one of its faces g: matching a model face f to the scene face and g to the table gives two normal pairs,
-// hence the rotation (when the angle between f and g equals the angle between the scene face and the table's
-// downward normal, within angle_tol_deg); the two planes and the scene face's centroid along their common line
-// give the translation. Faces parallel to the table (parallel_to_table with min_tilt_deg) and model faces whose
-// area does not fit are skipped. Writes at most out.size() hypotheses (model, one match, R, t) and returns how
-// many.
+// Beyond the thesis: pose hypotheses for a scene face that borders no other scene face (an object that shows
+// a single face, e.g. a pyramid lying on a side with only its base turned up). Such an object rests on the
+// table on one of its faces g: matching a model face f to the scene face and g to the table gives two normal
+// pairs, hence the rotation (when the angle between f and g equals the angle between the scene face and the
+// table's downward normal, within angle_tol_deg); the two planes and the scene face's centroid along their
+// common line give the translation. Faces parallel to the table (parallel_to_table with min_tilt_deg) and
+// model faces whose area does not fit are skipped. Writes at most out.size() hypotheses (model, one match, R,
+// t) and returns how many.
 struct SingleFaceParams {
   double angle_tol_deg = 2.0;
   double min_tilt_deg = 10.0;
@@ -64,13 +64,14 @@ struct SingleFaceParams {
 int single_face_hypotheses(const Library& library, const PfrgNode& face, const Plane& table,
                            const SingleFaceParams& p, std::span<Hypothesis> out);
 
-// The same for a lone face parallel to the table (a box or prism seen from above, its sides edge-on): the model
-// rests on a face g antiparallel to the matched face f, which leaves the turn about the vertical open. It is
-// taken from the outline: `hull` is the convex hull of the scene face's points in the plane basis (u, v) (u x v
-// along the face normal, origin anywhere); every pair of long edges of the hull and of f's outer polygon gives a
-// candidate turn, each is scored by the mean distance of the hull's vertices to the turned polygon's boundary and
-// of the polygon's to the hull's, and the best max_turns per (model, f) within max_outline_mm are kept. The
-// distance between f and g must equal the face's height above the table within height_tol_mm.
+// The same for a lone face parallel to the table (a box or prism seen from above, its sides edge-on): the
+// model rests on a face g antiparallel to the matched face f, which leaves the turn about the vertical open.
+// It is taken from the outline: `hull` is the convex hull of the scene face's points in the plane basis (u,
+// v) (u x v along the face normal, origin anywhere); every pair of long edges of the hull and of f's outer
+// polygon gives a candidate turn, each is scored by the mean distance of the hull's vertices to the turned
+// polygon's boundary and of the polygon's to the hull's, and the best max_turns per (model, f) within
+// max_outline_mm are kept. The distance between f and g must equal the face's height above the table within
+// height_tol_mm.
 struct TopFaceParams {
   double antiparallel_deg = 2.0;
   FaceAreaFit area;
@@ -79,31 +80,33 @@ struct TopFaceParams {
   int max_turns = 2;
 };
 int top_face_hypotheses(const Library& library, const PfrgNode& face, const Plane& table,
-                        std::span<const Eigen::Vector2d> hull, const Vec3& u, const Vec3& v, const TopFaceParams& p,
-                        std::span<Hypothesis> out);
+                        std::span<const Eigen::Vector2d> hull, const Vec3& u, const Vec3& v,
+                        const TopFaceParams& p, std::span<Hypothesis> out);
 
-// Convex hull (counter-clockwise, Andrew's monotone chain) of pts in place: pts is sorted and its first k entries
-// become the hull; returns k. No allocation.
+// Convex hull (counter-clockwise, Andrew's monotone chain) of pts in place: pts is sorted and its first k
+// entries become the hull; returns k. No allocation.
 std::size_t convex_hull_in_place(std::vector<Eigen::Vector2d>& pts, std::vector<Eigen::Vector2d>& scratch);
 
 // Geometric plausibility of a hypothesis before the (costly) low-level verification, in [0, 1]: the share of
-// the model's predicted visible area (front faces, weighted down toward grazing view) that matched scene faces
-// explain, times a penalty for every matched scene face larger than its model face (a face cannot be seen
-// bigger than it is). Ranks the hypotheses of all references so that verification looks at the plausible ones
-// first even when the matching costs tie (preset t9.3 has no attribute costs).
+// the model's predicted visible area (front faces, weighted down toward grazing view) that matched scene
+// faces explain, times a penalty for every matched scene face larger than its model face (a face cannot be
+// seen bigger than it is). Ranks the hypotheses of all references so that verification looks at the plausible
+// ones first even when the matching costs tie (preset t9.3 has no attribute costs).
 double prescore(const HypothesisContext& c, const Hypothesis& h);
 
 // Support (beyond the thesis): a solid object rests on the table or on something measured just below its
 // lowest point. Returns 1 when the model's lowest point in pose (R, t) lies within tol_mm of the table plane
 // (normal toward the sensor), or above it with a measured point within radius_mm of that point and more than
-// 1 mm lower; else `unsupported` (also when it sinks into the table). *lowest receives the lowest point's height.
+// 1 mm lower; else `unsupported` (also when it sinks into the table). *lowest receives the lowest point's
+// height.
 struct SupportParams {
   double tol_mm = 3.0;
   double radius_mm = 6.0;
   double unsupported = 0.5;
 };
 double support_factor(const Model& model, const Mat3& R, const Vec3& t, const Plane& table,
-                      std::span<const Eigen::Vector3f> points, const SupportParams& p, double* lowest = nullptr);
+                      std::span<const Eigen::Vector3f> points, const SupportParams& p,
+                      double* lowest = nullptr);
 
 // Model faces whose outward normal faces the viewpoint in pose (R, t).
 int count_visible_faces(const Model& model, const Mat3& R, const Vec3& t, const Vec3& viewpoint);

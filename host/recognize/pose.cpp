@@ -28,7 +28,7 @@ TranslationFit fit_translation(const Model& model, const Mat3& R, std::span<cons
   }
   centroid_shift /= wsum;
   Eigen::SelfAdjointEigenSolver<Mat3> es(A);
-  const Vec3 ev = es.eigenvalues();   // ascending
+  const Vec3 ev = es.eigenvalues();  // ascending
   const double emax = std::max(ev(2), 1e-12);
   Vec3 t = Vec3::Zero();
   for (int k = 0; k < 3; ++k) {

@@ -13,18 +13,18 @@
 namespace fs::host::rec {
 
 struct PlanePair {
-  Vec3 scene_normal;     // unit
-  double scene_offset;   // n_s . y = d_s
+  Vec3 scene_normal;    // unit
+  double scene_offset;  // n_s . y = d_s
   Vec3 scene_centroid;
   double scene_area;
-  int model_face;        // index into Model::faces
+  int model_face;  // index into Model::faces
 };
 
 struct TranslationFit {
   Vec3 t = Vec3::Zero();
-  int free_dims = 0;                 // 0 = determined by the planes; 1 or 2 = filled in from centroids
-  Vec3 free_dir = Vec3::Zero();      // a unit direction the planes do not constrain (free_dims >= 1)
-  double rms_mm = 0.0;               // rms plane residual n_s . t - (d_s - d_m)
+  int free_dims = 0;             // 0 = determined by the planes; 1 or 2 = filled in from centroids
+  Vec3 free_dir = Vec3::Zero();  // a unit direction the planes do not constrain (free_dims >= 1)
+  double rms_mm = 0.0;           // rms plane residual n_s . t - (d_s - d_m)
 };
 
 TranslationFit fit_translation(const Model& model, const Mat3& R, std::span<const PlanePair> pairs,

@@ -12,7 +12,9 @@ nlohmann::json to_json(const Recognition& r, const Library& library) {
     nlohmann::json o;
     o["model"] = m.name;
     o["instance"] = h.instance;
-    o["rotation"] = {{h.R(0, 0), h.R(0, 1), h.R(0, 2)}, {h.R(1, 0), h.R(1, 1), h.R(1, 2)}, {h.R(2, 0), h.R(2, 1), h.R(2, 2)}};
+    o["rotation"] = {{h.R(0, 0), h.R(0, 1), h.R(0, 2)},
+                     {h.R(1, 0), h.R(1, 1), h.R(1, 2)},
+                     {h.R(2, 0), h.R(2, 1), h.R(2, 2)}};
     o["translation"] = {h.t.x(), h.t.y(), h.t.z()};
     o["cost"] = h.cost;
     o["confidence"] = h.verify.confidence;
@@ -33,30 +35,42 @@ nlohmann::json to_json(const Recognition& r, const Library& library) {
     o["rotfit_error"] = h.rotfit_error;
     o["merged"] = h.merged;
     if (h.free_dims > 0) {
-      o["translation_underdetermined"] = {{"dims", h.free_dims}, {"direction", {h.free_dir.x(), h.free_dir.y(), h.free_dir.z()}}};
+      o["translation_underdetermined"] = {{"dims", h.free_dims},
+                                          {"direction", {h.free_dir.x(), h.free_dir.y(), h.free_dir.z()}}};
     }
     if (h.alternatives > 0) {
       nlohmann::json alts = nlohmann::json::array();
       for (const Hypothesis::Alternative& a : h.listed_alternatives())
-        alts.push_back({{"model", library.models[static_cast<std::size_t>(a.model)].name}, {"confidence", a.confidence}});
+        alts.push_back({{"model", library.models[static_cast<std::size_t>(a.model)].name},
+                        {"confidence", a.confidence}});
       o["alternatives"] = alts;
     }
     o["verification"] = {{"inliers", h.verify.inliers},   {"violations", h.verify.violations},
                          {"occluded", h.verify.occluded}, {"hits", h.verify.hits},
-                         {"coverage", h.verify.coverage}, {"explained", h.verify.explained}, {"rms_mm", h.verify.rms_mm},
-                         {"icp_iterations", h.verify.refine_iterations}};
+                         {"coverage", h.verify.coverage}, {"explained", h.verify.explained},
+                         {"rms_mm", h.verify.rms_mm},     {"icp_iterations", h.verify.refine_iterations}};
     objects.push_back(std::move(o));
   }
   const RecognizeStats& s = r.stats;
-  nlohmann::json stats = {{"segment_ms", s.segment_ms},   {"pfrg_ms", s.pfrg_ms},
-                          {"match_ms", s.match_ms},       {"verify_ms", s.verify_ms},
-                          {"total_ms", s.total_ms},       {"regions", s.regions},
-                          {"known_regions", s.known_regions}, {"scene_nodes", s.scene_nodes},
-                          {"scene_arcs", s.scene_arcs},   {"table_removed", s.table_removed},
+  nlohmann::json stats = {{"segment_ms", s.segment_ms},
+                          {"pfrg_ms", s.pfrg_ms},
+                          {"match_ms", s.match_ms},
+                          {"verify_ms", s.verify_ms},
+                          {"total_ms", s.total_ms},
+                          {"regions", s.regions},
+                          {"known_regions", s.known_regions},
+                          {"scene_nodes", s.scene_nodes},
+                          {"scene_arcs", s.scene_arcs},
+                          {"table_removed", s.table_removed},
                           {"components", s.components},
-                          {"references", s.references},   {"states", s.states},
-                          {"hypotheses", s.hypotheses},   {"merged", s.merged},
-                          {"expanded_faces", s.expanded_faces}, {"single_face", s.single_face}, {"rounds", s.rounds}, {"rejected", s.rejected},
+                          {"references", s.references},
+                          {"states", s.states},
+                          {"hypotheses", s.hypotheses},
+                          {"merged", s.merged},
+                          {"expanded_faces", s.expanded_faces},
+                          {"single_face", s.single_face},
+                          {"rounds", s.rounds},
+                          {"rejected", s.rejected},
                           {"incompatible_pairs", s.incompatible_pairs}};
   nlohmann::json j = {{"objects", objects}, {"stats", stats}};
   if (!r.note.empty()) j["note"] = r.note;

@@ -7,8 +7,8 @@
 #include <limits>
 #include <numeric>
 
-#include "host/recognize/pose.hpp"
 #include "host/recognize/hypotheses.hpp"
+#include "host/recognize/pose.hpp"
 #include "host/recognize/scene_prep.hpp"
 #include "host/recognize/worker_pool.hpp"
 
@@ -17,7 +17,7 @@ namespace fs::host::rec {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-constexpr std::size_t kMaxMatches = 128;   // face matches of one hypothesis (matcher graphs hold <= 128 nodes)
+constexpr std::size_t kMaxMatches = 128;  // face matches of one hypothesis (matcher graphs hold <= 128 nodes)
 double ms_since(Clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 }
@@ -41,10 +41,12 @@ struct ModelSlots {
 }  // namespace
 
 struct Recognizer::Impl {
-  // Scene node ids: regions 1..kMaxRegions and the supernode after them (by-id tables need this many entries).
+  // Scene node ids: regions 1..kMaxRegions and the supernode after them (by-id tables need this many
+  // entries).
   static constexpr std::size_t kMaxRegions = 8192;
   static constexpr std::size_t kMaxNodeIds = kMaxRegions + 2;
-  static constexpr std::size_t kLoneFaceRoom = 4;   // lone faces per round whose single-face hypotheses fit for sure
+  static constexpr std::size_t kLoneFaceRoom =
+      4;  // lone faces per round whose single-face hypotheses fit for sure
   explicit Impl(const Library& lib, const RecognizeParams& p, int threads)
       : pool(threads), per_model(lib.models.size()) {
     match::MatcherLimits limits;
@@ -63,7 +65,8 @@ struct Recognizer::Impl {
         s.matches.reserve(kMaxMatches);
       }
     }
-    // The search solutions of every reference, plus room for the single-face hypotheses of kLoneFaceRoom lone faces.
+    // The search solutions of every reference, plus room for the single-face hypotheses of kLoneFaceRoom lone
+    // faces.
     const std::size_t max_h = lib.models.size() * static_cast<std::size_t>(p.solutions_per_model) +
                               kLoneFaceRoom * static_cast<std::size_t>(std::max(p.single_face_max, 0));
     hyps.resize(max_h);
@@ -85,19 +88,19 @@ struct Recognizer::Impl {
   std::vector<Verifier> verifiers;
   std::vector<ModelGeometry> geometry;
   std::vector<ModelSlots> per_model;
-  std::vector<Hypothesis> hyps;     // pool; the first nhyp are live this scan
+  std::vector<Hypothesis> hyps;  // pool; the first nhyp are live this scan
   std::size_t nhyp = 0;
   std::vector<std::size_t> order;
   std::vector<char> alive;
   std::vector<PlanePair> pairs;
-  std::vector<char> node_used;      // by scene node id
-  std::vector<int> scene_index;     // scene node id -> index in scene.nodes (-1)
+  std::vector<char> node_used;   // by scene node id
+  std::vector<int> scene_index;  // scene node id -> index in scene.nodes (-1)
   std::vector<std::int32_t> cell_owner;
   // Inlier cells of the refined hypotheses: slot k belongs to hyps[slot_owner[k]] during a scan (swapped into
   // its inlier_cells and back afterwards, so no buffer is ever reallocated).
   std::vector<std::vector<std::uint32_t>> slot_cells;
-  // Buffers of the reported objects: out.objects[k] holds spare_objects[k]'s buffers during a scan (swapped in
-  // when reported, swapped back at the next scan), so reporting never allocates.
+  // Buffers of the reported objects: out.objects[k] holds spare_objects[k]'s buffers during a scan (swapped
+  // in when reported, swapped back at the next scan), so reporting never allocates.
   std::vector<Hypothesis> spare_objects;
   std::vector<std::size_t> slot_owner;
   std::vector<std::size_t> picked;  // scratch of select_covering
@@ -106,7 +109,7 @@ struct Recognizer::Impl {
   const Pfrg* scene = nullptr;
   const Library* library = nullptr;
   match::MatchParams mparams;
-  match::MatchParams mparams_small;   // parts with fewer faces than mparams.th_minlevel (TH_minlevel lowered)
+  match::MatchParams mparams_small;  // parts with fewer faces than mparams.th_minlevel (TH_minlevel lowered)
   // Verification context.
   SampleSet coarse, fine;
   bool refine_phase = false;
@@ -118,11 +121,11 @@ struct Recognizer::Impl {
   // Connected parts of the scene graph (supernode arcs do not connect), each with >= min_level faces; the
   // matcher searches each on its own. parts[k] holds the supernode(s) and the part's faces and arcs.
   std::vector<Pfrg> parts;
-  std::vector<int> part_faces;  // real faces of parts[k]
-  std::vector<int> lone_faces;  // indices into the split graph's nodes of faces that border no other face
-  std::vector<char> lone_tried; // by scene node id: single-face hypotheses made already
-  Pfrg rest;                    // the scene graph without the faces of accepted objects (rounds after the first)
-  std::vector<Eigen::Vector2d> hull, hull_scratch;   // outline of a lone face parallel to the table
+  std::vector<int> part_faces;   // real faces of parts[k]
+  std::vector<int> lone_faces;   // indices into the split graph's nodes of faces that border no other face
+  std::vector<char> lone_tried;  // by scene node id: single-face hypotheses made already
+  Pfrg rest;  // the scene graph without the faces of accepted objects (rounds after the first)
+  std::vector<Eigen::Vector2d> hull, hull_scratch;  // outline of a lone face parallel to the table
 
   // hull = convex hull of the fine samples of `face` (scene node id = region + 1), in the plane basis (u, v).
   void outline(const PfrgNode& face, const std::vector<std::int32_t>& labels, const Vec3& u, const Vec3& v) {
@@ -136,10 +139,10 @@ struct Recognizer::Impl {
       }
     hull.resize(convex_hull_in_place(hull, hull_scratch));
   }
-  bool round_small = false;     // this round searches every part with mparams_small
+  bool round_small = false;  // this round searches every part with mparams_small
 
-  // By scene node id: 1 for the supernode(s), set per scan (the graphs split below are the scene or part of it,
-  // with the same ids). Ids without an entry count as unknown, i.e. as the supernode.
+  // By scene node id: 1 for the supernode(s), set per scan (the graphs split below are the scene or part of
+  // it, with the same ids). Ids without an entry count as unknown, i.e. as the supernode.
   std::vector<char> super_by_id;
   void mark_supernodes(const Pfrg& g) {
     int max_id = 0;
@@ -149,13 +152,14 @@ struct Recognizer::Impl {
       if (n.supernode) super_by_id[static_cast<std::size_t>(n.id)] = 1;
   }
   bool is_super(int id) const {
-    return id < 0 || static_cast<std::size_t>(id) >= super_by_id.size() || super_by_id[static_cast<std::size_t>(id)];
+    return id < 0 || static_cast<std::size_t>(id) >= super_by_id.size() ||
+           super_by_id[static_cast<std::size_t>(id)];
   }
 
-  // rest = scene without the faces accepted objects hold. A kept face that bordered an accepted one borders the
-  // unknown there, so that arc becomes one to the supernode (one per face; the node-degree condition counts a
-  // face's neighbours, the supernode included). False when no face is left.
-  std::vector<char> rest_super_arc;   // by node id: the kept face has an arc to the supernode in rest
+  // rest = scene without the faces accepted objects hold. A kept face that bordered an accepted one borders
+  // the unknown there, so that arc becomes one to the supernode (one per face; the node-degree condition
+  // counts a face's neighbours, the supernode included). False when no face is left.
+  std::vector<char> rest_super_arc;  // by node id: the kept face has an arc to the supernode in rest
   bool build_rest(const Pfrg& g) {
     rest.nodes.clear();
     rest.arcs.clear();
@@ -163,7 +167,10 @@ struct Recognizer::Impl {
     rest.observer = g.observer;
     rest.has_observer = g.has_observer;
     int faces = 0, super_id = -1;
-    auto kept = [&](int id) { return id >= 0 && static_cast<std::size_t>(id) < node_used.size() && !node_used[static_cast<std::size_t>(id)]; };
+    auto kept = [&](int id) {
+      return id >= 0 && static_cast<std::size_t>(id) < node_used.size() &&
+             !node_used[static_cast<std::size_t>(id)];
+    };
     for (const auto& n : g.nodes)
       if (n.supernode || kept(n.id)) {
         rest.nodes.push_back(n);
@@ -182,7 +189,8 @@ struct Recognizer::Impl {
     if (super_id >= 0)
       for (const auto& a : g.arcs) {
         const bool ka = kept(a.a), kb = kept(a.b);
-        if (ka == kb || is_super(a.a) || is_super(a.b)) continue;   // both kept, both accepted, or to the supernode
+        if (ka == kb || is_super(a.a) || is_super(a.b))
+          continue;  // both kept, both accepted, or to the supernode
         const int face = ka ? a.a : a.b;
         if (rest_super_arc[static_cast<std::size_t>(face)]) continue;
         rest_super_arc[static_cast<std::size_t>(face)] = 1;
@@ -192,18 +200,19 @@ struct Recognizer::Impl {
   }
 
   std::size_t nparts = 0;
-  std::vector<int> uf;          // union-find parent by node id
-  std::vector<int> part_of;     // node id -> part index (-1)
-  std::vector<int> comp_size;   // by root id
-  static constexpr std::size_t kMaxParts = 32;   // further parts are searched together with the last one
+  std::vector<int> uf;                          // union-find parent by node id
+  std::vector<int> part_of;                     // node id -> part index (-1)
+  std::vector<int> comp_size;                   // by root id
+  static constexpr std::size_t kMaxParts = 32;  // further parts are searched together with the last one
 
   int find(int x) {
-    while (uf[static_cast<std::size_t>(x)] != x) x = uf[static_cast<std::size_t>(x)] = uf[static_cast<std::size_t>(uf[static_cast<std::size_t>(x)])];
+    while (uf[static_cast<std::size_t>(x)] != x)
+      x = uf[static_cast<std::size_t>(x)] = uf[static_cast<std::size_t>(uf[static_cast<std::size_t>(x)])];
     return x;
   }
 
-  // viewpoint: the sensor position; each part then looks at it from its faces' centroid (the visibility condition
-  // needs the real viewing direction: a scene's mean normal leans toward its largest faces).
+  // viewpoint: the sensor position; each part then looks at it from its faces' centroid (the visibility
+  // condition needs the real viewing direction: a scene's mean normal leans toward its largest faces).
   void split_components(const Pfrg& g, int min_faces, const Vec3* viewpoint = nullptr) {
     int max_id = 0;
     for (const auto& n : g.nodes) max_id = std::max(max_id, n.id);
@@ -284,17 +293,17 @@ struct Recognizer::Impl {
 
   void support_test(const Model& model, Hypothesis& h) const {
     if (!have_table) return;
-    h.verify.support = support_factor(model, h.R, h.t, table, fine.points(),
-                                      SupportParams{support_tol, support_radius, unsupported_factor},
-                                      &h.verify.lowest_mm);
+    h.verify.support =
+        support_factor(model, h.R, h.t, table, fine.points(),
+                       SupportParams{support_tol, support_radius, unsupported_factor}, &h.verify.lowest_mm);
     h.verify.confidence *= h.verify.support;
   }
 };
 
 namespace {
 
-// Filters im.order (kept in order) to at most `limit` hypotheses that pass `ok` and hold a scene face that fewer
-// than `per_face` earlier picks hold.
+// Filters im.order (kept in order) to at most `limit` hypotheses that pass `ok` and hold a scene face that
+// fewer than `per_face` earlier picks hold.
 template <class Ok>
 void select_covering(Recognizer::Impl& im, int per_face, std::size_t limit, Ok ok) {
   int max_id = 0;
@@ -307,7 +316,8 @@ void select_covering(Recognizer::Impl& im, int per_face, std::size_t limit, Ok o
     const Hypothesis& h = im.hyps[i];
     if (!ok(h)) continue;
     bool wanted = false;
-    for (const FaceMatch& m : h.matches) wanted = wanted || im.face_cover[static_cast<std::size_t>(m.scene)] < per_face;
+    for (const FaceMatch& m : h.matches)
+      wanted = wanted || im.face_cover[static_cast<std::size_t>(m.scene)] < per_face;
     if (!wanted) continue;
     for (const FaceMatch& m : h.matches) ++im.face_cover[static_cast<std::size_t>(m.scene)];
     im.picked.push_back(i);
@@ -315,15 +325,19 @@ void select_covering(Recognizer::Impl& im, int per_face, std::size_t limit, Ok o
   im.order.assign(im.picked.begin(), im.picked.end());
 }
 
-// The refined hypotheses of other models that explain the accepted hypothesis h (index `self`) as well: on at least
-// half of its scene faces, confidence within alternative_confidence, inliers >= alternative_inliers x its own.
-void find_alternatives(const Recognizer::Impl& im, std::size_t self, const RecognizeParams& params, Hypothesis& h) {
+// The refined hypotheses of other models that explain the accepted hypothesis h (index `self`) as well: on at
+// least half of its scene faces, confidence within alternative_confidence, inliers >= alternative_inliers x
+// its own.
+void find_alternatives(const Recognizer::Impl& im, std::size_t self, const RecognizeParams& params,
+                       Hypothesis& h) {
   h.alternatives = 0;
   for (std::size_t j : im.order) {
     if (h.alternatives >= Hypothesis::kMaxAlternatives) break;
     const Hypothesis& o = im.hyps[j];
-    if (j == self || o.model == h.model || o.verify.confidence < h.verify.confidence - params.alternative_confidence ||
-        static_cast<double>(o.verify.inliers) < params.alternative_inliers * static_cast<double>(h.verify.inliers))
+    if (j == self || o.model == h.model ||
+        o.verify.confidence < h.verify.confidence - params.alternative_confidence ||
+        static_cast<double>(o.verify.inliers) <
+            params.alternative_inliers * static_cast<double>(h.verify.inliers))
       continue;
     std::size_t shared = 0;
     for (const FaceMatch& m : h.matches)
@@ -443,7 +457,8 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
   }
   im.mparams_small = im.mparams;
   int min_part = params_.min_level;
-  const bool small_parts = params_.small_part_min_level > 0 && params_.small_part_min_level < params_.min_level;
+  const bool small_parts =
+      params_.small_part_min_level > 0 && params_.small_part_min_level < params_.min_level;
   if (small_parts) {
     min_part = params_.small_part_min_level;
     im.mparams_small.th_minlevel = params_.small_part_min_level;
@@ -451,7 +466,8 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
   int max_id = 0;
   for (const auto& n : scene_.nodes) max_id = std::max(max_id, n.id);
   im.scene_index.assign(static_cast<std::size_t>(max_id) + 1, -1);
-  for (std::size_t i = 0; i < scene_.nodes.size(); ++i) im.scene_index[static_cast<std::size_t>(scene_.nodes[i].id)] = static_cast<int>(i);
+  for (std::size_t i = 0; i < scene_.nodes.size(); ++i)
+    im.scene_index[static_cast<std::size_t>(scene_.nodes[i].id)] = static_cast<int>(i);
   im.node_used.assign(static_cast<std::size_t>(max_id) + 1, 0);
   im.lone_tried.assign(static_cast<std::size_t>(max_id) + 1, 0);
   im.mark_supernodes(scene_);
@@ -477,14 +493,15 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
   double best_rejected = -1.0;
   int best_rejected_model = -1;
   int hypotheses_total = 0;
-  for (ModelSlots& ms : im.per_model) ms.count = 0, ms.states = 0;   // no part: no solution (not last scan's)
+  for (ModelSlots& ms : im.per_model) ms.count = 0, ms.states = 0;  // no part: no solution (not last scan's)
 
-  // Rounds: the scene graph, then (beyond the thesis) the faces no accepted object explains, searched again with
-  // TH_minlevel lowered to small_part_min_level (an object showing two faces next to another object), with
-  // single-face hypotheses for faces that border no unexplained face; until a round accepts nothing new.
+  // Rounds: the scene graph, then (beyond the thesis) the faces no accepted object explains, searched again
+  // with TH_minlevel lowered to small_part_min_level (an object showing two faces next to another object),
+  // with single-face hypotheses for faces that border no unexplained face; until a round accepts nothing new.
   const int rounds = std::max(1, params_.rounds);
   for (int round = 0; round < rounds; ++round) {
-    // 2. Match the scene (or what is left of it) against every reference (in parallel, one matcher per worker).
+    // 2. Match the scene (or what is left of it) against every reference (in parallel, one matcher per
+    // worker).
     t0 = Clock::now();
     const Pfrg* graph = &scene_;
     if (round == 0) {
@@ -496,39 +513,40 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
       im.split_components(im.rest, params_.small_part_min_level, &cloud.viewpoint);
     }
     im.round_small = round > 0;
-    im.pool.run(im.nparts == 0 ? 0 : library_.models.size(),
-                [](void* ctx, std::size_t task, int worker) {
-                  auto& m = *static_cast<Impl*>(ctx);
-                  const Model& model = m.library->models[task];
-                  ModelSlots& ms = m.per_model[task];
-                  ms.states = 0;
-                  ms.count = 0;
-                  // Each connected part of the scene graph is searched on its own (a solution is connected, so
-                  // it lies in one part); the model's solution slots are shared out evenly among the parts.
-                  const int per_part = static_cast<int>((ms.slots.size() + m.nparts - 1) / m.nparts);
-                  for (std::size_t part = 0; part < m.nparts; ++part) {
-                    const bool small = m.round_small || m.part_faces[part] < m.mparams.th_minlevel;
-                    const match::MatchResult& r = m.matchers[static_cast<std::size_t>(worker)]->match(
-                        m.parts[part], model.graph, small ? m.mparams_small : m.mparams);
-                    ms.states += r.stats.states_created;
-                    int taken = 0;
-                    for (const match::Solution& s : r.solutions) {
-                      if (ms.count >= static_cast<int>(ms.slots.size()) || taken >= per_part) break;
-                      if (s.partial) continue;
-                      ++taken;
-                      SolutionSlot& slot = ms.slots[static_cast<std::size_t>(ms.count++)];
-                      slot.path.assign(s.path.begin(), s.path.end());
-                      slot.matches.assign(s.matches.begin(), s.matches.end());
-                      slot.rotation = s.rotation;
-                      slot.cost = s.cost;
-                      slot.rotfit = s.rotfit_error;
-                      slot.level = s.level;
-                      slot.rank = s.rank;
-                      slot.degenerate = s.degenerate;
-                    }
-                  }
-                },
-                &im);
+    im.pool.run(
+        im.nparts == 0 ? 0 : library_.models.size(),
+        [](void* ctx, std::size_t task, int worker) {
+          auto& m = *static_cast<Impl*>(ctx);
+          const Model& model = m.library->models[task];
+          ModelSlots& ms = m.per_model[task];
+          ms.states = 0;
+          ms.count = 0;
+          // Each connected part of the scene graph is searched on its own (a solution is connected, so
+          // it lies in one part); the model's solution slots are shared out evenly among the parts.
+          const int per_part = static_cast<int>((ms.slots.size() + m.nparts - 1) / m.nparts);
+          for (std::size_t part = 0; part < m.nparts; ++part) {
+            const bool small = m.round_small || m.part_faces[part] < m.mparams.th_minlevel;
+            const match::MatchResult& r = m.matchers[static_cast<std::size_t>(worker)]->match(
+                m.parts[part], model.graph, small ? m.mparams_small : m.mparams);
+            ms.states += r.stats.states_created;
+            int taken = 0;
+            for (const match::Solution& s : r.solutions) {
+              if (ms.count >= static_cast<int>(ms.slots.size()) || taken >= per_part) break;
+              if (s.partial) continue;
+              ++taken;
+              SolutionSlot& slot = ms.slots[static_cast<std::size_t>(ms.count++)];
+              slot.path.assign(s.path.begin(), s.path.end());
+              slot.matches.assign(s.matches.begin(), s.matches.end());
+              slot.rotation = s.rotation;
+              slot.cost = s.cost;
+              slot.rotfit = s.rotfit_error;
+              slot.level = s.level;
+              slot.rank = s.rank;
+              slot.degenerate = s.degenerate;
+            }
+          }
+        },
+        &im);
     out.stats.match_ms += ms_since(t0);
     out.stats.rounds = round + 1;
 
@@ -566,8 +584,10 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
       out.stats.expanded_faces += expand(hc, h, im.pairs, &im.node_used);
     }
     im.alive.assign(im.nhyp, 1);
-    out.stats.merged += merge_compatible(hc, std::span<Hypothesis>(im.hyps.data(), im.nhyp), im.alive, im.pairs);
-    // Faces that border no (unexplained) face: single-face hypotheses (model face on it, another on the table).
+    out.stats.merged +=
+        merge_compatible(hc, std::span<Hypothesis>(im.hyps.data(), im.nhyp), im.alive, im.pairs);
+    // Faces that border no (unexplained) face: single-face hypotheses (model face on it, another on the
+    // table).
     if (params_.single_face_min_area_mm2 > 0 && im.have_table) {
       SingleFaceParams sp;
       if (params_.match_area_ratio > 0) {
@@ -576,13 +596,15 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
       }
       for (int idx : im.lone_faces) {
         const PfrgNode& face = graph->nodes[static_cast<std::size_t>(idx)];
-        if (face.area < params_.single_face_min_area_mm2 || im.lone_tried[static_cast<std::size_t>(face.id)]) continue;
-        const std::size_t room =
-            std::min(im.hyps.size() - im.nhyp, static_cast<std::size_t>(std::max(params_.single_face_max, 0)));
-        if (room == 0) break;   // the pool is full this round: the face is tried again in the next one
+        if (face.area < params_.single_face_min_area_mm2 || im.lone_tried[static_cast<std::size_t>(face.id)])
+          continue;
+        const std::size_t room = std::min(im.hyps.size() - im.nhyp,
+                                          static_cast<std::size_t>(std::max(params_.single_face_max, 0)));
+        if (room == 0) break;  // the pool is full this round: the face is tried again in the next one
         int n = 0;
         if (!parallel_to_table(face, im.table, sp.min_tilt_deg)) {
-          n = single_face_hypotheses(library_, face, im.table, sp, std::span<Hypothesis>(im.hyps.data() + im.nhyp, room));
+          n = single_face_hypotheses(library_, face, im.table, sp,
+                                     std::span<Hypothesis>(im.hyps.data() + im.nhyp, room));
         } else {
           // Parallel to the table: the turn about the vertical comes from the face's outline (fine samples).
           const Vec3 u = face.normal.unitOrthogonal();
@@ -619,9 +641,9 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
       if (x.prescore != y.prescore) return x.prescore > y.prescore;
       return x.cost != y.cost ? x.cost < y.cost : a < b;
     });
-    // Keep the order but give every scene face its share: a hypothesis is checked when one of its matched scene
-    // faces has been claimed by fewer than verify_per_face better hypotheses (so the faces of a small object are
-    // not crowded out by the many hypotheses of a large one).
+    // Keep the order but give every scene face its share: a hypothesis is checked when one of its matched
+    // scene faces has been claimed by fewer than verify_per_face better hypotheses (so the faces of a small
+    // object are not crowded out by the many hypotheses of a large one).
     select_covering(im, params_.verify_per_face, static_cast<std::size_t>(params_.max_verified),
                     [](const Hypothesis&) { return true; });
     // Phase 1: coarse check of every candidate (no refinement).
@@ -629,8 +651,8 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
       auto& m = *static_cast<Impl*>(ctx);
       Hypothesis& h = m.hyps[m.order[task]];
       Verifier& v = m.verifiers[static_cast<std::size_t>(worker)];
-      h.verify = v.verify(m.refine_phase ? m.fine : m.coarse, m.geometry[static_cast<std::size_t>(h.model)], h.R,
-                          h.t, m.refine_phase);
+      h.verify = v.verify(m.refine_phase ? m.fine : m.coarse, m.geometry[static_cast<std::size_t>(h.model)],
+                          h.R, h.t, m.refine_phase);
       const std::vector<std::uint32_t>* cells = &v.inlier_cells();
       if (m.refine_phase) {
         m.slot_owner[task] = m.order[task];
@@ -644,7 +666,8 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
       std::uint64_t total = 0, explained = 0;
       for (const FaceMatch& fm : h.matches) {
         const int r = fm.scene - 1;
-        if (r >= 0 && static_cast<std::size_t>(r) < counts.size()) total += counts[static_cast<std::size_t>(r)];
+        if (r >= 0 && static_cast<std::size_t>(r) < counts.size())
+          total += counts[static_cast<std::size_t>(r)];
       }
       for (std::uint32_t cell : *cells) {
         const std::int32_t r = (*m.labels)[cell];
@@ -654,7 +677,8 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
             break;
           }
       }
-      h.verify.explained = total > 0 ? std::min(1.0, static_cast<double>(explained) / static_cast<double>(total)) : 0.0;
+      h.verify.explained =
+          total > 0 ? std::min(1.0, static_cast<double>(explained) / static_cast<double>(total)) : 0.0;
       h.verify.confidence *= h.verify.explained;
       if (m.refine_phase) m.support_test(m.library->models[static_cast<std::size_t>(h.model)], h);
     };
@@ -667,8 +691,9 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
       for (std::size_t i : im.order) most_inliers = std::max(most_inliers, im.hyps[i].verify.inliers);
       for (std::size_t i : im.order) {
         Hypothesis& h = im.hyps[i];
-        h.key = h.cost + params_.confidence_weight * (1.0 - h.verify.confidence) -
-                params_.inlier_weight * static_cast<double>(h.verify.inliers) / static_cast<double>(most_inliers);
+        h.key =
+            h.cost + params_.confidence_weight * (1.0 - h.verify.confidence) -
+            params_.inlier_weight * static_cast<double>(h.verify.inliers) / static_cast<double>(most_inliers);
       }
       // std::sort with the index as tie-break (std::stable_sort would take a temporary buffer from the heap).
       std::sort(im.order.begin(), im.order.end(), [&](std::size_t a, std::size_t b) {
@@ -689,8 +714,8 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
     rekey();
     for (std::size_t i : im.order) {
       Hypothesis& h = im.hyps[i];
-      h.faces_visible = count_visible_faces(library_.models[static_cast<std::size_t>(h.model)], h.R, h.t,
-                                            cloud.viewpoint);
+      h.faces_visible =
+          count_visible_faces(library_.models[static_cast<std::size_t>(h.model)], h.R, h.t, cloud.viewpoint);
     }
     out.stats.verify_ms += ms_since(t0);
 
@@ -714,7 +739,8 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
       if (!clash && !h.inlier_cells.empty()) {
         std::size_t shared = 0;
         for (std::uint32_t c : h.inlier_cells) shared += im.cell_owner[c] >= 0 ? 1 : 0;
-        clash = static_cast<double>(shared) > params_.max_shared_inliers * static_cast<double>(h.inlier_cells.size());
+        clash = static_cast<double>(shared) >
+                params_.max_shared_inliers * static_cast<double>(h.inlier_cells.size());
       }
       if (clash) continue;
       if (static_cast<int>(out.objects.size()) >= params_.max_objects) break;
@@ -731,7 +757,8 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
       copy_hypothesis(h, out.objects.back());
     }
     // Give the inlier buffers back to their slots (the next round reuses the hypotheses).
-    for (std::size_t k = 0; k < im.slot_owner.size(); ++k) std::swap(im.hyps[im.slot_owner[k]].inlier_cells, im.slot_cells[k]);
+    for (std::size_t k = 0; k < im.slot_owner.size(); ++k)
+      std::swap(im.hyps[im.slot_owner[k]].inlier_cells, im.slot_cells[k]);
     im.slot_owner.clear();
     if (out.objects.size() == accepted_before && round > 0) break;
     if (static_cast<int>(out.objects.size()) >= params_.max_objects) break;
@@ -743,10 +770,11 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
     if (hypotheses_total == 0) {
       out.note = "no reference matched the scene graph";
     } else if (best_rejected_model >= 0) {
-      char buf[320];   // formatted without heap temporaries (out.note keeps its reserved capacity)
-      std::snprintf(buf, sizeof buf, "no hypothesis passed verification (best: %.200s with confidence %.3f < %.2f)",
-                    library_.models[static_cast<std::size_t>(best_rejected_model)].name.c_str(), best_rejected,
-                    params_.min_confidence);
+      char buf[320];  // formatted without heap temporaries (out.note keeps its reserved capacity)
+      std::snprintf(buf, sizeof buf,
+                    "no hypothesis passed verification (best: %.200s with confidence %.3f < %.2f)",
+                    library_.models[static_cast<std::size_t>(best_rejected_model)].name.c_str(),
+                    best_rejected, params_.min_confidence);
       out.note.assign(buf);
     } else {
       out.note = "all hypotheses were incompatible";

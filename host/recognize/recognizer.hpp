@@ -33,22 +33,22 @@ struct RecognizeParams {
   match::MatchParams match = match::preset("t9.3");
   seg::SegmentParams segment = seg::SegmentParams::laser();
   VerifyParams verify;
-  int solutions_per_model = 32;       // best solutions of each reference kept as hypotheses (ranked by prescore)
-  std::int64_t max_states = 20000;    // state budget of one match
-  // TH_solutions of one match (ch. 7.4's "solutions found" stop; the thesis runs t9.3 to exhaustion). A search
-  // of a symmetric model otherwise spends its budget on symmetry-equivalent solutions and their sub-matches,
-  // and the solutions kept are then picked from thousands of incomplete states. Stopping at the first solution
-  // (which keeps the open states of level >= TH_minlevel as incomplete solutions, ch. 7.7.3) was measured the
-  // most accurate and 3-5x faster on the 200-scene benchmark (README, "Recognition benchmark"). Overrides the
-  // match parameters' TH_solutions; 0 = keep theirs.
+  int solutions_per_model = 32;  // best solutions of each reference kept as hypotheses (ranked by prescore)
+  std::int64_t max_states = 20000;  // state budget of one match
+  // TH_solutions of one match (ch. 7.4's "solutions found" stop; the thesis runs t9.3 to exhaustion). A
+  // search of a symmetric model otherwise spends its budget on symmetry-equivalent solutions and their
+  // sub-matches, and the solutions kept are then picked from thousands of incomplete states. Stopping at the
+  // first solution (which keeps the open states of level >= TH_minlevel as incomplete solutions, ch. 7.7.3)
+  // was measured the most accurate and 3-5x faster on the 200-scene benchmark (README, "Recognition
+  // benchmark"). Overrides the match parameters' TH_solutions; 0 = keep theirs.
   std::int64_t max_solutions = 1;
-  // Rigidity from level-1 parents (match::MatchParams::rigidity_pairs): the angle between two matched normals is
-  // the same in the scene and the reference. Overrides the match parameters' switch when set.
+  // Rigidity from level-1 parents (match::MatchParams::rigidity_pairs): the angle between two matched normals
+  // is the same in the scene and the reference. Overrides the match parameters' switch when set.
   bool rigidity_pairs = true;
-  // TH_omega of the rigidity condition for a laser scan's normals (segmentation normals err by < 1 deg at the bench
-  // scanner's noise; t9.3's 20 deg dates from 1990s range data). Measured on the 200-scene benchmark: same recall at
-  // 4x the depth noise, 2-3x less matching time than 20 deg. Overrides the match parameters' th_omega_deg; <= 0 =
-  // keep theirs.
+  // TH_omega of the rigidity condition for a laser scan's normals (segmentation normals err by < 1 deg at the
+  // bench scanner's noise; t9.3's 20 deg dates from 1990s range data). Measured on the 200-scene benchmark:
+  // same recall at 4x the depth noise, 2-3x less matching time than 20 deg. Overrides the match parameters'
+  // th_omega_deg; <= 0 = keep theirs.
   double rigidity_deg = 5.0;
   // The table (support plane) is absorbed into the supernode before matching.
   bool remove_table = true;
@@ -57,7 +57,7 @@ struct RecognizeParams {
   // Expansion (ch. 8.1.3): an unmatched scene face joins when its plane coincides with a predicted one.
   double expand_angle_deg = 12.0;
   double expand_dist_mm = 6.0;
-  double expand_area_ratio = 1.6;     // scene area <= ratio * model face area
+  double expand_area_ratio = 1.6;  // scene area <= ratio * model face area
   // Compatible-solution merge (ch. 8.1.3 / 9.4.1).
   double merge_rotation_deg = 10.0;
   double merge_translation_mm = 10.0;
@@ -70,25 +70,26 @@ struct RecognizeParams {
   double unsupported_factor = 0.5;
   // Acceptance.
   double min_confidence = 0.6;
-  double confidence_weight = 0.2;     // ordering key = cost + weight * (1 - confidence)
-  double inlier_weight = 0.01;        //   - inlier_weight * inliers / (most inliers of the round's hypotheses)
-  double max_shared_inliers = 0.3;    // two objects may not explain more than this share of the same points
-  // An accepted object lists as alternatives the other models' verified hypotheses on at least half of its scene
-  // faces whose confidence is within alternative_confidence and whose inliers are at least alternative_inliers x
-  // its own.
+  double confidence_weight = 0.2;   // ordering key = cost + weight * (1 - confidence)
+  double inlier_weight = 0.01;      //   - inlier_weight * inliers / (most inliers of the round's hypotheses)
+  double max_shared_inliers = 0.3;  // two objects may not explain more than this share of the same points
+  // An accepted object lists as alternatives the other models' verified hypotheses on at least half of its
+  // scene faces whose confidence is within alternative_confidence and whose inliers are at least
+  // alternative_inliers x its own.
   double alternative_confidence = 0.02;
   double alternative_inliers = 0.97;
   int max_objects = 16;
-  int max_verified = 96;              // hypotheses checked against the cloud (highest prescore first)
-  double prescore_area_slack = 1.1;   // a scene face may be this much larger than its model face (segmentation)
-  int max_refined = 24;               // of those, the most plausible refined by ICP and verified finely
-  int verify_per_face = 16;           // a scene face stops drawing hypotheses into verification after this many
-  int refine_per_face = 3;            // ... and into refinement
-  // Matching prunes a pair whose scene face is larger than area_ratio x its model face + slack (a face cannot be
-  // seen bigger than it is; segmentation may add a rim): match::MatchParams::th_area_ratio. <= 0 = off.
+  int max_verified = 96;  // hypotheses checked against the cloud (highest prescore first)
+  double prescore_area_slack =
+      1.1;                   // a scene face may be this much larger than its model face (segmentation)
+  int max_refined = 24;      // of those, the most plausible refined by ICP and verified finely
+  int verify_per_face = 16;  // a scene face stops drawing hypotheses into verification after this many
+  int refine_per_face = 3;   // ... and into refinement
+  // Matching prunes a pair whose scene face is larger than area_ratio x its model face + slack (a face cannot
+  // be seen bigger than it is; segmentation may add a rim): match::MatchParams::th_area_ratio. <= 0 = off.
   double match_area_ratio = 1.3;
   double match_area_slack_mm2 = 30.0;
-  int min_level = 3;                  // faces a search solution must match (TH_minlevel, as in the thesis)
+  int min_level = 3;  // faces a search solution must match (TH_minlevel, as in the thesis)
   // Beyond the thesis: a connected part of the scene graph with fewer faces than min_level but at least this
   // many (a tetrahedron or pyramid showing two faces) is searched with TH_minlevel = its face count; its
   // solutions then carry the rotation of two non-parallel planes and go through the same verification.
@@ -103,34 +104,34 @@ struct RecognizeParams {
   // explains are searched again with TH_minlevel = small_part_min_level and single-face hypotheses, until a
   // round accepts nothing new. 1 = the first round only.
   int rounds = 3;
-  int threads = 0;                    // matching threads (0 = all cores)
+  int threads = 0;  // matching threads (0 = all cores)
 };
 
 struct FaceMatch {
-  int scene = 0;       // scene PFRG node id
-  int ref = 0;         // model face index (= reference PFRG node id)
+  int scene = 0;  // scene PFRG node id
+  int ref = 0;    // model face index (= reference PFRG node id)
   bool expanded = false;
 };
 
 struct Hypothesis {
-  int model = -1;                     // index into the library
-  int rank = 0;                       // rank of its solution in its model's list
-  std::vector<int> path;              // search-tree path of its solution: state id "<model>.9.1.1"
+  int model = -1;         // index into the library
+  int rank = 0;           // rank of its solution in its model's list
+  std::vector<int> path;  // search-tree path of its solution: state id "<model>.9.1.1"
   std::vector<FaceMatch> matches;
-  int level = 0;                      // faces matched by the search
-  int faces_visible = 0;              // model faces facing the sensor in this pose
+  int level = 0;          // faces matched by the search
+  int faces_visible = 0;  // model faces facing the sensor in this pose
   Mat3 R = Mat3::Identity();
   Vec3 t = Vec3::Zero();
-  int free_dims = 0;                  // translation directions the matched planes left open
+  int free_dims = 0;  // translation directions the matched planes left open
   Vec3 free_dir = Vec3::Zero();
-  double cost = 0.0;                  // matching cost (ch. 7.6)
+  double cost = 0.0;  // matching cost (ch. 7.6)
   double rotfit_error = 0.0;
   bool degenerate = false;
   VerifyResult verify;
-  double key = 0.0;                   // ordering key
-  double prescore = 0.0;              // geometric plausibility before verification (see hypotheses.hpp)
-  int instance = 0;                   // 0 = first instance of its model, 1 = second, ...
-  bool merged = false;                // a compatible solution was merged into it
+  double key = 0.0;       // ordering key
+  double prescore = 0.0;  // geometric plausibility before verification (see hypotheses.hpp)
+  int instance = 0;       // 0 = first instance of its model, 1 = second, ...
+  bool merged = false;    // a compatible solution was merged into it
   // Other models that fit this view as well (same scene faces, confidence and inliers within
   // RecognizeParams::alternative_*): the parts where they differ are out of view. Accepted objects only.
   struct Alternative {
@@ -139,7 +140,7 @@ struct Hypothesis {
   };
   static constexpr int kMaxAlternatives = 4;
   std::array<Alternative, kMaxAlternatives> alternative{};
-  int alternatives = 0;   // listed in alternative[0 .. alternatives)
+  int alternatives = 0;  // listed in alternative[0 .. alternatives)
   std::span<const Alternative> listed_alternatives() const {
     return {alternative.data(), static_cast<std::size_t>(alternatives)};
   }
@@ -149,19 +150,19 @@ struct Hypothesis {
 struct RecognizeStats {
   double segment_ms = 0, pfrg_ms = 0, match_ms = 0, verify_ms = 0, total_ms = 0;
   int regions = 0, known_regions = 0, scene_nodes = 0, scene_arcs = 0;
-  int components = 0;                 // connected parts of the scene graph searched (>= min_level faces)
+  int components = 0;  // connected parts of the scene graph searched (>= min_level faces)
   bool table_removed = false;
   int references = 0;
-  std::int64_t states = 0;            // search states over all references
+  std::int64_t states = 0;  // search states over all references
   int hypotheses = 0, merged = 0, expanded_faces = 0, rejected = 0, incompatible_pairs = 0;
-  int single_face = 0;                // hypotheses of faces that border no other face (in hypotheses)
-  int rounds = 0;                     // matching + verification rounds run
+  int single_face = 0;  // hypotheses of faces that border no other face (in hypotheses)
+  int rounds = 0;       // matching + verification rounds run
 };
 
 struct Recognition {
-  std::vector<Hypothesis> objects;    // best first
+  std::vector<Hypothesis> objects;  // best first
   RecognizeStats stats;
-  std::string note;                   // why the list is empty (or other remarks)
+  std::string note;  // why the list is empty (or other remarks)
 };
 
 class Recognizer {
@@ -184,7 +185,7 @@ class Recognizer {
   // Cell -> object index (into objects) or -1, for colouring.
   void object_labels(const OrganizedCloud& cloud, std::vector<std::int32_t>& labels) const;
 
-  struct Impl;   // opaque (recognizer.cpp)
+  struct Impl;  // opaque (recognizer.cpp)
 
  private:
   const Library& library_;

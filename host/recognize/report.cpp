@@ -38,14 +38,15 @@ std::string result_table(const Recognition& r, const Library& library) {
   for (const Hypothesis& h : r.objects) {
     std::string name = library.models[static_cast<std::size_t>(h.model)].name;
     if (h.instance > 0) name += fmt::format(" #{}", h.instance + 1);
-    s += fmt::format("{:<3} {:<24} ({:7.1f}, {:7.1f}, {:7.1f})  {:<38} {:5.2f} {:7.4f} {:>2}/{:<2}\n", i++, name,
-                     h.t.x(), h.t.y(), h.t.z(), axis_angle_text(h.R), h.verify.confidence, h.cost,
+    s += fmt::format("{:<3} {:<24} ({:7.1f}, {:7.1f}, {:7.1f})  {:<38} {:5.2f} {:7.4f} {:>2}/{:<2}\n", i++,
+                     name, h.t.x(), h.t.y(), h.t.z(), axis_angle_text(h.R), h.verify.confidence, h.cost,
                      h.matches.size(), h.faces_visible);
     if (h.alternatives > 0) {
       s += "    fits this view as well:";
       const char* sep = "";
       for (const Hypothesis::Alternative& a : h.listed_alternatives()) {
-        s += fmt::format("{} {} ({:.2f})", sep, library.models[static_cast<std::size_t>(a.model)].name, a.confidence);
+        s += fmt::format("{} {} ({:.2f})", sep, library.models[static_cast<std::size_t>(a.model)].name,
+                         a.confidence);
         sep = ",";
       }
       s += "\n";
@@ -95,10 +96,14 @@ void write_text(const std::filesystem::path& p, const std::string& text) {
 std::string html_escape(const std::string& s) {
   std::string o;
   for (char c : s) {
-    if (c == '<') o += "&lt;";
-    else if (c == '>') o += "&gt;";
-    else if (c == '&') o += "&amp;";
-    else o += c;
+    if (c == '<')
+      o += "&lt;";
+    else if (c == '>')
+      o += "&gt;";
+    else if (c == '&')
+      o += "&amp;";
+    else
+      o += c;
   }
   return o;
 }
@@ -161,12 +166,14 @@ void write_report(const std::filesystem::path& dir, const std::string& title, co
       o[0] = o[1] = o[2] = v;
     }
   }
-  write_png_rgb8(dir / "scene_top.png", static_cast<std::uint32_t>(tv.w), static_cast<std::uint32_t>(tv.h), rgb);
+  write_png_rgb8(dir / "scene_top.png", static_cast<std::uint32_t>(tv.w), static_cast<std::uint32_t>(tv.h),
+                 rgb);
   std::ostringstream svg;
-  svg << fmt::format(R"(<svg xmlns="http://www.w3.org/2000/svg" width="{}" height="{}" viewBox="0 0 {} {}">)", tv.w,
-                     tv.h, tv.w, tv.h)
+  svg << fmt::format(R"(<svg xmlns="http://www.w3.org/2000/svg" width="{}" height="{}" viewBox="0 0 {} {}">)",
+                     tv.w, tv.h, tv.w, tv.h)
       << "\n"
-      << fmt::format(R"(<image href="scene_top.png" x="0" y="0" width="{}" height="{}"/>)", tv.w, tv.h) << "\n";
+      << fmt::format(R"(<image href="scene_top.png" x="0" y="0" width="{}" height="{}"/>)", tv.w, tv.h)
+      << "\n";
   for (std::size_t o = 0; o < r.objects.size(); ++o) {
     const Hypothesis& h = r.objects[o];
     const Model& m = library.models[static_cast<std::size_t>(h.model)];
@@ -186,8 +193,8 @@ void write_report(const std::filesystem::path& dir, const std::string& title, co
     }
     const Eigen::Vector2d c = tv.px(h.R * m.center + h.t);
     svg << fmt::format(
-        R"(<text x="{:.0f}" y="{:.0f}" font-family="sans-serif" font-size="14" fill="black" stroke="white" stroke-width="0.6">{}{}</text>)",
-        c.x(), c.y(), html_escape(m.name), h.instance > 0 ? fmt::format(" #{}", h.instance + 1) : "")
+               R"(<text x="{:.0f}" y="{:.0f}" font-family="sans-serif" font-size="14" fill="black" stroke="white" stroke-width="0.6">{}{}</text>)",
+               c.x(), c.y(), html_escape(m.name), h.instance > 0 ? fmt::format(" #{}", h.instance + 1) : "")
         << "\n";
   }
   svg << "</svg>\n";
@@ -196,8 +203,11 @@ void write_report(const std::filesystem::path& dir, const std::string& title, co
   // The page.
   std::ostringstream html;
   html << "<!doctype html><html><head><meta charset=\"utf-8\"><title>Facetscan: " << html_escape(title)
-       << "</title><style>body{font-family:sans-serif;margin:2em}table{border-collapse:collapse}td,th{border:1px "
-          "solid #ccc;padding:4px 8px}img{max-width:100%;border:1px solid #ddd}.g{display:flex;flex-wrap:wrap;gap:"
+       << "</"
+          "title><style>body{font-family:sans-serif;margin:2em}table{border-collapse:collapse}td,th{border:"
+          "1px "
+          "solid #ccc;padding:4px 8px}img{max-width:100%;border:1px solid "
+          "#ddd}.g{display:flex;flex-wrap:wrap;gap:"
           "1em}.g figure{margin:0}</style></head><body>\n";
   html << "<h1>Facetscan recognition: " << html_escape(title) << "</h1>\n";
   if (r.objects.empty()) html << "<p><b>No objects recognized.</b> " << html_escape(r.note) << "</p>\n";
@@ -213,19 +223,23 @@ void write_report(const std::filesystem::path& dir, const std::string& title, co
         "<td>{:.2f}</td><td>{:.4f}</td><td>{} / {}</td><td>{}</td></tr>\n",
         colour_hex(label_colour(static_cast<std::int32_t>(o) + 1)), o + 1, html_escape(m.name),
         h.instance > 0 ? fmt::format(" #{}", h.instance + 1) : "", h.t.x(), h.t.y(), h.t.z(),
-        html_escape(axis_angle_text(h.R)), h.verify.confidence, h.cost, h.matches.size(), h.faces_visible, state);
+        html_escape(axis_angle_text(h.R)), h.verify.confidence, h.cost, h.matches.size(), h.faces_visible,
+        state);
   }
   html << "</table>\n";
   const RecognizeStats& s = r.stats;
   html << fmt::format(
-      "<p>Segmentation {:.1f} ms ({} regions, {} known), PFRG {:.1f} ms ({} nodes, {} arcs{}), matching {:.1f} ms "
-      "against {} references ({} states), verification {:.1f} ms ({} hypotheses, {} rejected); total {:.1f} ms."
+      "<p>Segmentation {:.1f} ms ({} regions, {} known), PFRG {:.1f} ms ({} nodes, {} arcs{}), matching "
+      "{:.1f} ms "
+      "against {} references ({} states), verification {:.1f} ms ({} hypotheses, {} rejected); total {:.1f} "
+      "ms."
       "</p>\n",
       s.segment_ms, s.regions, s.known_regions, s.pfrg_ms, s.scene_nodes, s.scene_arcs,
       s.table_removed ? ", table removed" : "", s.match_ms, s.references, s.states, s.verify_ms, s.hypotheses,
       s.rejected, s.total_ms);
   html << "<div class=\"g\"><figure><img src=\"scene.svg\"><figcaption>Top view: recognized models in their "
-          "poses</figcaption></figure><figure><img src=\"segmentation.png\"><figcaption>Segmentation</figcaption>"
+          "poses</figcaption></figure><figure><img "
+          "src=\"segmentation.png\"><figcaption>Segmentation</figcaption>"
           "</figure><figure><img src=\"pfrg.svg\"><figcaption>Scene PFRG</figcaption></figure><figure><img "
           "src=\"enm.svg\"><figcaption>Extended needle map</figcaption></figure></div>\n";
   html << "<p><a href=\"objects.ply\">objects.ply</a>: the cloud coloured by object.</p></body></html>\n";

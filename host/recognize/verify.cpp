@@ -37,7 +37,7 @@ ModelGeometry::ModelGeometry(const Model& model)
       for (std::size_t i = 0; i < k && f.convex; ++i) {
         const Eigen::Vector2d e0 = f.pts[(i + 1) % k] - f.pts[i];
         const Eigen::Vector2d e1 = f.pts[(i + 2) % k] - f.pts[(i + 1) % k];
-        f.convex = e0.x() * e1.y() - e0.y() * e1.x() > 0.0;   // every turn to the left
+        f.convex = e0.x() * e1.y() - e0.y() * e1.x() > 0.0;  // every turn to the left
       }
       if (f.convex)
         for (std::size_t i = 0; i < k; ++i) {
@@ -49,8 +49,8 @@ ModelGeometry::ModelGeometry(const Model& model)
     faces_.push_back(std::move(f));
     all_faces_.push_back(static_cast<std::uint32_t>(all_faces_.size()));
   }
-  // Convex: every vertex on the inner side of every face plane. A ray then enters through exactly one front face,
-  // so cast() may stop at the first front face that contains its hit.
+  // Convex: every vertex on the inner side of every face plane. A ray then enters through exactly one front
+  // face, so cast() may stop at the first front face that contains its hit.
   convex_ = true;
   for (const Face& f : faces_)
     for (const ModelFace& mf : model.faces)
@@ -65,7 +65,7 @@ bool ModelGeometry::inside(const Face& f, const Eigen::Vector2d& q) const {
       if (e.x() * q.x() + e.y() * q.y() < e.z()) return false;
     return true;
   }
-  bool in = false;   // even-odd rule over all loops (holes are their own loops)
+  bool in = false;  // even-odd rule over all loops (holes are their own loops)
   for (std::size_t l = 0; l + 1 < f.loop_start.size(); ++l) {
     const std::uint32_t b = f.loop_start[l], e = f.loop_start[l + 1];
     for (std::uint32_t i = b, j = e - 1; i < e; j = i++) {
@@ -95,7 +95,7 @@ int ModelGeometry::cast(const Vec3& origin, const Vec3& dir, double& distance,
   for (const std::uint32_t i : faces) {
     const Face& f = faces_[i];
     const double den = f.n.dot(dir);
-    if (den >= -1e-9) continue;   // back-facing or grazing
+    if (den >= -1e-9) continue;  // back-facing or grazing
     const double s = (f.offset - f.n.dot(origin)) / den;
     if (s <= 0.0 || s >= best_s) continue;
     const Vec3 h = origin + s * dir;
@@ -119,7 +119,8 @@ void SampleSet::reserve(std::size_t max_cells) {
 }
 
 Eigen::Vector2d grid_spacing_mm(const OrganizedCloud& cloud) {
-  // Mean distance of depth-continuous (< 5 mm) grid neighbours along a row (x) and a column (y), over a subsample.
+  // Mean distance of depth-continuous (< 5 mm) grid neighbours along a row (x) and a column (y), over a
+  // subsample.
   Eigen::Vector2d sum = Eigen::Vector2d::Zero();
   Eigen::Vector2i n = Eigen::Vector2i::Zero();
   if (!cloud.organized || cloud.width < 2 || cloud.height < 2) return Eigen::Vector2d::Zero();
@@ -150,8 +151,10 @@ SampleSteps sample_steps(const Eigen::Vector2d& grid, int sample_step, double sp
   SampleSteps st{least, least};
   if (spacing_mm > 0.0) {
     // No closer than spacing_mm (and no denser than every sample_step-th cell) in either direction.
-    if (grid.x() > 0.0) st.col = std::max(least, static_cast<std::uint32_t>(std::lround(spacing_mm / grid.x())));
-    if (grid.y() > 0.0) st.row = std::max(least, static_cast<std::uint32_t>(std::lround(spacing_mm / grid.y())));
+    if (grid.x() > 0.0)
+      st.col = std::max(least, static_cast<std::uint32_t>(std::lround(spacing_mm / grid.x())));
+    if (grid.y() > 0.0)
+      st.row = std::max(least, static_cast<std::uint32_t>(std::lround(spacing_mm / grid.y())));
   }
   return st;
 }
@@ -162,7 +165,8 @@ void SampleSet::build(const OrganizedCloud& cloud, SampleSteps steps, int block)
   blocks_.clear();
   viewpoint_ = cloud.viewpoint;
   const Eigen::Vector3f v = cloud.viewpoint.cast<float>();
-  const std::uint32_t cstep = std::max<std::uint32_t>(1, steps.col), rstep = std::max<std::uint32_t>(1, steps.row);
+  const std::uint32_t cstep = std::max<std::uint32_t>(1, steps.col),
+                      rstep = std::max<std::uint32_t>(1, steps.row);
   const auto ublock = static_cast<std::uint32_t>(std::max(1, block));
   const std::uint32_t cspan = cstep * ublock, rspan = rstep * ublock;
   for (std::uint32_t r0 = 0; r0 < cloud.height; r0 += rspan) {
@@ -183,14 +187,16 @@ void SampleSet::build(const OrganizedCloud& cloud, SampleSteps steps, int block)
       if (b.end == b.begin) continue;
       b.dir = sum.normalized();
       float min_cos = 1.0f;
-      for (std::uint32_t k = b.begin; k < b.end; ++k) min_cos = std::min(min_cos, (points_[k] - v).normalized().dot(b.dir));
+      for (std::uint32_t k = b.begin; k < b.end; ++k)
+        min_cos = std::min(min_cos, (points_[k] - v).normalized().dot(b.dir));
       b.angle = std::acos(std::clamp(min_cos, -1.0f, 1.0f)) + 1e-4f;
       blocks_.push_back(b);
     }
   }
 }
 
-VerifyResult Verifier::evaluate(const SampleSet& samples, const ModelGeometry& g, const Mat3& R, const Vec3& t) {
+VerifyResult Verifier::evaluate(const SampleSet& samples, const ModelGeometry& g, const Mat3& R,
+                                const Vec3& t) {
   VerifyResult r;
   inlier_cells_.clear();
   inlier_sample_.clear();
@@ -203,7 +209,7 @@ VerifyResult Verifier::evaluate(const SampleSet& samples, const ModelGeometry& g
   // The object's bounding sphere as seen from the viewpoint.
   const Vec3 cs = R * g.center() + t;
   const double dist = (cs - view).norm();
-  if (dist <= g.radius()) return r;   // the sensor inside the object: nothing sensible to verify
+  if (dist <= g.radius()) return r;  // the sensor inside the object: nothing sensible to verify
   const Eigen::Vector3f dir_obj = ((cs - view) / dist).cast<float>();
   const float ang_obj = static_cast<float>(std::asin(std::min(1.0, g.radius() / dist)));
   const auto& pts = samples.points();
@@ -232,8 +238,8 @@ VerifyResult Verifier::evaluate(const SampleSet& samples, const ModelGeometry& g
       }
     }
   }
-  const double denom =
-      static_cast<double>(r.inliers + r.violations) + params_.occluded_weight * static_cast<double>(r.occluded);
+  const double denom = static_cast<double>(r.inliers + r.violations) +
+                       params_.occluded_weight * static_cast<double>(r.occluded);
   r.confidence = denom > 0 ? static_cast<double>(r.inliers) / denom : 0.0;
   if (r.inliers < params_.min_inliers)
     r.confidence *= static_cast<double>(r.inliers) / static_cast<double>(std::max(1, params_.min_inliers));
@@ -241,7 +247,8 @@ VerifyResult Verifier::evaluate(const SampleSet& samples, const ModelGeometry& g
   return r;
 }
 
-VerifyResult Verifier::verify(const SampleSet& samples, const ModelGeometry& g, Mat3& R, Vec3& t, bool refine) {
+VerifyResult Verifier::verify(const SampleSet& samples, const ModelGeometry& g, Mat3& R, Vec3& t,
+                              bool refine) {
   VerifyResult r = evaluate(samples, g, R, t);
   if (!refine || params_.icp_iterations <= 0) return r;
   const Model& model = g.model();

@@ -6,8 +6,8 @@
 //              the hypothesis claims matter
 //   occluded   the measured point lies in front of the predicted surface (something else hides the object)
 // The pose is refined by point-to-plane ICP on the inliers (each assigned to its face's plane).
-// confidence = inliers / (inliers + violations + occluded_weight * occluded), scaled down when the inliers are
-// too few to carry the claim.
+// confidence = inliers / (inliers + violations + occluded_weight * occluded), scaled down when the inliers
+// are too few to carry the claim.
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -25,17 +25,17 @@ struct VerifyParams {
   int icp_iterations = 6;          // 0 = no refinement
   double icp_max_dist_mm = 4.0;    // point-to-plane distance for ICP correspondences
   double occluded_weight = 0.25;
-  int min_inliers = 30;            // fewer inliers scale the confidence down linearly
+  int min_inliers = 30;  // fewer inliers scale the confidence down linearly
 };
 
 struct VerifyResult {
   int hits = 0, inliers = 0, violations = 0, occluded = 0;
-  double rms_mm = 0.0;             // rms point-to-plane distance of the inliers after refinement
+  double rms_mm = 0.0;  // rms point-to-plane distance of the inliers after refinement
   double confidence = 0.0;
-  double coverage = 0.0;           // inliers / hits
-  double explained = 1.0;          // share of the matched scene regions' samples that are inliers (recognizer)
-  double support = 1.0;            // 1 = rests on the table or on measured surface below it (recognizer)
-  double lowest_mm = 0.0;          // height of the model's lowest point above the table (when one is known)
+  double coverage = 0.0;   // inliers / hits
+  double explained = 1.0;  // share of the matched scene regions' samples that are inliers (recognizer)
+  double support = 1.0;    // 1 = rests on the table or on measured surface below it (recognizer)
+  double lowest_mm = 0.0;  // height of the model's lowest point above the table (when one is known)
   int refine_iterations = 0;
 };
 
@@ -59,17 +59,17 @@ class ModelGeometry {
   struct Face {
     Vec3 n, u, v;
     double offset;
-    std::vector<Eigen::Vector2d> pts;          // all loops' vertices, concatenated
-    std::vector<std::uint32_t> loop_start;     // start index of each loop in pts (+ end sentinel)
-    Eigen::Vector2d lo, hi;                    // 2D bounding box
+    std::vector<Eigen::Vector2d> pts;       // all loops' vertices, concatenated
+    std::vector<std::uint32_t> loop_start;  // start index of each loop in pts (+ end sentinel)
+    Eigen::Vector2d lo, hi;                 // 2D bounding box
     // One convex counter-clockwise loop: inside = every edge's inward normal . q >= its offset (no division).
     bool convex = false;
-    std::vector<Eigen::Vector3d> edges;        // (inward normal x, y, offset) per edge
+    std::vector<Eigen::Vector3d> edges;  // (inward normal x, y, offset) per edge
   };
   bool inside(const Face& f, const Eigen::Vector2d& q) const;
   const Model* model_;
   std::vector<Face> faces_;
-  std::vector<std::uint32_t> all_faces_;   // 0 .. faces - 1
+  std::vector<std::uint32_t> all_faces_;  // 0 .. faces - 1
   Vec3 center_;
   double radius_;
   bool convex_ = false;
@@ -79,9 +79,9 @@ class ModelGeometry {
 // cloud, from a subsample; 0 where unknown (unorganized cloud, no such neighbours).
 Eigen::Vector2d grid_spacing_mm(const OrganizedCloud& cloud);
 
-// Every col-th column and row-th row. spacing_mm > 0: the steps grow from sample_step until neighbouring samples
-// are about that far apart on the surface (grid = grid_spacing_mm), so the work does not grow with the scan's
-// resolution.
+// Every col-th column and row-th row. spacing_mm > 0: the steps grow from sample_step until neighbouring
+// samples are about that far apart on the surface (grid = grid_spacing_mm), so the work does not grow with
+// the scan's resolution.
 struct SampleSteps {
   std::uint32_t col = 1, row = 1;
 };
@@ -95,9 +95,9 @@ class SampleSet {
   void reserve(std::size_t max_cells);
   void build(const OrganizedCloud& cloud, SampleSteps steps, int block = 8);
   struct Block {
-    std::uint32_t begin = 0, end = 0;   // range in points()
-    Eigen::Vector3f dir = Eigen::Vector3f::UnitZ();   // mean viewing direction (unit)
-    float angle = 0.0f;                 // max angle (rad) between a member's ray and dir
+    std::uint32_t begin = 0, end = 0;                // range in points()
+    Eigen::Vector3f dir = Eigen::Vector3f::UnitZ();  // mean viewing direction (unit)
+    float angle = 0.0f;                              // max angle (rad) between a member's ray and dir
   };
   const std::vector<Eigen::Vector3f>& points() const { return points_; }
   const std::vector<std::uint32_t>& cells() const { return cells_; }
@@ -114,8 +114,8 @@ class SampleSet {
 class Verifier {
  public:
   explicit Verifier(const VerifyParams& params = {}) : params_(params) {}
-  // Sizes the internal buffers for up to `samples` points and models of up to `faces` faces (a warm verify() then
-  // never allocates).
+  // Sizes the internal buffers for up to `samples` points and models of up to `faces` faces (a warm verify()
+  // then never allocates).
   void reserve(std::size_t samples, std::size_t faces) {
     front_.reserve(faces);
     inlier_cells_.reserve(samples);
@@ -134,7 +134,7 @@ class Verifier {
   std::vector<std::uint32_t> inlier_cells_;
   std::vector<std::uint32_t> inlier_sample_;
   std::vector<std::int32_t> inlier_face_;
-  std::vector<std::uint32_t> front_;   // front_faces() of the current pose's viewpoint
+  std::vector<std::uint32_t> front_;  // front_faces() of the current pose's viewpoint
 };
 
 }  // namespace fs::host::rec

@@ -6,8 +6,8 @@
 namespace fs::host::seg::kernels {
 
 void soa_row(const float* __restrict S, int w, Viewpoint vp, float jump_abs, float jump_rel, float dist_abs,
-             float dist_rel, float* __restrict X, float* __restrict Y, float* __restrict Z, float* __restrict J2,
-             float* __restrict DI, std::uint8_t* __restrict valid) {
+             float dist_rel, float* __restrict X, float* __restrict Y, float* __restrict Z,
+             float* __restrict J2, float* __restrict DI, std::uint8_t* __restrict valid) {
   const float nan = std::numeric_limits<float>::quiet_NaN();
   for (int c = 0; c < w; ++c) {
     const float x = S[3 * c], y = S[3 * c + 1], z = S[3 * c + 2];
@@ -73,8 +73,8 @@ void cont_seeds_row_fast(const float* __restrict X, const float* __restrict Y, c
     const bool seed = (int(NX[i - 1] * nx + NY[i - 1] * ny + NZ[i - 1] * nz >= cos_seed) &
                        int(NX[i + 1] * nx + NY[i + 1] * ny + NZ[i + 1] * nz >= cos_seed) &
                        int(NX[i - W] * nx + NY[i - W] * ny + NZ[i - W] * nz >= cos_seed) &
-                       int(NX[i + W] * nx + NY[i + W] * ny + NZ[i + W] * nz >= cos_seed) & int(l) & int(r) & int(u) &
-                       int(d)) != 0;
+                       int(NX[i + W] * nx + NY[i + W] * ny + NZ[i + W] * nz >= cos_seed) & int(l) & int(r) &
+                       int(u) & int(d)) != 0;
     CT[i] = std::uint8_t((l ? kContL : 0) | (r ? kContR : 0) | (u ? kContU : 0) | (d ? kContD : 0) |
                          (seed ? kContSeed : 0));
   }

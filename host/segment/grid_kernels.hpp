@@ -19,13 +19,13 @@ struct Viewpoint {
 // or |c| >= 1e7) and computes the jump threshold^2 (jump_abs + jump_rel * range)^2 and the plane distance
 // tolerance dist_abs + dist_rel * range^2 (0 for cells without data). valid[c] = 1 for cells with data.
 void soa_row(const float* __restrict S, int w, Viewpoint vp, float jump_abs, float jump_rel, float dist_abs,
-             float dist_rel, float* __restrict X, float* __restrict Y, float* __restrict Z, float* __restrict J2,
-             float* __restrict DI, std::uint8_t* __restrict valid);
+             float dist_rel, float* __restrict X, float* __restrict Y, float* __restrict Z,
+             float* __restrict J2, float* __restrict DI, std::uint8_t* __restrict valid);
 
-// Normals of cells [c0, c1) of one row from central differences over +-s cells (ws = s * row stride), for cells
-// whose 4 neighbours at +-s have data and are within jump^2 * s^2; NaN normal (and 0 area / lengths) where
-// that fast path does not apply. All pointers point at the row's first cell. Normal toward the viewpoint;
-// AR = |du x dv|, LU = |du|^2, LV = |dv|^2.
+// Normals of cells [c0, c1) of one row from central differences over +-s cells (ws = s * row stride), for
+// cells whose 4 neighbours at +-s have data and are within jump^2 * s^2; NaN normal (and 0 area / lengths)
+// where that fast path does not apply. All pointers point at the row's first cell. Normal toward the
+// viewpoint; AR = |du x dv|, LU = |du|^2, LV = |dv|^2.
 void normals_row_fast(const float* __restrict X, const float* __restrict Y, const float* __restrict Z,
                       const float* __restrict J2, int c0, int c1, std::size_t s, std::size_t ws, Viewpoint vp,
                       float* __restrict NX, float* __restrict NY, float* __restrict NZ, float* __restrict AR,

@@ -21,12 +21,30 @@ void region_colour(std::int32_t id, std::uint8_t rgb[3]) {
   const double c = v * s, x = c * (1 - std::abs(std::fmod(h, 2.0) - 1)), m = v - c;
   double r = 0, g = 0, b = 0;
   switch (int(h)) {
-    case 0: r = c; g = x; break;
-    case 1: r = x; g = c; break;
-    case 2: g = c; b = x; break;
-    case 3: g = x; b = c; break;
-    case 4: r = x; b = c; break;
-    default: r = c; b = x; break;
+    case 0:
+      r = c;
+      g = x;
+      break;
+    case 1:
+      r = x;
+      g = c;
+      break;
+    case 2:
+      g = c;
+      b = x;
+      break;
+    case 3:
+      g = x;
+      b = c;
+      break;
+    case 4:
+      r = x;
+      b = c;
+      break;
+    default:
+      r = c;
+      b = x;
+      break;
   }
   rgb[0] = std::uint8_t((r + m) * 255);
   rgb[1] = std::uint8_t((g + m) * 255);
@@ -50,7 +68,8 @@ void write_text(const std::filesystem::path& path, const std::string& text) {
 
 void write_segmentation_png(const Segmentation& s, const std::filesystem::path& path) {
   const std::uint32_t w = s.width, h = s.height;
-  if (w == 0 || h == 0 || s.labels.size() < std::size_t(w) * h) throw Error(path.string() + ": empty segmentation");
+  if (w == 0 || h == 0 || s.labels.size() < std::size_t(w) * h)
+    throw Error(path.string() + ": empty segmentation");
   std::vector<std::uint8_t> rgb(std::size_t(w) * h * 3, 0);
   for (std::uint32_t r = 0; r < h; ++r) {
     for (std::uint32_t c = 0; c < w; ++c) {
@@ -99,30 +118,35 @@ std::string pfrg_svg(const Pfrg& g, const Segmentation& s) {
   for (const auto& a : g.arcs) {
     auto pa = pos[a.a], pb = pos[a.b];
     const bool sn = a.a == 0 || a.b == 0;
-    out += fmt::format("<line x1=\"{:.1f}\" y1=\"{:.1f}\" x2=\"{:.1f}\" y2=\"{:.1f}\" stroke=\"{}\" "
-                       "stroke-width=\"1.5\"{}/>\n",
-                       pa.first, pa.second, pb.first, pb.second, sn ? "#999" : "#333",
-                       sn ? " stroke-dasharray=\"4,3\"" : "");
+    out += fmt::format(
+        "<line x1=\"{:.1f}\" y1=\"{:.1f}\" x2=\"{:.1f}\" y2=\"{:.1f}\" stroke=\"{}\" "
+        "stroke-width=\"1.5\"{}/>\n",
+        pa.first, pa.second, pb.first, pb.second, sn ? "#999" : "#333",
+        sn ? " stroke-dasharray=\"4,3\"" : "");
     out += fmt::format("<text x=\"{:.1f}\" y=\"{:.1f}\" fill=\"#a00\" text-anchor=\"middle\">{:.1f}</text>\n",
                        (pa.first + pb.first) / 2, (pa.second + pb.second) / 2 - 3, a.border);
   }
   for (const auto& n : g.nodes) {
     auto p = pos[n.id];
     if (n.supernode) {
-      out += fmt::format("<rect x=\"{:.1f}\" y=\"{:.1f}\" width=\"24\" height=\"24\" fill=\"#ddd\" stroke=\"#333\"/>"
-                         "<text x=\"{:.1f}\" y=\"{:.1f}\" text-anchor=\"middle\">SN</text>\n",
-                         p.first - 12, p.second - 12, p.first, p.second + 4);
+      out += fmt::format(
+          "<rect x=\"{:.1f}\" y=\"{:.1f}\" width=\"24\" height=\"24\" fill=\"#ddd\" stroke=\"#333\"/>"
+          "<text x=\"{:.1f}\" y=\"{:.1f}\" text-anchor=\"middle\">SN</text>\n",
+          p.first - 12, p.second - 12, p.first, p.second + 4);
       continue;
     }
     const double rad = 6.0 + 22.0 * std::sqrt(n.area / max_area);
-    out += fmt::format("<circle cx=\"{:.1f}\" cy=\"{:.1f}\" r=\"{:.1f}\" fill=\"{}\" fill-opacity=\"0.8\" "
-                       "stroke=\"#333\"/>\n",
-                       p.first, p.second, rad, colour_hex(n.id - 1));
-    out += fmt::format("<text x=\"{:.1f}\" y=\"{:.1f}\" text-anchor=\"middle\" font-weight=\"bold\">{}</text>\n",
-                       p.first, p.second + 4, n.id);
-    out += fmt::format("<text x=\"{:.1f}\" y=\"{:.1f}\" text-anchor=\"middle\">{:.0f} mm² n=({:.2f},{:.2f},{:.2f})"
-                       "</text>\n",
-                       p.first, p.second + rad + 12, n.area, n.normal.x(), n.normal.y(), n.normal.z());
+    out += fmt::format(
+        "<circle cx=\"{:.1f}\" cy=\"{:.1f}\" r=\"{:.1f}\" fill=\"{}\" fill-opacity=\"0.8\" "
+        "stroke=\"#333\"/>\n",
+        p.first, p.second, rad, colour_hex(n.id - 1));
+    out +=
+        fmt::format("<text x=\"{:.1f}\" y=\"{:.1f}\" text-anchor=\"middle\" font-weight=\"bold\">{}</text>\n",
+                    p.first, p.second + 4, n.id);
+    out += fmt::format(
+        "<text x=\"{:.1f}\" y=\"{:.1f}\" text-anchor=\"middle\">{:.0f} mm² n=({:.2f},{:.2f},{:.2f})"
+        "</text>\n",
+        p.first, p.second + rad + 12, n.area, n.normal.x(), n.normal.y(), n.normal.z());
   }
   out += "</svg>\n";
   return out;
@@ -167,22 +191,26 @@ std::string enm_svg(const Pfrg& g, const Vec3& view_in) {
     const double len = 0.25 + 0.75 * std::sqrt(n.area / max_area);
     auto tip = proj(v), base = proj(Vec3::Zero()), end = proj(v * (1.0 + 0.35 * len));
     const bool back = v.dot(view) < 0;
-    out += fmt::format("<line x1=\"{:.1f}\" y1=\"{:.1f}\" x2=\"{:.1f}\" y2=\"{:.1f}\" stroke=\"#bbb\" "
-                       "stroke-dasharray=\"2,2\"/>\n",
-                       base.first, base.second, tip.first, tip.second);
-    out += fmt::format("<line x1=\"{:.1f}\" y1=\"{:.1f}\" x2=\"{:.1f}\" y2=\"{:.1f}\" stroke=\"{}\" "
-                       "stroke-width=\"{:.1f}\"{}/>\n",
-                       tip.first, tip.second, end.first, end.second, colour_hex(n.id - 1), 2.0 + 4.0 * len,
-                       back ? " stroke-opacity=\"0.4\"" : "");
-    out += fmt::format("<circle cx=\"{:.1f}\" cy=\"{:.1f}\" r=\"3\" fill=\"#333\"/>"
-                       "<text x=\"{:.1f}\" y=\"{:.1f}\">{} ({:.0f} mm²)</text>\n",
-                       tip.first, tip.second, end.first + 4, end.second - 4, n.id, n.area);
+    out += fmt::format(
+        "<line x1=\"{:.1f}\" y1=\"{:.1f}\" x2=\"{:.1f}\" y2=\"{:.1f}\" stroke=\"#bbb\" "
+        "stroke-dasharray=\"2,2\"/>\n",
+        base.first, base.second, tip.first, tip.second);
+    out += fmt::format(
+        "<line x1=\"{:.1f}\" y1=\"{:.1f}\" x2=\"{:.1f}\" y2=\"{:.1f}\" stroke=\"{}\" "
+        "stroke-width=\"{:.1f}\"{}/>\n",
+        tip.first, tip.second, end.first, end.second, colour_hex(n.id - 1), 2.0 + 4.0 * len,
+        back ? " stroke-opacity=\"0.4\"" : "");
+    out += fmt::format(
+        "<circle cx=\"{:.1f}\" cy=\"{:.1f}\" r=\"3\" fill=\"#333\"/>"
+        "<text x=\"{:.1f}\" y=\"{:.1f}\">{} ({:.0f} mm²)</text>\n",
+        tip.first, tip.second, end.first + 4, end.second - 4, n.id, n.area);
   }
   out += "</svg>\n";
   return out;
 }
 
-void write_pictures(const Segmentation& s, const Pfrg& g, const Vec3& view, const std::filesystem::path& dir) {
+void write_pictures(const Segmentation& s, const Pfrg& g, const Vec3& view,
+                    const std::filesystem::path& dir) {
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   if (ec) throw Error(dir.string() + ": cannot create directory: " + ec.message());

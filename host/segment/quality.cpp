@@ -8,11 +8,16 @@ namespace fs::host::seg {
 
 const char* to_string(HooverClass c) {
   switch (c) {
-    case HooverClass::Correct: return "correct";
-    case HooverClass::Over: return "over";
-    case HooverClass::Under: return "under";
-    case HooverClass::Missed: return "missed";
-    case HooverClass::Noise: return "noise";
+    case HooverClass::Correct:
+      return "correct";
+    case HooverClass::Over:
+      return "over";
+    case HooverClass::Under:
+      return "under";
+    case HooverClass::Missed:
+      return "missed";
+    case HooverClass::Noise:
+      return "noise";
   }
   return "?";
 }
@@ -21,9 +26,9 @@ HooverResult hoover_compare(std::span<const std::int32_t> gt, const Segmentation
                             const std::function<std::optional<Vec3>(std::int32_t)>& gt_normal) {
   HooverResult res;
   const std::size_t n = std::min(gt.size(), seg.labels.size());
-  std::map<std::int32_t, double> gsize;                       // |G|
-  std::map<std::int32_t, double> msize;                       // |M|
-  std::map<std::int32_t, std::map<std::int32_t, double>> O;   // O[g][m]
+  std::map<std::int32_t, double> gsize;                      // |G|
+  std::map<std::int32_t, double> msize;                      // |M|
+  std::map<std::int32_t, std::map<std::int32_t, double>> O;  // O[g][m]
   auto machine = [&](std::int32_t l) {
     return l >= 0 && std::size_t(l) < seg.regions.size() && seg.regions[std::size_t(l)].known ? l : -1;
   };
@@ -35,7 +40,7 @@ HooverResult hoover_compare(std::span<const std::int32_t> gt, const Segmentation
   }
   res.gt_regions = int(gsize.size());
   res.machine_regions = int(msize.size());
-  std::map<std::int32_t, std::map<std::int32_t, double>> OT;   // transposed: OT[m][g]
+  std::map<std::int32_t, std::map<std::int32_t, double>> OT;  // transposed: OT[m][g]
   for (const auto& [g, row] : O)
     for (const auto& [m, o] : row) OT[m][g] = o;
   std::map<std::int32_t, bool> gused, mused;
@@ -50,7 +55,8 @@ HooverResult hoover_compare(std::span<const std::int32_t> gt, const Segmentation
         mp.machine = {m};
         if (gt_normal) {
           if (auto tn = gt_normal(g)) {
-            const double c = std::min(1.0, std::abs(tn->normalized().dot(seg.regions[std::size_t(m)].plane.n)));
+            const double c =
+                std::min(1.0, std::abs(tn->normalized().dot(seg.regions[std::size_t(m)].plane.n)));
             mp.angle_error_deg = std::acos(c) * 180.0 / 3.14159265358979323846;
           }
         }
@@ -106,10 +112,17 @@ HooverResult hoover_compare(std::span<const std::int32_t> gt, const Segmentation
   }
   for (const auto& mp : res.mappings) {
     switch (mp.cls) {
-      case HooverClass::Correct: ++res.correct; break;
-      case HooverClass::Over: ++res.over; break;
-      case HooverClass::Under: ++res.under; break;
-      default: break;
+      case HooverClass::Correct:
+        ++res.correct;
+        break;
+      case HooverClass::Over:
+        ++res.over;
+        break;
+      case HooverClass::Under:
+        ++res.under;
+        break;
+      default:
+        break;
     }
     for (auto g : mp.gt) res.gt_class[g] = mp.cls;
   }

@@ -33,7 +33,7 @@ struct HooverResult {
   std::vector<HooverMapping> mappings;
   // ground-truth label -> class (Missed when in no mapping)
   std::map<std::int32_t, HooverClass> gt_class;
-  std::map<std::int32_t, std::int32_t> gt_correct_region;   // for Correct ones: the machine region
+  std::map<std::int32_t, std::int32_t> gt_correct_region;  // for Correct ones: the machine region
 };
 
 // gt: ground-truth label per cell (< 0 = not a region, ignored). The machine regions are the known regions
@@ -43,8 +43,8 @@ HooverResult hoover_compare(std::span<const std::int32_t> gt, const Segmentation
                             const std::function<std::optional<Vec3>(std::int32_t)>& gt_normal = {});
 
 struct ObjectSpan {
-  double total_area = 0.0;       // mm^2 of known regions with at least one labelled cell
-  double pure_area = 0.0;        // ... of those whose cells are >= purity within one object
+  double total_area = 0.0;  // mm^2 of known regions with at least one labelled cell
+  double pure_area = 0.0;   // ... of those whose cells are >= purity within one object
   int regions = 0, pure_regions = 0;
   double pure_fraction() const { return total_area > 0 ? pure_area / total_area : 1.0; }
 };

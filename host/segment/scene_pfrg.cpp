@@ -20,7 +20,7 @@ void ScenePfrgBuilder::prepare(Pfrg& g) const {
 void ScenePfrgBuilder::build(const Segmentation& s, Pfrg& g, PreprocessStats* stats) {
   PreprocessStats st;
   const std::int32_t R = std::int32_t(std::min(s.regions.size(), max_regions_));
-  const std::int32_t sn = R;   // supernode index in the working graph
+  const std::int32_t sn = R;  // supernode index in the working graph
   auto known = [&](std::int32_t x) { return x < R && s.regions[std::size_t(x)].known; };
 
   // 1. complete graph
@@ -39,7 +39,8 @@ void ScenePfrgBuilder::build(const Segmentation& s, Pfrg& g, PreprocessStats* st
     ++deg_[std::size_t(a.b)];
   }
   off_[0] = 0;
-  for (std::int32_t v = 0; v <= R; ++v) off_[std::size_t(v) + 1] = off_[std::size_t(v)] + deg_[std::size_t(v)];
+  for (std::int32_t v = 0; v <= R; ++v)
+    off_[std::size_t(v) + 1] = off_[std::size_t(v)] + deg_[std::size_t(v)];
   std::fill(deg_.begin(), deg_.begin() + R + 2, 0);
   for (std::size_t k = 0; k < arcs_.size(); ++k) {
     const WArc& a = arcs_[k];
@@ -69,15 +70,21 @@ void ScenePfrgBuilder::build(const Segmentation& s, Pfrg& g, PreprocessStats* st
       const WArc& a = arcs_[std::size_t(adj_[std::size_t(k)])];
       if (!a.alive) continue;
       const std::int32_t v = other(a, u);
-      if (v == sn) continue;   // its ends may touch the unknown area
-      if (!known(v)) ok = false;
-      else if (k1 < 0 || k1 == v) { k1 = v; l1 += a.len; }
-      else if (k2 < 0 || k2 == v) { k2 = v; l2 += a.len; }
-      else ok = false;
+      if (v == sn) continue;  // its ends may touch the unknown area
+      if (!known(v))
+        ok = false;
+      else if (k1 < 0 || k1 == v) {
+        k1 = v;
+        l1 += a.len;
+      } else if (k2 < 0 || k2 == v) {
+        k2 = v;
+        l2 += a.len;
+      } else
+        ok = false;
     }
     if (!ok || k1 < 0 || k2 < 0) continue;
     WArc* ik = find_arc(k1, k2);
-    if (ik == nullptr) continue;   // no existing border: could be a jump edge, keep apart
+    if (ik == nullptr) continue;  // no existing border: could be a jump edge, keep apart
     ik->len += 0.5 * (l1 + l2);
     for (std::int32_t k = off_[std::size_t(u)]; k < off_[std::size_t(u) + 1]; ++k) {
       arcs_[std::size_t(adj_[std::size_t(k)])].alive = false;
@@ -101,7 +108,7 @@ void ScenePfrgBuilder::build(const Segmentation& s, Pfrg& g, PreprocessStats* st
       if (!a.alive) continue;
       const std::int32_t v = other(a, u);
       if (touches_sn && known(v)) {
-        a.a = std::min(v, sn);   // redirect u-v to v-SN (u is part of the unknown area)
+        a.a = std::min(v, sn);  // redirect u-v to v-SN (u is part of the unknown area)
         a.b = std::max(v, sn);
       } else {
         a.alive = false;

@@ -41,13 +41,13 @@ class ScenePfrgBuilder {
 
  private:
   struct WArc {
-    std::int32_t a, b;   // region ids, or the supernode index sn_ (a < b after normalization)
+    std::int32_t a, b;  // region ids, or the supernode index sn_ (a < b after normalization)
     double len;
     bool alive;
   };
   std::size_t max_regions_, max_borders_;
   std::vector<WArc> arcs_;
-  std::vector<std::int32_t> deg_, off_, adj_;   // CSR adjacency: arc indices per node
+  std::vector<std::int32_t> deg_, off_, adj_;  // CSR adjacency: arc indices per node
 };
 
 }  // namespace fs::host::seg

@@ -19,14 +19,15 @@ struct SegmentParams {
   // Region growing: cell normal vs region normal, and point-to-plane distance to the region's plane
   // <= dist_abs_mm + dist_rel * range^2 (the range^2 term models triangulation / Kinect depth noise).
   double angle_deg = 15.0;
-  double seed_angle_deg = 6.0;        // a seed's 4 neighbours must agree with its normal within this
+  double seed_angle_deg = 6.0;  // a seed's 4 neighbours must agree with its normal within this
   double dist_abs_mm = 0.3;
-  double dist_rel = 0.0;              // 1/mm
-  // The absolute tolerance is raised to dist_noise_factor x the scan's estimated depth noise (sigma from second
-  // differences along the grid rows, always reported as Segmentation::noise_mm) when that is larger; 0 = fixed
-  // dist_abs_mm. The laser default 0.3 mm is 6 sigma of the bench scanner's 0.05 mm and separates faces meeting
-  // at 5-6 degrees (augmented prisms). Off by default: at 4x that noise the recognition benchmark found more
-  // objects with the fixed 0.3 mm (a split face costs the matcher less than a merged one; README).
+  double dist_rel = 0.0;  // 1/mm
+  // The absolute tolerance is raised to dist_noise_factor x the scan's estimated depth noise (sigma from
+  // second differences along the grid rows, always reported as Segmentation::noise_mm) when that is larger; 0
+  // = fixed dist_abs_mm. The laser default 0.3 mm is 6 sigma of the bench scanner's 0.05 mm and separates
+  // faces meeting at 5-6 degrees (augmented prisms). Off by default: at 4x that noise the recognition
+  // benchmark found more objects with the fixed 0.3 mm (a split face costs the matcher less than a merged
+  // one; README).
   double dist_noise_factor = 0.0;
   // Edge refinement: unassigned cells next to a region join it when within edge_dist_factor * dist.
   double edge_dist_factor = 2.0;
@@ -72,8 +73,14 @@ struct SegmentParams {
   }
   // "laser" or "kinect"; returns false for an unknown name.
   static bool by_name(std::string_view name, SegmentParams& out) {
-    if (name == "laser") { out = laser(); return true; }
-    if (name == "kinect") { out = kinect(); return true; }
+    if (name == "laser") {
+      out = laser();
+      return true;
+    }
+    if (name == "kinect") {
+      out = kinect();
+      return true;
+    }
     return false;
   }
 };

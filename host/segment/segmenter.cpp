@@ -38,13 +38,26 @@ std::size_t next_pow2(std::size_t v) {
 }
 
 // The 4-neighbours of cell i in a w x h grid and their continuity bits (kContL/R/U/D); returns how many.
-inline int grid_neighbours(std::size_t i, std::size_t w, std::size_t h, std::size_t nb[4], std::uint8_t bit[4]) {
+inline int grid_neighbours(std::size_t i, std::size_t w, std::size_t h, std::size_t nb[4],
+                           std::uint8_t bit[4]) {
   const std::size_t row = i / w, col = i - row * w;
   int k = 0;
-  if (col > 0) { nb[k] = i - 1; bit[k++] = kContL; }
-  if (col + 1 < w) { nb[k] = i + 1; bit[k++] = kContR; }
-  if (row > 0) { nb[k] = i - w; bit[k++] = kContU; }
-  if (row + 1 < h) { nb[k] = i + w; bit[k++] = kContD; }
+  if (col > 0) {
+    nb[k] = i - 1;
+    bit[k++] = kContL;
+  }
+  if (col + 1 < w) {
+    nb[k] = i + 1;
+    bit[k++] = kContR;
+  }
+  if (row > 0) {
+    nb[k] = i - w;
+    bit[k++] = kContU;
+  }
+  if (row + 1 < h) {
+    nb[k] = i + w;
+    bit[k++] = kContD;
+  }
   return k;
 }
 
@@ -52,19 +65,38 @@ inline int grid_neighbours(std::size_t i, std::size_t w, std::size_t h, std::siz
 
 void Segmenter::Acc::add(const Eigen::Vector3d& p, double a, double col, double row) {
   n += 1;
-  sx += p.x(); sy += p.y(); sz += p.z();
-  sxx += p.x() * p.x(); sxy += p.x() * p.y(); sxz += p.x() * p.z();
-  syy += p.y() * p.y(); syz += p.y() * p.z(); szz += p.z() * p.z();
-  area += a; pc += col; pr += row;
+  sx += p.x();
+  sy += p.y();
+  sz += p.z();
+  sxx += p.x() * p.x();
+  sxy += p.x() * p.y();
+  sxz += p.x() * p.z();
+  syy += p.y() * p.y();
+  syz += p.y() * p.z();
+  szz += p.z() * p.z();
+  area += a;
+  pc += col;
+  pr += row;
 }
 
 void Segmenter::Acc::merge(const Acc& o) {
-  n += o.n; sx += o.sx; sy += o.sy; sz += o.sz;
-  sxx += o.sxx; sxy += o.sxy; sxz += o.sxz; syy += o.syy; syz += o.syz; szz += o.szz;
-  area += o.area; pc += o.pc; pr += o.pr;
+  n += o.n;
+  sx += o.sx;
+  sy += o.sy;
+  sz += o.sz;
+  sxx += o.sxx;
+  sxy += o.sxy;
+  sxz += o.sxz;
+  syy += o.syy;
+  syz += o.syz;
+  szz += o.szz;
+  area += o.area;
+  pc += o.pc;
+  pr += o.pr;
 }
 
-Segmenter::Segmenter(const SegmentParams& params, const SegmentLimits& limits) : params_(params), limits_(limits) {
+Segmenter::Segmenter(const SegmentParams& params, const SegmentLimits& limits)
+    : params_(params), limits_(limits) {
   acc_.resize(limits_.max_regions);
   plane_.resize(limits_.max_regions);
   parent_.resize(limits_.max_regions);
@@ -99,15 +131,15 @@ void Segmenter::reserve(std::size_t n) {
 }
 
 // The component of p[c-1] - 2 p[c] + p[c+1] across the local tangent p[c+1] - p[c-1]: 0 on a plane (the three
-// points lie on the line where the row meets the surface, whatever their spacing), noise of variance ~6 sigma^2
-// otherwise. The median over a subsample of depth-continuous triples ignores creases and edges.
+// points lie on the line where the row meets the surface, whatever their spacing), noise of variance ~6
+// sigma^2 otherwise. The median over a subsample of depth-continuous triples ignores creases and edges.
 double Segmenter::estimate_noise(const OrganizedCloud& cloud) {
   noise_samples_.clear();
   const std::uint32_t w = cloud.width, h = cloud.height;
   if (w < 3 || h == 0) return 0.0;
   const std::size_t per_row = w - 2;
-  const std::uint32_t stride =
-      std::max<std::uint32_t>(1, static_cast<std::uint32_t>((per_row * h + kNoiseSamples - 1) / kNoiseSamples));
+  const std::uint32_t stride = std::max<std::uint32_t>(
+      1, static_cast<std::uint32_t>((per_row * h + kNoiseSamples - 1) / kNoiseSamples));
   const float jump2 = float(params_.jump_abs_mm * params_.jump_abs_mm);
   for (std::uint32_t r = 0; r < h; r += stride) {
     const Eigen::Vector3f* row = cloud.points.data() + std::size_t(r) * w;
@@ -137,8 +169,9 @@ void Segmenter::prepare(Segmentation& out) const {
 void Segmenter::segment(const OrganizedCloud& cloud, Segmentation& out) {
   const std::size_t n = std::size_t(cloud.width) * cloud.height;
   if (cloud.points.size() != n) {
-    throw Error("segment: organized cloud has " + std::to_string(cloud.points.size()) + " points, expected width " +
-                std::to_string(cloud.width) + " x height " + std::to_string(cloud.height));
+    throw Error("segment: organized cloud has " + std::to_string(cloud.points.size()) +
+                " points, expected width " + std::to_string(cloud.width) + " x height " +
+                std::to_string(cloud.height));
   }
   if (!cloud.viewpoint.allFinite()) throw Error("segment: viewpoint is not finite");
   reserve(n);
@@ -205,7 +238,7 @@ void Segmenter::compute_normals(const OrganizedCloud& cloud) {
     const std::size_t b = std::size_t(r) * W;
     soa_row(P[b].data(), w, vpk, float(params_.jump_abs_mm), float(params_.jump_rel), float(dist_abs_),
             float(params_.dist_rel), X + b, Y + b, Z + b, J2 + b, dist_.data() + b, ST + b);
-    for (std::size_t i = b; i < b + W; ++i) lab_[i] = ST[i] ? kUnassigned : kNil;   // ST: 1 = kValid or 0
+    for (std::size_t i = b; i < b + W; ++i) lab_[i] = ST[i] ? kUnassigned : kNil;  // ST: 1 = kValid or 0
   };
   // One tangent along a grid axis: central difference over +-s cells when both sides are continuous,
   // else one-sided; tries span, then 1. Returns false when no continuous neighbour exists.
@@ -225,7 +258,8 @@ void Segmenter::compute_normals(const OrganizedCloud& cloud) {
         return cr * cr < cos2_jump_ * dd * ray.squaredNorm();
       };
       const bool fwd = r1 < h && c1 < w && (ST[std::size_t(r1) * W + c1]) && ok(P[std::size_t(r1) * W + c1]);
-      const bool bwd = r0 >= 0 && c0 >= 0 && (ST[std::size_t(r0) * W + c0]) && ok(P[std::size_t(r0) * W + c0]);
+      const bool bwd =
+          r0 >= 0 && c0 >= 0 && (ST[std::size_t(r0) * W + c0]) && ok(P[std::size_t(r0) * W + c0]);
       if (fwd && bwd) {
         t = (P[std::size_t(r1) * W + c1] - P[std::size_t(r0) * W + c0]) / float(2 * s);
         return true;
@@ -248,19 +282,19 @@ void Segmenter::compute_normals(const OrganizedCloud& cloud) {
     const bool inner_row = r >= span && r + span < h && w > 2 * span;
     const int c0 = inner_row ? span : 0, c1 = inner_row ? w - span : 0;
     if (inner_row) {
-      normals_row_fast(X + b, Y + b, Z + b, J2 + b, c0, c1, std::size_t(span), W * std::size_t(span), vpk, NX + b,
-                       NY + b, NZ + b, AR + b, LU + b, LV + b);
+      normals_row_fast(X + b, Y + b, Z + b, J2 + b, c0, c1, std::size_t(span), W * std::size_t(span), vpk,
+                       NX + b, NY + b, NZ + b, AR + b, LU + b, LV + b);
     }
     for (int c = 0; c < w; ++c) {
       const std::size_t i = b + std::size_t(c);
-      if (c >= c0 && c < c1 && NX[i] == NX[i]) continue;   // done by the fast path
+      if (c >= c0 && c < c1 && NX[i] == NX[i]) continue;  // done by the fast path
       NX[i] = NY[i] = NZ[i] = nan;
       AR[i] = LU[i] = LV[i] = 0.f;
       if (!(ST[i] & kValid)) continue;
       Eigen::Vector3f du, dv;
       const bool hu = tangent(r, c, 0, 1, du);
       const bool hv = tangent(r, c, 1, 0, dv);
-      if (hu) LU[i] = du.squaredNorm();   // squared here, sqrt where borders need it
+      if (hu) LU[i] = du.squaredNorm();  // squared here, sqrt where borders need it
       if (hv) LV[i] = dv.squaredNorm();
       if (!hu || !hv) continue;
       Eigen::Vector3f nn = du.cross(dv);
@@ -283,8 +317,8 @@ void Segmenter::compute_normals(const OrganizedCloud& cloud) {
     const bool inner_row = r >= 1 && r + 1 < h && w > 2;
     const int c0 = inner_row ? 1 : 0, c1 = inner_row ? w - 1 : 0;
     if (inner_row) {
-      cont_seeds_row_fast(X + b, Y + b, Z + b, J2 + b, NX + b, NY + b, NZ + b, c0, c1, W, vpk, jump_max2_, cos2_jump_,
-                          cs, CT + b);
+      cont_seeds_row_fast(X + b, Y + b, Z + b, J2 + b, NX + b, NY + b, NZ + b, c0, c1, W, vpk, jump_max2_,
+                          cos2_jump_, cs, CT + b);
     }
     for (int c = 0; c < w; ++c) {
       const std::size_t i = b + std::size_t(c);
@@ -295,9 +329,11 @@ void Segmenter::compute_normals(const OrganizedCloud& cloud) {
       }
       std::uint8_t bits = 0;
       if (c > 0 && kernels::continuous(X, Y, Z, J2, i, i - 1, vpk, jump_max2_, cos2_jump_)) bits |= kContL;
-      if (c + 1 < w && kernels::continuous(X, Y, Z, J2, i, i + 1, vpk, jump_max2_, cos2_jump_)) bits |= kContR;
+      if (c + 1 < w && kernels::continuous(X, Y, Z, J2, i, i + 1, vpk, jump_max2_, cos2_jump_))
+        bits |= kContR;
       if (r > 0 && kernels::continuous(X, Y, Z, J2, i, i - W, vpk, jump_max2_, cos2_jump_)) bits |= kContU;
-      if (r + 1 < h && kernels::continuous(X, Y, Z, J2, i, i + W, vpk, jump_max2_, cos2_jump_)) bits |= kContD;
+      if (r + 1 < h && kernels::continuous(X, Y, Z, J2, i, i + W, vpk, jump_max2_, cos2_jump_))
+        bits |= kContD;
       CT[i] = bits;
     }
   };
@@ -345,14 +381,26 @@ void Segmenter::accumulate(Acc& a, const std::uint32_t* cells, std::size_t count
   for (std::size_t q = 0; q < count; ++q) {
     const std::size_t i = cells[q];
     const double x = double(X[i]) - ox, y = double(Y[i]) - oy, z = double(Z[i]) - oz;
-    sx += x; sy += y; sz += z;
-    sxx += x * x; sxy += x * y; sxz += x * z;
-    syy += y * y; syz += y * z; szz += z * z;
+    sx += x;
+    sy += y;
+    sz += z;
+    sxx += x * x;
+    sxy += x * y;
+    sxz += x * z;
+    syy += y * y;
+    syz += y * z;
+    szz += z * z;
   }
   a.n += double(count);
-  a.sx += sx; a.sy += sy; a.sz += sz;
-  a.sxx += sxx; a.sxy += sxy; a.sxz += sxz;
-  a.syy += syy; a.syz += syz; a.szz += szz;
+  a.sx += sx;
+  a.sy += sy;
+  a.sz += sz;
+  a.sxx += sxx;
+  a.sxy += sxy;
+  a.sxz += sxz;
+  a.syy += syy;
+  a.syz += syz;
+  a.szz += szz;
 }
 
 void Segmenter::accumulate_run(Acc& a, std::size_t first, std::size_t last) const {
@@ -363,25 +411,37 @@ void Segmenter::accumulate_run(Acc& a, std::size_t first, std::size_t last) cons
   double sx = 0, sy = 0, sz = 0, sxx = 0, sxy = 0, sxz = 0, syy = 0, syz = 0, szz = 0;
   for (std::size_t i = first; i <= last; ++i) {
     const double x = double(X[i]) - ox, y = double(Y[i]) - oy, z = double(Z[i]) - oz;
-    sx += x; sy += y; sz += z;
-    sxx += x * x; sxy += x * y; sxz += x * z;
-    syy += y * y; syz += y * z; szz += z * z;
+    sx += x;
+    sy += y;
+    sz += z;
+    sxx += x * x;
+    sxy += x * y;
+    sxz += x * z;
+    syy += y * y;
+    syz += y * z;
+    szz += z * z;
   }
   a.n += double(last + 1 - first);
-  a.sx += sx; a.sy += sy; a.sz += sz;
-  a.sxx += sxx; a.sxy += sxy; a.sxz += sxz;
-  a.syy += syy; a.syz += syz; a.szz += szz;
+  a.sx += sx;
+  a.sy += sy;
+  a.sz += sz;
+  a.sxx += sxx;
+  a.sxy += sxy;
+  a.sxz += sxz;
+  a.syy += syy;
+  a.syz += syz;
+  a.szz += szz;
 }
 
 // Region growing as a scanline flood fill: the region is a list of row runs [SA[k], SB[k]]; a run taken from
 // the list is first extended left / right along its row, then the cells above / below it that qualify become
 // new runs. Same acceptance as a cell-by-cell breadth-first growth (a neighbour joins when it is depth-
 // continuous from an accepted cell - the cont_ bit, which also implies that it exists -, has a normal within
-// angle_deg of the region's and lies within its distance tolerance of the region's plane), but the grid is read
-// row-wise, not along a diamond-shaped front. The plane is refitted each time the region doubles. The first
-// kScanlineAfter cells grow breadth-first (runs of one cell), so the early fits see a 2D patch.
+// angle_deg of the region's and lies within its distance tolerance of the region's plane), but the grid is
+// read row-wise, not along a diamond-shaped front. The plane is refitted each time the region doubles. The
+// first kScanlineAfter cells grow breadth-first (runs of one cell), so the early fits see a 2D patch.
 void Segmenter::grow_regions(const OrganizedCloud& /*cloud*/, Segmentation& out) {
-  constexpr std::size_t kScanlineAfter = 256;   // cells grown breadth-first before the runs take over
+  constexpr std::size_t kScanlineAfter = 256;  // cells grown breadth-first before the runs take over
   const std::size_t w = width_, n = w * height_;
   const float* X = px_.data();
   const float* Y = py_.data();
@@ -392,8 +452,8 @@ void Segmenter::grow_regions(const OrganizedCloud& /*cloud*/, Segmentation& out)
   const float* DI = dist_.data();
   const std::uint8_t* CT = cont_.data();
   std::int32_t* LB = lab_.data();
-  std::uint32_t* SA = queue_.data();       // run starts (cell index)
-  std::uint32_t* SB = pend_cell_.data();   // run ends (inclusive, same row)
+  std::uint32_t* SA = queue_.data();      // run starts (cell index)
+  std::uint32_t* SB = pend_cell_.data();  // run ends (inclusive, same row)
   const float ca = float(cos_deg(params_.angle_deg));
   const std::size_t max_grown = limits_.max_regions;
   for (std::size_t seed = 0; seed < n; ++seed) {
@@ -419,8 +479,12 @@ void Segmenter::grow_regions(const OrganizedCloud& /*cloud*/, Segmentation& out)
       cells += last + 1 - first;
       if (cells >= next_refit) {
         refit(int(r));
-        pnx = pl.n.x(); pny = pl.n.y(); pnz = pl.n.z();
-        pcx = pl.c.x(); pcy = pl.c.y(); pcz = pl.c.z();
+        pnx = pl.n.x();
+        pny = pl.n.y();
+        pnz = pl.n.z();
+        pcx = pl.c.x();
+        pcy = pl.c.y();
+        pcz = pl.c.z();
         while (next_refit <= cells) next_refit *= 2;
       }
     };
@@ -527,9 +591,7 @@ void Segmenter::refine_edges(const OrganizedCloud& cloud) {
   for (std::size_t r = 0; r < region_count_; ++r) refit(int(r));
 }
 
-void Segmenter::clear_border_table() {
-  std::fill(bkey_.begin(), bkey_.end(), ~std::uint64_t{0});
-}
+void Segmenter::clear_border_table() { std::fill(bkey_.begin(), bkey_.end(), ~std::uint64_t{0}); }
 
 int Segmenter::border_slot(Segmentation& out, std::int32_t a, std::int32_t b) {
   const std::uint64_t key = pair_key(a, b);
@@ -611,9 +673,9 @@ void Segmenter::merge_regions(const OrganizedCloud& /*cloud*/, Segmentation& out
   }
 }
 
-// Boundary relabelling: a cell of region A next to (depth-continuous) region B moves to B when it is closer to
-// B's plane and within B's distance tolerance. Near a crease, cells of the neighbouring face lie within the
-// distance tolerance of both planes; growth / edge refinement hand them to whichever region reached them
+// Boundary relabelling: a cell of region A next to (depth-continuous) region B moves to B when it is closer
+// to B's plane and within B's distance tolerance. Near a crease, cells of the neighbouring face lie within
+// the distance tolerance of both planes; growth / edge refinement hand them to whichever region reached them
 // first, which lets a face seen at a grazing angle (few cells per mm^2) take a strip of dense cells of its
 // neighbours (hw-sim `default`: the cube's front face took rows of the table and of the top). Passes are
 // Jacobi-style (decided on the old labels, then applied), planes stay fixed, every move strictly reduces the
@@ -651,7 +713,8 @@ void Segmenter::relabel_borders(const OrganizedCloud& cloud) {
       const std::int32_t l = lab_[i];
       if (l < 0) continue;
       if ((col + 1 < w && lab_[i + 1] != l && lab_[i + 1] >= 0) ||
-          (row + 1 < h && lab_[i + w] != l && lab_[i + w] >= 0) || (col > 0 && lab_[i - 1] != l && lab_[i - 1] >= 0) ||
+          (row + 1 < h && lab_[i + w] != l && lab_[i + w] >= 0) ||
+          (col > 0 && lab_[i - 1] != l && lab_[i - 1] >= 0) ||
           (row > 0 && lab_[i - w] != l && lab_[i - w] >= 0))
         queue_[nc++] = std::uint32_t(i);
     }
@@ -709,7 +772,7 @@ void Segmenter::group_leftovers(const OrganizedCloud& /*cloud*/, Segmentation& o
     if (lab_[seed] != kUnassigned) continue;
     if (region_count_ >= limits_.max_regions) {
       out.truncated = true;
-      lab_[seed] = kNil;   // out of budget: treated like no data (supernode)
+      lab_[seed] = kNil;  // out of budget: treated like no data (supernode)
       continue;
     }
     const std::int32_t r = std::int32_t(region_count_++);
@@ -744,8 +807,8 @@ void Segmenter::finalize_regions(const OrganizedCloud& cloud, Segmentation& out)
   // jump_max_mm), which inflates |du x dv| of every border cell. Here a tangent only uses neighbours of the
   // same region (central difference inside, one-sided at the border), so a region's area is the visible
   // surface it covers.
-  auto tangent = [&](std::size_t i, std::int32_t l, bool has_prev, std::size_t prev, bool has_next, std::size_t next,
-                     Eigen::Vector3f& t) {
+  auto tangent = [&](std::size_t i, std::int32_t l, bool has_prev, std::size_t prev, bool has_next,
+                     std::size_t next, Eigen::Vector3f& t) {
     const bool bp = has_prev && lab_[prev] == l, bn = has_next && lab_[next] == l;
     if (bp && bn) {
       t = 0.5f * (P[next] - P[prev]);
@@ -760,7 +823,8 @@ void Segmenter::finalize_regions(const OrganizedCloud& cloud, Segmentation& out)
   };
   // Length along an axis for a cell without a same-region neighbour on it: the nearest valid neighbour's
   // distance, capped by `cap` (e.g. a one-cell-wide strip next to a jump).
-  auto fallback = [&](std::size_t i, bool has_prev, std::size_t prev, bool has_next, std::size_t next, float cap) {
+  auto fallback = [&](std::size_t i, bool has_prev, std::size_t prev, bool has_next, std::size_t next,
+                      float cap) {
     float d = cap;
     if (has_prev && (state_[prev] & kValid)) d = std::min(d, (P[prev] - P[i]).norm());
     if (has_next && (state_[next] & kValid)) d = std::min(d, (P[next] - P[i]).norm());
@@ -792,7 +856,8 @@ void Segmenter::finalize_regions(const OrganizedCloud& cloud, Segmentation& out)
     }
     return a;
   };
-  // Moments are summed per run of equal labels along a row (in locals) and added to the region at the run's end.
+  // Moments are summed per run of equal labels along a row (in locals) and added to the region at the run's
+  // end.
   const float* X = px_.data();
   const float* Y = py_.data();
   const float* Z = pz_.data();
@@ -817,8 +882,10 @@ void Segmenter::finalize_regions(const OrganizedCloud& cloud, Segmentation& out)
       float a = 0.f;
       if (hl && hr && hu && hd && LB[i - 1] == l && LB[i + 1] == l && LB[i - w] == l && LB[i + w] == l) {
         // inside the region: central differences on both axes
-        const float ux = 0.5f * (X[i + 1] - X[i - 1]), uy = 0.5f * (Y[i + 1] - Y[i - 1]), uz = 0.5f * (Z[i + 1] - Z[i - 1]);
-        const float vx = 0.5f * (X[i + w] - X[i - w]), vy = 0.5f * (Y[i + w] - Y[i - w]), vz = 0.5f * (Z[i + w] - Z[i - w]);
+        const float ux = 0.5f * (X[i + 1] - X[i - 1]), uy = 0.5f * (Y[i + 1] - Y[i - 1]),
+                    uz = 0.5f * (Z[i + 1] - Z[i - 1]);
+        const float vx = 0.5f * (X[i + w] - X[i - w]), vy = 0.5f * (Y[i + w] - Y[i - w]),
+                    vz = 0.5f * (Z[i + w] - Z[i - w]);
         const float cx = uy * vz - uz * vy, cy = uz * vx - ux * vz, cz = ux * vy - uy * vx;
         a = std::sqrt(cx * cx + cy * cy + cz * cz);
         lenu_[i] = ux * ux + uy * uy + uz * uz;
@@ -829,10 +896,18 @@ void Segmenter::finalize_regions(const OrganizedCloud& cloud, Segmentation& out)
       area_[i] = a;
       const double x = double(X[i]) - ox, y = double(Y[i]) - oy, z = double(Z[i]) - oz;
       run.n += 1;
-      run.sx += x; run.sy += y; run.sz += z;
-      run.sxx += x * x; run.sxy += x * y; run.sxz += x * z;
-      run.syy += y * y; run.syz += y * z; run.szz += z * z;
-      run.area += a; run.pc += double(col); run.pr += double(row);
+      run.sx += x;
+      run.sy += y;
+      run.sz += z;
+      run.sxx += x * x;
+      run.sxy += x * y;
+      run.sxz += x * z;
+      run.syy += y * y;
+      run.syz += y * z;
+      run.szz += z * z;
+      run.area += a;
+      run.pc += double(col);
+      run.pr += double(row);
     }
     flush();
     run_label = -1;
@@ -884,7 +959,7 @@ void Segmenter::compute_borders(const OrganizedCloud& cloud, Segmentation& out) 
       ++nedges;
     }
   };
-  auto edge_len = [](float x2, float y2) {   // from squared tangent lengths
+  auto edge_len = [](float x2, float y2) {  // from squared tangent lengths
     const double x = std::sqrt(double(x2)), y = std::sqrt(double(y2));
     if (x > 0.0 && y > 0.0) return 0.5 * (x + y);
     return std::max(x, y);
@@ -932,7 +1007,7 @@ void Segmenter::straight_border_lengths(const OrganizedCloud& cloud, Segmentatio
     li.tmin = inf;
     li.tmax = -inf;
     li.bin = float(b.length / b.edges);
-    li.count = 1;   // marks "line mode"
+    li.count = 1;  // marks "line mode"
   }
   auto midpoint = [&](std::uint32_t e) {
     const std::size_t i = e / 2;

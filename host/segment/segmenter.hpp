@@ -44,7 +44,7 @@ class Segmenter {
   Eigen::Vector3f normal(std::size_t i) const { return {nx_[i], ny_[i], nz_[i]}; }
 
  private:
-  struct Acc {   // moments relative to origin_ (double)
+  struct Acc {  // moments relative to origin_ (double)
     double n = 0, sx = 0, sy = 0, sz = 0, sxx = 0, sxy = 0, sxz = 0, syy = 0, syz = 0, szz = 0;
     double area = 0, pc = 0, pr = 0;
     void add(const Eigen::Vector3d& p, double a, double col, double row);
@@ -68,7 +68,7 @@ class Segmenter {
 
   // Adds the point moments of `cells` to `a` (relative to origin_; no area / pixel sums).
   void accumulate(Acc& a, const std::uint32_t* cells, std::size_t count) const;
-  void accumulate_run(Acc& a, std::size_t first, std::size_t last) const;   // cells first..last (inclusive)
+  void accumulate_run(Acc& a, std::size_t first, std::size_t last) const;  // cells first..last (inclusive)
   void fit(const Acc& a, Eigen::Vector3d& n, Eigen::Vector3d& c, double& rms) const;
   void refit(int region);
   // Depth continuity of grid neighbours (kernels::continuous, computed once per scan into cont_): close
@@ -86,12 +86,12 @@ class Segmenter {
   Eigen::Vector3d viewpoint_ = Eigen::Vector3d::Zero();
   std::uint32_t width_ = 0, height_ = 0;
   static constexpr std::size_t kNoiseSamples = 32768;
-  double dist_abs_ = 0.0;   // this scan's max(dist_abs_mm, dist_noise_factor * estimate_noise())
+  double dist_abs_ = 0.0;  // this scan's max(dist_abs_mm, dist_noise_factor * estimate_noise())
   std::vector<float> noise_samples_;
 
   // per cell (structure of arrays: the normal pass is vectorized); points with NaN = no data
   std::vector<float> px_, py_, pz_, nx_, ny_, nz_;
-  std::vector<std::uint8_t> cont_;   // depth-continuity bits toward the 4 grid neighbours
+  std::vector<std::uint8_t> cont_;  // depth-continuity bits toward the 4 grid neighbours
   std::vector<float> area_, lenu_, lenv_, jump2_, dist_;
   std::vector<std::uint8_t> state_;
   std::vector<std::int32_t> lab_;

@@ -13,7 +13,8 @@ namespace fs::sim {
 using namespace fw::cia402;
 using fw::Nanos;
 
-Cia402Twin::Cia402Twin(int fd, fw::Clock& clock, const Cia402TwinConfig& cfg) : fd_(fd), clock_(clock), cfg_(cfg) {
+Cia402Twin::Cia402Twin(int fd, fw::Clock& clock, const Cia402TwinConfig& cfg)
+    : fd_(fd), clock_(clock), cfg_(cfg) {
   int fl = ::fcntl(fd_, F_GETFL);
   if (fl >= 0) ::fcntl(fd_, F_SETFL, fl | O_NONBLOCK);
   pos_ = cfg_.start_position;
@@ -36,14 +37,30 @@ void Cia402Twin::reset_communication(Nanos now) {
 std::uint16_t Cia402Twin::statusword() const {
   std::uint16_t sw = 0;
   switch (state_) {
-    case DriveState::NotReadyToSwitchOn: sw = 0x00; break;
-    case DriveState::SwitchOnDisabled: sw = 0x40; break;
-    case DriveState::ReadyToSwitchOn: sw = 0x21 | kSwVoltageEnabled; break;
-    case DriveState::SwitchedOn: sw = 0x23 | kSwVoltageEnabled; break;
-    case DriveState::OperationEnabled: sw = 0x27 | kSwVoltageEnabled; break;
-    case DriveState::QuickStopActive: sw = 0x07 | kSwVoltageEnabled; break;
-    case DriveState::FaultReactionActive: sw = 0x0F; break;
-    case DriveState::Fault: sw = 0x08; break;
+    case DriveState::NotReadyToSwitchOn:
+      sw = 0x00;
+      break;
+    case DriveState::SwitchOnDisabled:
+      sw = 0x40;
+      break;
+    case DriveState::ReadyToSwitchOn:
+      sw = 0x21 | kSwVoltageEnabled;
+      break;
+    case DriveState::SwitchedOn:
+      sw = 0x23 | kSwVoltageEnabled;
+      break;
+    case DriveState::OperationEnabled:
+      sw = 0x27 | kSwVoltageEnabled;
+      break;
+    case DriveState::QuickStopActive:
+      sw = 0x07 | kSwVoltageEnabled;
+      break;
+    case DriveState::FaultReactionActive:
+      sw = 0x0F;
+      break;
+    case DriveState::Fault:
+      sw = 0x08;
+      break;
   }
   sw |= kSwRemote;
   if (reached_) sw |= kSwTargetReached;
@@ -159,9 +176,15 @@ void Cia402Twin::handle(const can_frame& f, Nanos now) {
   if (id == kNmt) {
     if (f.len < 2 || (f.data[1] != 0 && f.data[1] != cfg_.node)) return;
     switch (f.data[0]) {
-      case kNmtStart: nmt_ = kStateOperational; break;
-      case kNmtStop: nmt_ = kStateStopped; break;
-      case kNmtPreOp: nmt_ = kStatePreOperational; break;
+      case kNmtStart:
+        nmt_ = kStateOperational;
+        break;
+      case kNmtStop:
+        nmt_ = kStateStopped;
+        break;
+      case kNmtPreOp:
+        nmt_ = kStatePreOperational;
+        break;
       case kNmtResetNode:
         state_ = DriveState::SwitchOnDisabled;
         vel_ = 0.0;
@@ -175,7 +198,9 @@ void Cia402Twin::handle(const can_frame& f, Nanos now) {
         hb_ms_ = tpdo_ms_ = 0;
         reset_communication(now);
         break;
-      default: ++stats_.bad_frames; break;
+      default:
+        ++stats_.bad_frames;
+        break;
     }
     return;
   }
@@ -244,8 +269,8 @@ void Cia402Twin::handle_sdo(const can_frame& f, Nanos now) {
   send(sdo_abort(resp, index, sub, abort));
 }
 
-bool Cia402Twin::sdo_write(std::uint16_t index, std::uint8_t sub, std::uint32_t v, int size, std::uint32_t& abort,
-                           Nanos now) {
+bool Cia402Twin::sdo_write(std::uint16_t index, std::uint8_t sub, std::uint32_t v, int size,
+                           std::uint32_t& abort, Nanos now) {
   auto expect = [&](int want_sub, int want_size) {
     if (sub != want_sub) {
       abort = kAbortNoObject;
@@ -338,21 +363,65 @@ bool Cia402Twin::sdo_read(std::uint16_t index, std::uint8_t sub, std::uint32_t& 
     return false;
   }
   switch (index) {
-    case kHeartbeatProducer: v = hb_ms_; size = 2; return true;
-    case 0x1000: v = 0x00020192; size = 4; return true;  // device type: CiA 402 (0x0192), servo drive (0x0002)
-    case kErrorCode: v = error_code_; size = 2; return true;
-    case kControlword: v = cw_; size = 2; return true;
-    case kStatusword: v = statusword(); size = 2; return true;
-    case kModesOfOperation: v = std::uint8_t(mode_); size = 1; return true;
-    case kModesDisplay: v = std::uint8_t(mode_display_); size = 1; return true;
-    case kPositionActual: v = std::uint32_t(std::int32_t(std::lround(pos_))); size = 4; return true;
-    case kTargetPosition: v = std::uint32_t(target_obj_); size = 4; return true;
-    case kHomeOffset: v = std::uint32_t(home_offset_); size = 4; return true;
-    case kProfileVelocity: v = prof_vel_; size = 4; return true;
-    case kProfileAcceleration: v = prof_acc_; size = 4; return true;
-    case kProfileDeceleration: v = prof_dec_; size = 4; return true;
-    case kHomingMethod: v = std::uint8_t(homing_method_); size = 1; return true;
-    default: abort = kAbortNoObject; return false;
+    case kHeartbeatProducer:
+      v = hb_ms_;
+      size = 2;
+      return true;
+    case 0x1000:
+      v = 0x00020192;
+      size = 4;
+      return true;  // device type: CiA 402 (0x0192), servo drive (0x0002)
+    case kErrorCode:
+      v = error_code_;
+      size = 2;
+      return true;
+    case kControlword:
+      v = cw_;
+      size = 2;
+      return true;
+    case kStatusword:
+      v = statusword();
+      size = 2;
+      return true;
+    case kModesOfOperation:
+      v = std::uint8_t(mode_);
+      size = 1;
+      return true;
+    case kModesDisplay:
+      v = std::uint8_t(mode_display_);
+      size = 1;
+      return true;
+    case kPositionActual:
+      v = std::uint32_t(std::int32_t(std::lround(pos_)));
+      size = 4;
+      return true;
+    case kTargetPosition:
+      v = std::uint32_t(target_obj_);
+      size = 4;
+      return true;
+    case kHomeOffset:
+      v = std::uint32_t(home_offset_);
+      size = 4;
+      return true;
+    case kProfileVelocity:
+      v = prof_vel_;
+      size = 4;
+      return true;
+    case kProfileAcceleration:
+      v = prof_acc_;
+      size = 4;
+      return true;
+    case kProfileDeceleration:
+      v = prof_dec_;
+      size = 4;
+      return true;
+    case kHomingMethod:
+      v = std::uint8_t(homing_method_);
+      size = 1;
+      return true;
+    default:
+      abort = kAbortNoObject;
+      return false;
   }
 }
 
@@ -375,25 +444,36 @@ void Cia402Twin::handle_controlword(std::uint16_t cw, Nanos now) {
         send(f);
       }
       break;
-    case DriveState::NotReadyToSwitchOn: break;
+    case DriveState::NotReadyToSwitchOn:
+      break;
     case DriveState::SwitchOnDisabled:
       if ((cw & 0x87) == 0x06) state_ = DriveState::ReadyToSwitchOn;
       break;
     case DriveState::ReadyToSwitchOn:
-      if (disable_voltage || quick_stop) state_ = DriveState::SwitchOnDisabled;
-      else if (cmd == 0x07) state_ = DriveState::SwitchedOn;
-      else if (cmd == 0x0F) state_ = DriveState::OperationEnabled;
+      if (disable_voltage || quick_stop)
+        state_ = DriveState::SwitchOnDisabled;
+      else if (cmd == 0x07)
+        state_ = DriveState::SwitchedOn;
+      else if (cmd == 0x0F)
+        state_ = DriveState::OperationEnabled;
       break;
     case DriveState::SwitchedOn:
-      if (disable_voltage || quick_stop) state_ = DriveState::SwitchOnDisabled;
-      else if (cmd == 0x06) state_ = DriveState::ReadyToSwitchOn;
-      else if (cmd == 0x0F) state_ = DriveState::OperationEnabled;
+      if (disable_voltage || quick_stop)
+        state_ = DriveState::SwitchOnDisabled;
+      else if (cmd == 0x06)
+        state_ = DriveState::ReadyToSwitchOn;
+      else if (cmd == 0x0F)
+        state_ = DriveState::OperationEnabled;
       break;
     case DriveState::OperationEnabled:
-      if (disable_voltage) state_ = DriveState::SwitchOnDisabled;
-      else if (quick_stop) state_ = DriveState::QuickStopActive;
-      else if (cmd == 0x07) state_ = DriveState::SwitchedOn;
-      else if (cmd == 0x06) state_ = DriveState::ReadyToSwitchOn;
+      if (disable_voltage)
+        state_ = DriveState::SwitchOnDisabled;
+      else if (quick_stop)
+        state_ = DriveState::QuickStopActive;
+      else if (cmd == 0x07)
+        state_ = DriveState::SwitchedOn;
+      else if (cmd == 0x06)
+        state_ = DriveState::ReadyToSwitchOn;
       break;
     case DriveState::QuickStopActive:
       if (disable_voltage) state_ = DriveState::SwitchOnDisabled;
@@ -469,7 +549,8 @@ void Cia402Twin::advance(Nanos now) {
     }
     if (stalled_) {
       vel_ = 0.0;
-      if (cfg_.following_limit > 0 && std::abs(target_ - pos_) > cfg_.following_limit) following_error_ = true;
+      if (cfg_.following_limit > 0 && std::abs(target_ - pos_) > cfg_.following_limit)
+        following_error_ = true;
       continue;
     }
     const double rem = target_ - pos_;

@@ -1,16 +1,16 @@
 #pragma once
-// Simulated CiA 402 servo drive (the galvo's CAN drive) speaking struct can_frame on a file descriptor: one end
-// of an AF_UNIX/SOCK_SEQPACKET socketpair, or a raw CAN socket bound to vcan0. Single-threaded: poll() reads
-// every pending frame, advances the motion to clock.now() and sends heartbeats / TPDOs / answers.
+// Simulated CiA 402 servo drive (the galvo's CAN drive) speaking struct can_frame on a file descriptor: one
+// end of an AF_UNIX/SOCK_SEQPACKET socketpair, or a raw CAN socket bound to vcan0. Single-threaded: poll()
+// reads every pending frame, advances the motion to clock.now() and sends heartbeats / TPDOs / answers.
 //
 // Implements: NMT (start/stop/pre-op/reset, boot-up message), expedited SDO read/write of 1017h, 1800h:05,
 // 603Fh, 6040h, 6041h, 6060h, 6061h, 6064h, 607Ah, 607Ch, 6081h, 6083h, 6084h, 6098h (aborts for unknown
-// objects, wrong sizes, read-only objects, unsupported values), the controlword/statusword state machine, profile
-// position mode (new set-point / acknowledge handshake, change immediately, relative, halt, trapezoidal motion,
-// target reached), homing mode method 37, heartbeat producer, TPDO1 (statusword + position) on change and on the
-// event timer. PDO mapping: see firmware/backends/cia402_protocol.hpp.
-// Faults: no response, heartbeat loss, drive fault (EMCY + fault state), error-passive frames, bus-off with
-// restart; scriptable by time (schedule()).
+// objects, wrong sizes, read-only objects, unsupported values), the controlword/statusword state machine,
+// profile position mode (new set-point / acknowledge handshake, change immediately, relative, halt,
+// trapezoidal motion, target reached), homing mode method 37, heartbeat producer, TPDO1 (statusword +
+// position) on change and on the event timer. PDO mapping: see firmware/backends/cia402_protocol.hpp. Faults:
+// no response, heartbeat loss, drive fault (EMCY + fault state), error-passive frames, bus-off with restart;
+// scriptable by time (schedule()).
 #include <cstdint>
 #include <functional>
 #include <vector>
@@ -22,11 +22,11 @@ namespace fs::sim {
 
 struct Cia402TwinConfig {
   std::uint8_t node = 1;
-  double start_position = 0.0;        // steps
-  double max_velocity = 1e6;          // hardware limit on 6081h, steps/s
-  fw::Nanos motion_step = 50'000;     // integration sub-step of the trapezoidal profile
-  fw::Nanos homing_time = 20'000'000; // homing method 37 completes after this
-  double following_limit = 0.0;       // > 0: following error bit when a stall leaves the position this far behind
+  double start_position = 0.0;         // steps
+  double max_velocity = 1e6;           // hardware limit on 6081h, steps/s
+  fw::Nanos motion_step = 50'000;      // integration sub-step of the trapezoidal profile
+  fw::Nanos homing_time = 20'000'000;  // homing method 37 completes after this
+  double following_limit = 0.0;  // > 0: following error bit when a stall leaves the position this far behind
 };
 
 struct Cia402TwinStats {
@@ -45,12 +45,12 @@ class Cia402Twin {
   void set_position_callback(PositionCallback cb) { on_position_ = std::move(cb); }
 
   // --- fault injection ---
-  void set_no_response(bool on) { no_response_ = on; }       // ignores every frame, sends nothing
-  void set_heartbeat_loss(bool on) { heartbeat_loss_ = on; } // keeps working, stops heartbeats
+  void set_no_response(bool on) { no_response_ = on; }        // ignores every frame, sends nothing
+  void set_heartbeat_loss(bool on) { heartbeat_loss_ = on; }  // keeps working, stops heartbeats
   void inject_drive_fault(std::uint16_t error_code);          // fault state + EMCY (e.g. 0x2310 overcurrent)
   void set_stall(bool on) { stalled_ = on; }                  // motor does not follow (following error)
   void inject_error_passive(bool on);                         // CAN_ERR_CRTL error frame (passive / active)
-  void inject_bus_off(fw::Nanos duration);                    // bus-off frame, silence, then CAN_ERR_RESTARTED
+  void inject_bus_off(fw::Nanos duration);  // bus-off frame, silence, then CAN_ERR_RESTARTED
   void schedule(fw::Nanos at, std::function<void(Cia402Twin&)> action);  // runs in poll() once now >= at
 
   // --- state ---
@@ -71,8 +71,10 @@ class Cia402Twin {
   void handle(const can_frame& f, fw::Nanos now);
   void handle_sdo(const can_frame& f, fw::Nanos now);
   void handle_controlword(std::uint16_t cw, fw::Nanos now);
-  bool sdo_write(std::uint16_t index, std::uint8_t sub, std::uint32_t v, int size, std::uint32_t& abort, fw::Nanos now);
-  bool sdo_read(std::uint16_t index, std::uint8_t sub, std::uint32_t& v, int& size, std::uint32_t& abort) const;
+  bool sdo_write(std::uint16_t index, std::uint8_t sub, std::uint32_t v, int size, std::uint32_t& abort,
+                 fw::Nanos now);
+  bool sdo_read(std::uint16_t index, std::uint8_t sub, std::uint32_t& v, int& size,
+                std::uint32_t& abort) const;
   void advance(fw::Nanos now);
   void send(const can_frame& f);
   void send_tpdo();

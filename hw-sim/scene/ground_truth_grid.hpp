@@ -1,6 +1,6 @@
 #pragma once
-// Ground truth of a whole scan, for tests of triangulation, segmentation and recognition: for every galvo step
-// k of the calibration (first_step .. first_step + step_count - 1) and every image row r, what an ideal
+// Ground truth of a whole scan, for tests of triangulation, segmentation and recognition: for every galvo
+// step k of the calibration (first_step .. first_step + step_count - 1) and every image row r, what an ideal
 // scanner measures (see stripe_truth.hpp): the 3D point on laser plane(k) that is lit and seen and projects
 // onto row r, its sub-pixel stripe column, object id (0 table, i + 1 scene object i, -1 none) and face id
 // (polygon index in the object's mesh; 0 for the table).
@@ -81,6 +81,7 @@ class GroundTruthGrid {
 };
 
 GroundTruthGrid make_ground_truth_grid(const Scene& scene, const GroundTruthOptions& options = {});
-GroundTruthGrid make_ground_truth_grid(const std::filesystem::path& scene_file, const GroundTruthOptions& options = {});
+GroundTruthGrid make_ground_truth_grid(const std::filesystem::path& scene_file,
+                                       const GroundTruthOptions& options = {});
 
 }  // namespace fs::sim

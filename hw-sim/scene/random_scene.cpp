@@ -19,9 +19,8 @@ double cross2(const Vec2& o, const Vec2& a, const Vec2& b) {
 
 // Andrew's monotone chain, counter-clockwise, no collinear points.
 std::vector<Vec2> convex_hull(std::vector<Vec2> p) {
-  std::sort(p.begin(), p.end(), [](const Vec2& a, const Vec2& b) {
-    return a.x() < b.x() || (a.x() == b.x() && a.y() < b.y());
-  });
+  std::sort(p.begin(), p.end(),
+            [](const Vec2& a, const Vec2& b) { return a.x() < b.x() || (a.x() == b.x() && a.y() < b.y()); });
   if (p.size() < 3) return p;
   std::vector<Vec2> h(2 * p.size());
   std::size_t k = 0;
@@ -63,7 +62,8 @@ double point_segment(const Vec2& p, const Vec2& a, const Vec2& b) {
 double max_extent(const Mesh& m) {
   double d = 0;
   for (std::size_t i = 0; i < m.vertices.size(); ++i)
-    for (std::size_t j = i + 1; j < m.vertices.size(); ++j) d = std::max(d, (m.vertices[i] - m.vertices[j]).norm());
+    for (std::size_t j = i + 1; j < m.vertices.size(); ++j)
+      d = std::max(d, (m.vertices[i] - m.vertices[j]).norm());
   return d;
 }
 
@@ -130,7 +130,8 @@ struct Placer {
     return p.hi.x() - p.lo.x() <= o.x_max - o.x_min && p.hi.y() - p.lo.y() <= o.y_max - o.y_min;
   }
   Vec2 random_position(const Posed& p) {
-    return Vec2(uniform(o.x_min - p.lo.x(), o.x_max - p.hi.x()), uniform(o.y_min - p.lo.y(), o.y_max - p.hi.y()));
+    return Vec2(uniform(o.x_min - p.lo.x(), o.x_max - p.hi.x()),
+                uniform(o.y_min - p.lo.y(), o.y_max - p.hi.y()));
   }
   double min_distance(const std::vector<Vec2>& h) const {
     double d = 1e300;
@@ -160,16 +161,21 @@ struct Placer {
 
 const char* to_string(SceneCategory c) {
   switch (c) {
-    case SceneCategory::single: return "single";
-    case SceneCategory::separated: return "separated";
-    case SceneCategory::occluded: return "occluded";
-    case SceneCategory::empty: return "empty";
+    case SceneCategory::single:
+      return "single";
+    case SceneCategory::separated:
+      return "separated";
+    case SceneCategory::occluded:
+      return "occluded";
+    case SceneCategory::empty:
+      return "empty";
   }
   return "?";
 }
 
 SceneCategory parse_scene_category(const std::string& name) {
-  for (auto c : {SceneCategory::single, SceneCategory::separated, SceneCategory::occluded, SceneCategory::empty})
+  for (auto c :
+       {SceneCategory::single, SceneCategory::separated, SceneCategory::occluded, SceneCategory::empty})
     if (name == to_string(c)) return c;
   throw Error("scene category '" + name + "': expected single, separated, occluded or empty");
 }
@@ -275,7 +281,8 @@ double polygon_distance(const std::vector<Vec2>& a, const std::vector<Vec2>& b) 
   for (const auto* p : {&a, &b}) {
     const auto& q = p == &a ? b : a;
     for (const auto& v : *p)
-      for (std::size_t i = 0; i < q.size(); ++i) d = std::min(d, point_segment(v, q[i], q[(i + 1) % q.size()]));
+      for (std::size_t i = 0; i < q.size(); ++i)
+        d = std::min(d, point_segment(v, q[i], q[(i + 1) % q.size()]));
   }
   return d;
 }
@@ -307,10 +314,11 @@ RandomScene make_random_scene(const std::vector<CatalogEntry>& catalog, const Ra
       return out;
     }
 
-    const int want = o.category == SceneCategory::single
-                         ? 1
-                         : o.min_objects + static_cast<int>(rng.below(static_cast<std::uint64_t>(
-                                               o.max_objects - o.min_objects + 1)));
+    const int want =
+        o.category == SceneCategory::single
+            ? 1
+            : o.min_objects +
+                  static_cast<int>(rng.below(static_cast<std::uint64_t>(o.max_objects - o.min_objects + 1)));
     for (int i = 0; i < want; ++i) {
       bool ok = false;
       for (int attempt = 0; attempt < 60 && !ok; ++attempt) {

@@ -2,14 +2,15 @@
 // Random scenes of convex polyhedra on the table, for recognition benchmarks and tests.
 //
 //   auto catalog = fs::sim::make_catalog(fs::sim::read_catalog_meshes(dir), {.seed = 1});  // sizes 40-80 mm
-//   fs::sim::RandomScene s = fs::sim::make_random_scene(catalog, {.category = SceneCategory::occluded}, seed);
+//   fs::sim::RandomScene s = fs::sim::make_random_scene(catalog, {.category = SceneCategory::occluded},
+//   seed);
 //   // s.scene is ready for make_ground_truth_grid; s.catalog_index[i] = catalog entry of s.scene.objects[i]
 //
 // Every object rests on one of its faces (a "stable" face: the projection of the volume centroid along the
 // face normal falls inside the face), with a random yaw, at z >= 0 touching the table. Objects never
-// interpenetrate: their footprints (convex hulls of the vertices projected onto the table) are disjoint, which
-// for convex solids standing on the same plane implies disjoint volumes. The whole footprint lies inside the
-// placement rectangle. Everything is deterministic per (catalog, options, seed).
+// interpenetrate: their footprints (convex hulls of the vertices projected onto the table) are disjoint,
+// which for convex solids standing on the same plane implies disjoint volumes. The whole footprint lies
+// inside the placement rectangle. Everything is deterministic per (catalog, options, seed).
 #include <cstdint>
 #include <filesystem>
 #include <string>
@@ -32,9 +33,9 @@ SceneCategory parse_scene_category(const std::string& name);
 
 // A mesh scaled to millimetres, with its stable resting faces.
 struct CatalogEntry {
-  Mesh mesh;                  // scaled (mm), model frame
-  double size_mm = 0.0;       // largest extent (max vertex-vertex distance)
-  Vec3 centroid = Vec3::Zero();  // volume centroid
+  Mesh mesh;                      // scaled (mm), model frame
+  double size_mm = 0.0;           // largest extent (max vertex-vertex distance)
+  Vec3 centroid = Vec3::Zero();   // volume centroid
   std::vector<int> stable_faces;  // faces it can rest on
 };
 
@@ -60,9 +61,9 @@ struct RandomSceneOptions {
   int min_objects = 2, max_objects = 4;  // for separated / occluded
   double x_min = -140.0, x_max = 0.0;    // placement rectangle on the table (world mm)
   double y_min = -120.0, y_max = 120.0;
-  double separation_mm = 15.0;           // smallest footprint gap of `separated`
+  double separation_mm = 15.0;                            // smallest footprint gap of `separated`
   double touch_gap_min_mm = 0.5, touch_gap_max_mm = 3.0;  // footprint gap of `occluded` neighbours
-  std::uint32_t steps = 500;             // galvo steps of the scene's calibration (resample_sweep)
+  std::uint32_t steps = 500;  // galvo steps of the scene's calibration (resample_sweep)
 };
 
 struct RandomScene {
@@ -75,7 +76,8 @@ struct RandomScene {
 RandomScene make_random_scene(const std::vector<CatalogEntry>& catalog, const RandomSceneOptions& options,
                               std::uint64_t seed);
 
-// Footprint of a posed scene object (convex hull of its world vertices projected on z = 0, counter-clockwise).
+// Footprint of a posed scene object (convex hull of its world vertices projected on z = 0,
+// counter-clockwise).
 std::vector<Vec2> footprint(const SceneObject& object);
 // Distance between two convex polygons (0 when they overlap or touch).
 double polygon_distance(const std::vector<Vec2>& a, const std::vector<Vec2>& b);

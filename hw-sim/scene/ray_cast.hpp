@@ -32,7 +32,7 @@ class SceneRayCaster {
  private:
   struct Face {
     Plane plane;
-    int drop_axis = 2;             // coordinate dropped for the 2D point-in-polygon test
+    int drop_axis = 2;                   // coordinate dropped for the 2D point-in-polygon test
     std::uint32_t first = 0, count = 0;  // range in poly2_
   };
   struct Object {

@@ -5,8 +5,8 @@
 #include <sstream>
 
 #include "common/error.hpp"
-#include "common/mesh_io.hpp"
 #include "common/json_text.hpp"
+#include "common/mesh_io.hpp"
 
 namespace fs::sim {
 namespace {
@@ -42,7 +42,8 @@ class Fields {
       if (!j[static_cast<std::size_t>(i)].is_array() || j[static_cast<std::size_t>(i)].size() != 3)
         fail(fi, "expected a row of 3 numbers");
       for (int k = 0; k < 3; ++k)
-        r(i, k) = number(j[static_cast<std::size_t>(i)][static_cast<std::size_t>(k)], fi + "[" + std::to_string(k) + "]");
+        r(i, k) = number(j[static_cast<std::size_t>(i)][static_cast<std::size_t>(k)],
+                         fi + "[" + std::to_string(k) + "]");
     }
     if ((r.transpose() * r - Mat3::Identity()).cwiseAbs().maxCoeff() > 1e-6 || r.determinant() < 0)
       fail(field, "not a rotation (needs orthonormal rows and determinant +1, within 1e-6)");
@@ -50,15 +51,16 @@ class Fields {
   }
   Mat3 quaternion(const json& j, const std::string& field) const {
     if (!j.is_array() || j.size() != 4) fail(field, "expected [w, x, y, z]");
-    Eigen::Quaterniond q(number(j[0], field + "[0]"), number(j[1], field + "[1]"), number(j[2], field + "[2]"),
-                         number(j[3], field + "[3]"));
+    Eigen::Quaterniond q(number(j[0], field + "[0]"), number(j[1], field + "[1]"),
+                         number(j[2], field + "[2]"), number(j[3], field + "[3]"));
     if (q.norm() < 1e-9) fail(field, "zero quaternion");
     return q.normalized().toRotationMatrix();
   }
   std::uint32_t count(const json& j, const std::string& field, std::uint32_t min, std::uint32_t max) const {
     if (!j.is_number_integer()) fail(field, "expected an integer");
     const auto v = j.get<long long>();
-    if (v < min || v > max) fail(field, "must be in [" + std::to_string(min) + ", " + std::to_string(max) + "]");
+    if (v < min || v > max)
+      fail(field, "must be in [" + std::to_string(min) + ", " + std::to_string(max) + "]");
     return static_cast<std::uint32_t>(v);
   }
   void only_keys(const json& j, const std::string& field, std::initializer_list<const char*> keys) const {
@@ -76,11 +78,20 @@ class Fields {
 
 void parse_camera(const json& j, CameraModel& cam, const Fields& f) {
   const std::string F = "scanner.camera";
-  f.only_keys(j, F, {"width", "height", "fx", "fy", "cx", "cy", "k1", "k2", "k3", "p1", "p2", "rotation", "position"});
+  f.only_keys(
+      j, F,
+      {"width", "height", "fx", "fy", "cx", "cy", "k1", "k2", "k3", "p1", "p2", "rotation", "position"});
   if (j.contains("width")) cam.width = f.count(j["width"], F + ".width", 16, 16384);
   if (j.contains("height")) cam.height = f.count(j["height"], F + ".height", 16, 16384);
-  for (auto [key, ptr] : {std::pair{"fx", &cam.fx}, {"fy", &cam.fy}, {"cx", &cam.cx}, {"cy", &cam.cy},
-                          {"k1", &cam.k1}, {"k2", &cam.k2}, {"k3", &cam.k3}, {"p1", &cam.p1}, {"p2", &cam.p2}})
+  for (auto [key, ptr] : {std::pair{"fx", &cam.fx},
+                          {"fy", &cam.fy},
+                          {"cx", &cam.cx},
+                          {"cy", &cam.cy},
+                          {"k1", &cam.k1},
+                          {"k2", &cam.k2},
+                          {"k3", &cam.k3},
+                          {"p1", &cam.p1},
+                          {"p2", &cam.p2}})
     if (j.contains(key)) *ptr = f.number(j[key], F + "." + key);
   if (cam.fx <= 0) f.fail(F + ".fx", "must be positive");
   if (cam.fy <= 0) f.fail(F + ".fy", "must be positive");
@@ -90,10 +101,13 @@ void parse_camera(const json& j, CameraModel& cam, const Fields& f) {
 
 void parse_laser(const json& j, LaserModel& laser, const Fields& f) {
   const std::string F = "scanner.laser";
-  f.only_keys(j, F, {"axis_point", "axis_dir", "normal_at_zero", "optical_gain", "mirror_angle_at_step0", "rad_per_step"});
+  f.only_keys(
+      j, F,
+      {"axis_point", "axis_dir", "normal_at_zero", "optical_gain", "mirror_angle_at_step0", "rad_per_step"});
   if (j.contains("axis_point")) laser.axis_point = f.vec3(j["axis_point"], F + ".axis_point");
   if (j.contains("axis_dir")) laser.axis_dir = f.unit3(j["axis_dir"], F + ".axis_dir");
-  if (j.contains("normal_at_zero")) laser.normal_at_zero = f.unit3(j["normal_at_zero"], F + ".normal_at_zero");
+  if (j.contains("normal_at_zero"))
+    laser.normal_at_zero = f.unit3(j["normal_at_zero"], F + ".normal_at_zero");
   if (std::abs(laser.normal_at_zero.dot(laser.axis_dir)) > 1e-6)
     f.fail(F + ".normal_at_zero", "must be perpendicular to axis_dir (the plane contains the mirror axis)");
   if (j.contains("optical_gain")) laser.optical_gain = f.number(j["optical_gain"], F + ".optical_gain");
@@ -151,7 +165,8 @@ void add_object(Scene& scene, Mesh mesh, const Mat3& rotation, const Vec3& trans
 void resample_sweep(ScannerCalibration& c, std::uint32_t steps) {
   if (steps == 0) throw Error("resample_sweep: zero steps");
   const double first = c.laser.mirror_angle(c.first_step);
-  const double last = c.laser.mirror_angle(static_cast<double>(c.first_step) + (c.step_count > 0 ? c.step_count - 1 : 0));
+  const double last =
+      c.laser.mirror_angle(static_cast<double>(c.first_step) + (c.step_count > 0 ? c.step_count - 1 : 0));
   c.step_count = steps;
   c.laser.rad_per_step = steps > 1 ? (last - first) / static_cast<double>(steps - 1) : 0.0;
   c.laser.mirror_angle_at_step0 = first - static_cast<double>(c.first_step) * c.laser.rad_per_step;
@@ -194,12 +209,15 @@ Scene parse_scene(const json& doc, const std::filesystem::path& base_dir, const 
     const std::string F = "objects[" + std::to_string(i) + "]";
     const json& o = objs[i];
     f.only_keys(o, F, {"model", "rotation", "quaternion", "translation", "scale", "name"});
-    if (!o.contains("model") || !o["model"].is_string()) f.fail(F + ".model", "expected a mesh path (string)");
+    if (!o.contains("model") || !o["model"].is_string())
+      f.fail(F + ".model", "expected a mesh path (string)");
     std::filesystem::path model = o["model"].get<std::string>();
     if (model.empty()) f.fail(F + ".model", "empty path");
-    if (!model.has_extension() && !model.has_parent_path()) model = std::filesystem::path("meshes") / (model.string() + ".off");
+    if (!model.has_extension() && !model.has_parent_path())
+      model = std::filesystem::path("meshes") / (model.string() + ".off");
     const std::filesystem::path resolved = model.is_absolute() ? model : base_dir / model;
-    if (o.contains("rotation") && o.contains("quaternion")) f.fail(F, "give either rotation or quaternion, not both");
+    if (o.contains("rotation") && o.contains("quaternion"))
+      f.fail(F, "give either rotation or quaternion, not both");
     Mat3 r = Mat3::Identity();
     if (o.contains("rotation")) r = f.rotation(o["rotation"], F + ".rotation");
     if (o.contains("quaternion")) r = f.quaternion(o["quaternion"], F + ".quaternion");

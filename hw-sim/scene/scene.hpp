@@ -15,7 +15,8 @@
 //                 "laser": {"axis_point", "axis_dir", "normal_at_zero", "optical_gain",
 //                           "mirror_angle_at_step0", "rad_per_step"}}
 //   }
-// Errors are fs::Error naming the file and the JSON field, e.g. "s.json: objects[1].rotation: not a rotation".
+// Errors are fs::Error naming the file and the JSON field, e.g. "s.json: objects[1].rotation: not a
+// rotation".
 #include <cstdint>
 #include <filesystem>
 #include <string>
@@ -56,7 +57,8 @@ struct Scene {
 // Loads a scene file; meshes are read with fs::read_mesh relative to the file's folder.
 Scene load_scene(const std::filesystem::path& path);
 // Parses an already-read JSON document; `base_dir` resolves model paths, `source` names it in errors.
-Scene parse_scene(const nlohmann::json& doc, const std::filesystem::path& base_dir, const std::string& source);
+Scene parse_scene(const nlohmann::json& doc, const std::filesystem::path& base_dir,
+                  const std::string& source);
 
 // Changes the number of galvo steps while keeping the sweep (the first and last step's mirror angles): fewer
 // steps make cheaper ground-truth grids for tests.

@@ -35,8 +35,8 @@ void write_truth_csv(const std::string& path, std::span<const StripeSample> rows
   for (std::size_t r = 0; r < rows.size(); ++r) {
     const StripeSample& s = rows[r];
     if (!s.valid()) continue;
-    out << fmt::format("{},{:.6f},{:.6f},{:.6f},{:.6f},{},{}\n", r, s.column, s.point.x(), s.point.y(), s.point.z(),
-                       s.object, s.face);
+    out << fmt::format("{},{:.6f},{:.6f},{:.6f},{:.6f},{},{}\n", r, s.column, s.point.x(), s.point.y(),
+                       s.point.z(), s.object, s.face);
   }
   if (!out) throw Error(path + ": write error");
 }
@@ -58,18 +58,21 @@ void run(const SimFrameArgs& a) {
   fb.data = reinterpret_cast<std::uint8_t*>(pixels.data());
   renderer.render_step(a.step, a.seed, fb);
   if (a.mono16) {
-    write_png_gray16(a.output, cam.width, cam.height,
-                     std::span<const std::uint16_t>(pixels.data(), static_cast<std::size_t>(cam.width) * cam.height),
-                     cam.width);
+    write_png_gray16(
+        a.output, cam.width, cam.height,
+        std::span<const std::uint16_t>(pixels.data(), static_cast<std::size_t>(cam.width) * cam.height),
+        cam.width);
   } else {
     write_png_gray8(a.output, cam.width, cam.height,
-                    std::span<const std::uint8_t>(fb.data, static_cast<std::size_t>(fb.stride) * cam.height), fb.stride);
+                    std::span<const std::uint8_t>(fb.data, static_cast<std::size_t>(fb.stride) * cam.height),
+                    fb.stride);
   }
   if (!a.truth.empty()) write_truth_csv(a.truth, renderer.truth());
   std::size_t rows = 0;
   for (const StripeSample& s : renderer.truth()) rows += s.valid() ? 1 : 0;
   fmt::print("{}: step {} (mirror {:.6f} rad), {} rows with stripe, {}x{} {}\n", a.output, a.step,
-             scene.calibration.laser.mirror_angle(a.step), rows, cam.width, cam.height, a.mono16 ? "Mono16" : "Mono8");
+             scene.calibration.laser.mirror_angle(a.step), rows, cam.width, cam.height,
+             a.mono16 ? "Mono16" : "Mono8");
 }
 
 }  // namespace

@@ -84,7 +84,8 @@ void StripeRenderer::build_speckle_tile() {
   for (float& v : tile_) v = (v - m) * inv;
 }
 
-void StripeRenderer::stripe_shape(const StripeSample& s, const Plane& laser, float& peak, float& sigma) const {
+void StripeRenderer::stripe_shape(const StripeSample& s, const Plane& laser, float& peak,
+                                  float& sigma) const {
   const RenderOptions& o = options_;
   const CameraModel& cam = scene_->calibration.camera;
   const double sheet = o.sheet_sigma_mm + o.sheet_divergence * s.laser_distance;
@@ -181,12 +182,15 @@ void StripeRenderer::render(double mirror_angle_rad, std::uint64_t seed, const F
   const CameraModel& cam = scene_->calibration.camera;
   if (frame.width != cam.width || frame.height != cam.height)
     throw Error("sim renderer: frame " + std::to_string(frame.width) + "x" + std::to_string(frame.height) +
-                " does not match the camera's " + std::to_string(cam.width) + "x" + std::to_string(cam.height));
+                " does not match the camera's " + std::to_string(cam.width) + "x" +
+                std::to_string(cam.height));
   const std::uint32_t bpp = frame.format == FrameFormat::Mono16 ? 2 : 1;
   if (frame.data == nullptr || frame.stride < frame.width * bpp)
-    throw Error("sim renderer: frame buffer missing or stride " + std::to_string(frame.stride) + " too small");
+    throw Error("sim renderer: frame buffer missing or stride " + std::to_string(frame.stride) +
+                " too small");
   if (bpp == 2 && (frame.stride % 2 != 0 || reinterpret_cast<std::uintptr_t>(frame.data) % 2 != 0))
-    throw Error("sim renderer: Mono16 frames need 2-byte aligned rows (stride " + std::to_string(frame.stride) + ")");
+    throw Error("sim renderer: Mono16 frames need 2-byte aligned rows (stride " +
+                std::to_string(frame.stride) + ")");
   if (effective_grain(options_.speckle_grain_px) != tile_grain_) build_speckle_tile();
   laser_ = scene_->calibration.laser.plane_at_mirror_angle(mirror_angle_rad);
   tracer_.trace(laser_, truth_);
@@ -198,8 +202,10 @@ void StripeRenderer::render(double mirror_angle_rad, std::uint64_t seed, const F
   // The frame's noise depends on the seed and the angle only.
   std::uint64_t mix = seed ^ std::bit_cast<std::uint64_t>(mirror_angle_rad);
   const std::uint64_t frame_seed = splitmix64(mix);
-  if (frame.format == FrameFormat::Mono16) draw<std::uint16_t>(frame, frame_seed, 65535.0);
-  else draw<std::uint8_t>(frame, frame_seed, 255.0);
+  if (frame.format == FrameFormat::Mono16)
+    draw<std::uint16_t>(frame, frame_seed, 65535.0);
+  else
+    draw<std::uint8_t>(frame, frame_seed, 255.0);
 }
 
 }  // namespace fs::sim

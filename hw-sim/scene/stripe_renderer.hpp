@@ -1,11 +1,11 @@
 #pragma once
-// Renders the camera frame of a laser-stripe scanner for one mirror angle: ambient light with sensor noise over
-// the whole frame (precomputed Gaussian noise table read at random row offsets: cheap), and, per image row,
-// the stripe as a Gaussian profile centred exactly on the ground-truth column (stripe_truth.hpp) whose width
-// grows with the laser sheet's thickness at that distance and with the incidence angle, and whose peak falls
-// with distance squared and with the cosine of incidence; speckle (multiplicative) and shot noise on the
-// stripe, saturation at full scale, and optionally a spurious reflection (a weaker, wider ghost stripe next to
-// the real one where the laser hits an object). Only the pixels near the stripe are computed per row.
+// Renders the camera frame of a laser-stripe scanner for one mirror angle: ambient light with sensor noise
+// over the whole frame (precomputed Gaussian noise table read at random row offsets: cheap), and, per image
+// row, the stripe as a Gaussian profile centred exactly on the ground-truth column (stripe_truth.hpp) whose
+// width grows with the laser sheet's thickness at that distance and with the incidence angle, and whose peak
+// falls with distance squared and with the cosine of incidence; speckle (multiplicative) and shot noise on
+// the stripe, saturation at full scale, and optionally a spurious reflection (a weaker, wider ghost stripe
+// next to the real one where the laser hits an object). Only the pixels near the stripe are computed per row.
 //
 // All buffers are allocated in the constructor; render() does not allocate. Deterministic for (angle, seed).
 #include <cstdint>
@@ -28,27 +28,27 @@ struct FrameBuffer {
 
 // Light levels are in 8-bit digital numbers (DN); Mono16 frames are scaled by 257 (full scale 65535).
 struct RenderOptions {
-  double ambient = 14.0;              // background level
-  double laser_peak = 210.0;          // stripe peak on a surface facing the mirror at reference_distance_mm
+  double ambient = 14.0;      // background level
+  double laser_peak = 210.0;  // stripe peak on a surface facing the mirror at reference_distance_mm
   double reference_distance_mm = 500.0;
-  double sheet_sigma_mm = 0.35;       // laser sheet half-thickness (Gaussian sigma) at the waist
-  double sheet_divergence = 0.0006;   // sigma growth, mm per mm of distance from the mirror
-  double min_sigma_px = 0.7;          // optics blur: the stripe is never narrower than this (sigma, px)
-  double max_sigma_px = 12.0;         // grazing incidence: cap on the width
-  double sensor_noise = 1.5;          // read noise sigma, DN (whole frame)
-  double shot_noise = 0.35;           // shot noise sigma = shot_noise * sqrt(signal), DN
-  double speckle = 0.12;              // relative sigma of the multiplicative speckle on stripe pixels
+  double sheet_sigma_mm = 0.35;      // laser sheet half-thickness (Gaussian sigma) at the waist
+  double sheet_divergence = 0.0006;  // sigma growth, mm per mm of distance from the mirror
+  double min_sigma_px = 0.7;         // optics blur: the stripe is never narrower than this (sigma, px)
+  double max_sigma_px = 12.0;        // grazing incidence: cap on the width
+  double sensor_noise = 1.5;         // read noise sigma, DN (whole frame)
+  double shot_noise = 0.35;          // shot noise sigma = shot_noise * sqrt(signal), DN
+  double speckle = 0.12;             // relative sigma of the multiplicative speckle on stripe pixels
   // Speckle grain: the correlation length (px) of the speckle pattern, along the row and between rows (its
   // correlation at a distance of d pixels is exp(-d^2 / (2 grain^2))). 0 = independent per pixel (the
   // default, and the README's numbers unless they name a grain); a real laser's subjective speckle is about a
   // pixel or more
   // (~1.2 lambda F# (1 + M) on the sensor), correlated in both directions. Kept at most kMaxSpeckleGrainPx.
   double speckle_grain_px = 0.0;
-  double noise_scale = 1.0;           // multiplies sensor_noise, shot_noise and speckle (0 = noise-free)
+  double noise_scale = 1.0;  // multiplies sensor_noise, shot_noise and speckle (0 = noise-free)
   bool spurious_reflection = false;
-  double reflection_gain = 0.35;      // ghost peak relative to the stripe's
-  double reflection_offset_px = 18.0; // ghost column = true column + offset (toward larger u)
-  double reflection_width = 2.5;      // ghost sigma relative to the stripe's
+  double reflection_gain = 0.35;       // ghost peak relative to the stripe's
+  double reflection_offset_px = 18.0;  // ghost column = true column + offset (toward larger u)
+  double reflection_width = 2.5;       // ghost sigma relative to the stripe's
 };
 
 constexpr double kMaxSpeckleGrainPx = 8.0;

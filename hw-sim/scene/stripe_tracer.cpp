@@ -28,13 +28,15 @@ StripeTracer::StripeTracer(const Scene& scene) : scene_(&scene), caster_(scene) 
     for (const Vec2& px : {Vec2(f * w, 0), Vec2(f * w, h), Vec2(0, f * h), Vec2(w, f * h)}) {
       Vec3 hit;
       const Vec3 dir = cam.ray_world(px);
-      if (intersect_ray_plane(cam.center(), dir, table, 1e-9, hit) && (hit - cam.center()).norm() < kFarTable) {
+      if (intersect_ray_plane(cam.center(), dir, table, 1e-9, hit) &&
+          (hit - cam.center()).norm() < kFarTable) {
         table_footprint_.push_back(hit);
       } else {
         // Horizon in view: use a far point along the ray's projection onto the table.
         const Vec3 along = (dir - table.n * table.n.dot(dir));
         const Vec3 foot = cam.center() - table.n * table.signed_distance(cam.center());
-        table_footprint_.push_back(foot + (along.norm() > 1e-9 ? along.normalized() : Vec3::UnitX()) * kFarTable);
+        table_footprint_.push_back(foot +
+                                   (along.norm() > 1e-9 ? along.normalized() : Vec3::UnitX()) * kFarTable);
       }
     }
   }
@@ -85,7 +87,8 @@ void StripeTracer::add_face_segments(const Plane& laser, std::size_t oi) {
 
 void StripeTracer::add_table_segment(const Plane& laser) {
   const Plane& table = scene_->calibration.table;
-  if (table.signed_distance(laser_origin()) <= 0 || table.signed_distance(scene_->calibration.camera.center()) <= 0)
+  if (table.signed_distance(laser_origin()) <= 0 ||
+      table.signed_distance(scene_->calibration.camera.center()) <= 0)
     return;
   const Vec3 dir = laser.n.cross(table.n);
   if (dir.squaredNorm() < 1e-18) return;

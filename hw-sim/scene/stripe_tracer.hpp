@@ -42,7 +42,7 @@ class StripeTracer {
   const Scene* scene_;
   SceneRayCaster caster_;
   std::vector<Segment> segments_;
-  std::vector<double> crossings_;  // scratch: polygon edge crossings along the cut line
+  std::vector<double> crossings_;      // scratch: polygon edge crossings along the cut line
   std::vector<Vec3> table_footprint_;  // camera view rays hitting the table (precomputed)
 };
 

@@ -13,7 +13,9 @@ namespace fs::test {
 
 struct CanRig {
   explicit CanRig(fw::Cia402Config mcfg = {}, sim::Cia402TwinConfig tcfg = {})
-      : fds(fw::CanPort::socketpair_fds()), port(fds[0], true), master(port, mcfg),
+      : fds(fw::CanPort::socketpair_fds()),
+        port(fds[0], true),
+        master(port, mcfg),
         twin(fds[1], clock, tcfg) {}
   ~CanRig() { ::close(fds[1]); }
 

@@ -112,7 +112,7 @@ TEST(Cia402Master, DriveFaultIsReportedWithItsEmcyCodeAndReset) {
   EXPECT_EQ(rig.master.diagnostics().drive_state, DriveState::Fault);
   const double stopped_at = rig.twin.position();
   rig.run_for(100 * kMs);
-  EXPECT_EQ(rig.twin.position(), stopped_at);  // a faulted drive does not move
+  EXPECT_EQ(rig.twin.position(), stopped_at);           // a faulted drive does not move
   EXPECT_EQ(rig.status.fault, GalvoFault::DriveFault);  // stays until reset
 
   rig.master.reset_fault(rig.clock.now());
@@ -131,7 +131,8 @@ TEST(Cia402Master, NoResponseIsCommLostAfterTheSdoRetries) {
   rig.twin.set_no_response(true);
   const fw::Nanos t0 = rig.clock.now();
   rig.master.enable(t0);
-  ASSERT_TRUE(rig.run_until([](const fw::GalvoStatus& s) { return s.fault != GalvoFault::None; }, 1000 * kMs));
+  ASSERT_TRUE(
+      rig.run_until([](const fw::GalvoStatus& s) { return s.fault != GalvoFault::None; }, 1000 * kMs));
   EXPECT_EQ(rig.status.fault, GalvoFault::CommLost);
   const fw::Nanos took = rig.clock.now() - t0;
   EXPECT_GT(took, 150 * kMs);  // 3 attempts of 50 ms
@@ -151,7 +152,8 @@ TEST(Cia402Master, HeartbeatLossIsDetectedWithinThreeProducerPeriods) {
   ASSERT_TRUE(rig.status.enabled);
   rig.twin.set_heartbeat_loss(true);
   const fw::Nanos last_hb = rig.twin.last_heartbeat_sent();
-  ASSERT_TRUE(rig.run_until([](const fw::GalvoStatus& s) { return s.fault != GalvoFault::None; }, 1000 * kMs));
+  ASSERT_TRUE(
+      rig.run_until([](const fw::GalvoStatus& s) { return s.fault != GalvoFault::None; }, 1000 * kMs));
   EXPECT_EQ(rig.status.fault, GalvoFault::CommLost);
   const fw::Nanos latency = rig.clock.now() - last_hb;
   EXPECT_GT(latency, 200 * kMs);  // consumer time 2x producer: no false alarm on one late heartbeat
@@ -169,7 +171,8 @@ TEST(Cia402Master, SilentDriveWhileOperationalIsCaughtByTheHeartbeatConsumer) {
   CanRig rig;  // 100 ms producer
   ASSERT_TRUE(rig.enable());
   rig.twin.schedule(rig.clock.now() + 250 * kMs, [](sim::Cia402Twin& t) { t.set_no_response(true); });
-  ASSERT_TRUE(rig.run_until([](const fw::GalvoStatus& s) { return s.fault != GalvoFault::None; }, 1000 * kMs));
+  ASSERT_TRUE(
+      rig.run_until([](const fw::GalvoStatus& s) { return s.fault != GalvoFault::None; }, 1000 * kMs));
   EXPECT_EQ(rig.status.fault, GalvoFault::CommLost);
 }
 
@@ -296,8 +299,8 @@ TEST(Cia402Master, JunkFramesFromTheBusAreIgnored) {
       fw::cia402::make_frame(0x181 + 1, 6),  // TPDO of node 2
       fw::cia402::make_frame(0x581, 3),      // short SDO response
       fw::cia402::make_frame(0x701 | CAN_EFF_FLAG, 1),
-      fw::cia402::make_frame(0x081, 1),      // short EMCY
-      fw::cia402::make_frame(0x181, 2),      // short TPDO
+      fw::cia402::make_frame(0x081, 1),  // short EMCY
+      fw::cia402::make_frame(0x181, 2),  // short TPDO
   };
   for (const auto& f : junk) ASSERT_EQ(::write(rig.fds[1], &f, sizeof f), static_cast<ssize_t>(sizeof f));
   rig.run_for(20 * kMs);

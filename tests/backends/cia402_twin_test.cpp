@@ -37,7 +37,8 @@ struct TwinRig {
     }
   }
   // SDO write; returns the response command byte (0x60 ok, 0x80 abort) and the abort code.
-  std::pair<std::uint8_t, std::uint32_t> write(std::uint16_t idx, std::uint8_t sub, std::uint32_t v, std::uint8_t n) {
+  std::pair<std::uint8_t, std::uint32_t> write(std::uint16_t idx, std::uint8_t sub, std::uint32_t v,
+                                               std::uint8_t n) {
     drain();
     send(sdo_write(1, idx, sub, v, n));
     auto r = recv_id(kSdoTx + 1);

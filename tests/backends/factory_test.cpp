@@ -6,8 +6,8 @@
 #include "firmware/backends/factory.hpp"
 #include "firmware/backends/gpiod_lines.hpp"
 #include "hw-sim/can/cia402_twin.hpp"
-#include "test_clock.hpp"
 #include "support/error_of.hpp"
+#include "test_clock.hpp"
 
 namespace fs::test {
 namespace {
@@ -24,7 +24,8 @@ TEST(BackendSpecs, GpioByOffsetsAndNames) {
   EXPECT_EQ(g.laser.offset, 4);
   EXPECT_TRUE(g.home_active_low);
   EXPECT_FALSE(g.enable_active_low);
-  g = fw::parse_gpio_spec("gpio:/dev/gpiochip0:step=GALVO_STEP,dir=GALVO_DIR,en=EN,home=HOME,en_active_low=1");
+  g = fw::parse_gpio_spec(
+      "gpio:/dev/gpiochip0:step=GALVO_STEP,dir=GALVO_DIR,en=EN,home=HOME,en_active_low=1");
   EXPECT_EQ(g.chip, "/dev/gpiochip0");
   EXPECT_EQ(g.step.name, "GALVO_STEP");
   EXPECT_EQ(g.step.offset, -1);
@@ -35,17 +36,20 @@ TEST(BackendSpecs, GpioByOffsetsAndNames) {
 TEST(BackendSpecs, GpioErrorsNameTheProblem) {
   EXPECT_NE(error_of([] { fw::parse_gpio_spec("gpio:chip:step=0,dir=1,en=2"); }).find("missing line 'home='"),
             std::string::npos);
-  EXPECT_NE(error_of([] { fw::parse_gpio_spec("gpio:chip:step=0,dir=1,en=2,home=3,foo=1"); })
-                .find("unknown key 'foo'"),
+  EXPECT_NE(error_of([] {
+              fw::parse_gpio_spec("gpio:chip:step=0,dir=1,en=2,home=3,foo=1");
+            }).find("unknown key 'foo'"),
             std::string::npos);
   EXPECT_NE(error_of([] { fw::parse_gpio_spec("gpio:chip:step=0,dir=0,en=2,home=3"); }).find("twice"),
             std::string::npos);
   EXPECT_NE(error_of([] { fw::parse_gpio_spec("gpio:chip:step=0,step=1,en=2,home=3"); }).find("given twice"),
             std::string::npos);
-  EXPECT_NE(error_of([] { fw::parse_gpio_spec("gpio:chip:step"); }).find("expected key=value"), std::string::npos);
+  EXPECT_NE(error_of([] { fw::parse_gpio_spec("gpio:chip:step"); }).find("expected key=value"),
+            std::string::npos);
   EXPECT_NE(error_of([] { fw::parse_gpio_spec("gpio:chip"); }).find("expected gpio:CHIP"), std::string::npos);
-  EXPECT_NE(error_of([] { fw::parse_gpio_spec("gpio:chip:step=0,dir=1,en=2,home=3,home_active_low=2"); })
-                .find("not a boolean"),
+  EXPECT_NE(error_of([] {
+              fw::parse_gpio_spec("gpio:chip:step=0,dir=1,en=2,home=3,home_active_low=2");
+            }).find("not a boolean"),
             std::string::npos);
   EXPECT_NE(error_of([] { fw::parse_gpio_spec("gpio::step=0"); }).find("empty field"), std::string::npos);
   EXPECT_NE(error_of([] { fw::parse_gpio_spec("gpio:c:step=99999,dir=1,en=2,home=3"); }).find("out of range"),
@@ -67,7 +71,8 @@ TEST(BackendSpecs, Can) {
   EXPECT_EQ(c.node, 9);
   EXPECT_NE(error_of([] { fw::parse_can_spec("can:can0:node=0"); }).find("node=0 out of range 1..127"),
             std::string::npos);
-  EXPECT_NE(error_of([] { fw::parse_can_spec("can:can0:node=x"); }).find("not an integer"), std::string::npos);
+  EXPECT_NE(error_of([] { fw::parse_can_spec("can:can0:node=x"); }).find("not an integer"),
+            std::string::npos);
   EXPECT_NE(error_of([] { fw::parse_can_spec("can:averyveryverylongname"); }).find("longer than 15"),
             std::string::npos);
   EXPECT_NE(error_of([] { fw::parse_can_spec("cam:can0"); }).find("can:IFACE"), std::string::npos);
@@ -101,11 +106,13 @@ TEST(BackendSpecs, GpioLaser) {
             std::string::npos);
   EXPECT_NE(error_of([] { fw::parse_gpio_laser_spec("gpio:c:line=1,step=2"); }).find("unknown key 'step'"),
             std::string::npos);
-  EXPECT_NE(error_of([] { fw::make_gpio_laser("gpio:gpiochip97:line=1"); }).find("gpiochip97"), std::string::npos);
+  EXPECT_NE(error_of([] { fw::make_gpio_laser("gpio:gpiochip97:line=1"); }).find("gpiochip97"),
+            std::string::npos);
 }
 
 TEST(BackendOpen, MissingDevicesGiveClearErrors) {
-  const std::string gpio = error_of([] { fw::make_gpio_backend("gpio:gpiochip97:step=0,dir=1,en=2,home=3"); });
+  const std::string gpio =
+      error_of([] { fw::make_gpio_backend("gpio:gpiochip97:step=0,dir=1,en=2,home=3"); });
   EXPECT_NE(gpio.find("gpiochip97"), std::string::npos) << gpio;
   const std::string can = error_of([] { fw::make_can_galvo("can:nosuchcan9"); });
   EXPECT_NE(can.find("nosuchcan9"), std::string::npos) << can;

@@ -1,16 +1,16 @@
 #pragma once
 // An fd-level fake V4L2 capture driver behind fw::V4l2Io: QUERYCAP, S_FMT, G/S_PARM, QUERYCTRL/S_CTRL,
 // REQBUFS/QUERYBUF/QBUF/DQBUF, STREAMON/OFF and mmap, with the driver's queue discipline (only queued buffers
-// get filled; DQBUF says EAGAIN when nothing is done), plus injectable EINTR, error buffers, sequence gaps and
-// timestamp flags. Time passes in poll_in() on a ManualClock.
+// get filled; DQBUF says EAGAIN when nothing is done), plus injectable EINTR, error buffers, sequence gaps
+// and timestamp flags. Time passes in poll_in() on a ManualClock.
 #include <linux/videodev2.h>
 
+#include <sys/mman.h>
 #include <cerrno>
 #include <cstring>
 #include <deque>
 #include <functional>
 #include <set>
-#include <sys/mman.h>
 #include <vector>
 
 #include "firmware/backends/v4l2_device.hpp"
@@ -27,8 +27,8 @@ class FakeV4l2 final : public fw::V4l2Io {
   std::set<std::uint32_t> formats = {V4L2_PIX_FMT_GREY, V4L2_PIX_FMT_Y16, V4L2_PIX_FMT_YUYV};
   std::uint32_t fallback_format = V4L2_PIX_FMT_YUYV;
   std::uint32_t max_width = 1280, max_height = 1024;
-  std::uint32_t stride_pad = 0;         // extra bytes per line
-  std::uint32_t grant_buffers = 0;      // 0: as many as requested
+  std::uint32_t stride_pad = 0;     // extra bytes per line
+  std::uint32_t grant_buffers = 0;  // 0: as many as requested
   bool timeperframe = true;
   bool exposure_ctrl = true;
   std::int32_t exposure_min = 1, exposure_max = 5000;
@@ -43,8 +43,9 @@ class FakeV4l2 final : public fw::V4l2Io {
   int open_fds = 0, mapped = 0;
 
   // Fills the next queued buffer (fill(data, stride)) and makes it ready for DQBUF. False if none is queued.
-  bool produce(std::uint32_t sequence, fw::Nanos ts, const std::function<void(std::uint8_t*, std::uint32_t)>& fill,
-               std::uint32_t extra_flags = 0, std::uint32_t bytesused = 0) {
+  bool produce(std::uint32_t sequence, fw::Nanos ts,
+               const std::function<void(std::uint8_t*, std::uint32_t)>& fill, std::uint32_t extra_flags = 0,
+               std::uint32_t bytesused = 0) {
     if (!streaming || queued_.empty()) return false;
     const int i = queued_.front();
     queued_.pop_front();
@@ -153,9 +154,12 @@ class FakeV4l2 final : public fw::V4l2Io {
       }
       case VIDIOC_S_CTRL: {
         auto* c = static_cast<v4l2_control*>(arg);
-        if (c->id == V4L2_CID_EXPOSURE_AUTO) manual_exposure = c->value == V4L2_EXPOSURE_MANUAL;
-        else if (c->id == V4L2_CID_EXPOSURE_ABSOLUTE && manual_exposure) exposure = c->value;
-        else return fail(EINVAL);
+        if (c->id == V4L2_CID_EXPOSURE_AUTO)
+          manual_exposure = c->value == V4L2_EXPOSURE_MANUAL;
+        else if (c->id == V4L2_CID_EXPOSURE_ABSOLUTE && manual_exposure)
+          exposure = c->value;
+        else
+          return fail(EINVAL);
         return 0;
       }
       case VIDIOC_REQBUFS: {
@@ -211,7 +215,8 @@ class FakeV4l2 final : public fw::V4l2Io {
         queued_.clear();
         done_.clear();
         return 0;
-      default: return fail(ENOTTY);
+      default:
+        return fail(ENOTTY);
     }
   }
 

@@ -27,13 +27,22 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     std::memcpy(&f, data + off + 1, sizeof f);
     const std::uint8_t op = data[off];
     switch (op % 8) {
-      case 0: master.move_to(static_cast<std::int32_t>(f.can_id), clock.now()); break;
-      case 1: master.reset_fault(clock.now()); break;
-      case 2: master.start_homing(clock.now()); break;
-      default: break;
+      case 0:
+        master.move_to(static_cast<std::int32_t>(f.can_id), clock.now());
+        break;
+      case 1:
+        master.reset_fault(clock.now());
+        break;
+      case 2:
+        master.start_homing(clock.now());
+        break;
+      default:
+        break;
     }
-    if (op & 0x80) (void)::write(fds[1], &f, sizeof f);   // to the master
-    else (void)::write(fds2[0], &f, sizeof f);            // to twin2
+    if (op & 0x80)
+      (void)::write(fds[1], &f, sizeof f);  // to the master
+    else
+      (void)::write(fds2[0], &f, sizeof f);  // to twin2
     clock.advance(test::kMs * (1 + (op & 0x0F)));
     twin.poll();
     twin2.poll();

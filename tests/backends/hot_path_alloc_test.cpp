@@ -1,5 +1,5 @@
-// The backends' hot paths allocate nothing after warm-up: CiA 402 master + twin polling with moves, V4L2 grab and
-// release.
+// The backends' hot paths allocate nothing after warm-up: CiA 402 master + twin polling with moves, V4L2 grab
+// and release.
 #include <gtest/gtest.h>
 
 #include "can_rig.hpp"

@@ -1,4 +1,5 @@
-// V4l2Camera against the fd-level fake driver: negotiation, streaming, zero copy, drops, EINTR/EAGAIN, timeouts.
+// V4l2Camera against the fd-level fake driver: negotiation, streaming, zero copy, drops, EINTR/EAGAIN,
+// timeouts.
 #include <gtest/gtest.h>
 
 #include "common/error.hpp"
@@ -68,7 +69,8 @@ TEST(V4l2Camera, RefusesWhatItCannotUse) {
   {
     FakeV4l2 fake(clock);
     fake.device_caps = V4L2_CAP_VIDEO_CAPTURE | V4L2_CAP_READWRITE;
-    EXPECT_NE(error_of([&] { fw::V4l2Camera cam(spec(), fake); }).find("no streaming I/O"), std::string::npos);
+    EXPECT_NE(error_of([&] { fw::V4l2Camera cam(spec(), fake); }).find("no streaming I/O"),
+              std::string::npos);
   }
   {
     FakeV4l2 fake(clock);
@@ -89,7 +91,8 @@ TEST(V4l2Camera, RefusesWhatItCannotUse) {
     FakeV4l2 fake(clock);
     auto s = spec();
     s.device = "/dev/nothing";
-    EXPECT_NE(error_of([&] { fw::V4l2Camera cam(s, fake); }).find("'/dev/nothing': cannot open"), std::string::npos);
+    EXPECT_NE(error_of([&] { fw::V4l2Camera cam(s, fake); }).find("'/dev/nothing': cannot open"),
+              std::string::npos);
   }
 }
 
@@ -152,7 +155,8 @@ TEST(V4l2Camera, SequenceGapsAndErrorBuffersCountAsDrops) {
   fw::V4l2Camera cam(spec(), fake);
   cam.start(clock.now());
   auto grab_seq = [&](std::uint32_t seq, std::uint32_t flags = 0, std::uint32_t bytes = 0) {
-    EXPECT_TRUE(fake.produce(seq, 1000, [](std::uint8_t*, std::uint32_t) {}, flags, bytes));
+    EXPECT_TRUE(fake.produce(
+        seq, 1000, [](std::uint8_t*, std::uint32_t) {}, flags, bytes));
   };
   fw::FrameView f;
   grab_seq(0);

@@ -112,7 +112,8 @@ TEST(AllocCounter, WireEncodeDecodeAllocateNothingPerFrame) {
   std::size_t n = 0;
   n += fs::wire::encode(std::span(stream).subspan(n), 0, begin);
   for (std::uint32_t k = 0; k < 50; ++k)
-    n += fs::wire::encode(std::span(stream).subspan(n), k + 1, fs::msg::Stripe{fs::test::sample_stripe_header(k), pts});
+    n += fs::wire::encode(std::span(stream).subspan(n), k + 1,
+                          fs::msg::Stripe{fs::test::sample_stripe_header(k), pts});
   n += fs::wire::encode(std::span(stream).subspan(n), 51, fault);
   n += fs::wire::encode(std::span(stream).subspan(n), 52, fs::test::sample_scan_end());
   std::span<const std::uint8_t> in(stream.data(), n);

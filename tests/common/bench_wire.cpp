@@ -33,7 +33,8 @@ void decode_bench(benchmark::State& state, bool hw) {
   auto pts = fs::test::sample_points(kPoints);
   fs::wire::VectorSink sink;
   fs::wire::FrameWriter w(sink);
-  for (std::uint32_t k = 0; k < kFramesPerBatch; ++k) w.send(fs::msg::Stripe{fs::test::sample_stripe_header(k), pts});
+  for (std::uint32_t k = 0; k < kFramesPerBatch; ++k)
+    w.send(fs::msg::Stripe{fs::test::sample_stripe_header(k), pts});
   std::vector<fs::msg::StripePoint> storage(fs::msg::kMaxStripePoints);
   fs::wire::FrameDecoder dec("bench");
   fs::msg::Stripe out;

@@ -15,7 +15,8 @@ namespace {
 
 using ::testing::HasSubstr;
 
-// ---- Arena ----------------------------------------------------------------------------------------------------
+// ---- Arena
+// ----------------------------------------------------------------------------------------------------
 
 TEST(Arena, ServesPmrContainersWithoutHeap) {
   fs::Arena arena(64 * 1024, "test");
@@ -73,7 +74,7 @@ TEST(Arena, TryAllocateReportsExhaustionWithoutThrowing) {
     if (s.empty()) break;
     got += s.size();
   }
-  EXPECT_EQ(got, 8u * 30u);  // 960 of 1000 bytes
+  EXPECT_EQ(got, 8u * 30u);                                                // 960 of 1000 bytes
   EXPECT_TRUE(arena.try_allocate_array<std::uint32_t>(10).size() == 10u);  // 40 bytes still fit exactly
   EXPECT_TRUE(arena.try_allocate_array<std::uint8_t>(1).empty());
   EXPECT_FALSE(arena.fits(1, 1));
@@ -97,7 +98,8 @@ TEST(Arena, OverCallerBufferAndAlignment) {
   EXPECT_THROW(arena.allocate_array<V>(100), fs::ArenaExhausted);
 }
 
-// ---- FixedVector ------------------------------------------------------------------------------------------------
+// ---- FixedVector
+// ------------------------------------------------------------------------------------------------
 
 TEST(FixedVector, BasicsAndOverflow) {
   fs::AllocCounter c;
@@ -150,7 +152,8 @@ TEST(FixedVector, NonTrivialElementsAreConstructedAndDestroyed) {
   EXPECT_EQ(counter.use_count(), 1);
 }
 
-// ---- SpscRing ---------------------------------------------------------------------------------------------------
+// ---- SpscRing
+// ---------------------------------------------------------------------------------------------------
 
 TEST(SpscRing, FifoAndFullEmpty) {
   fs::SpscRing<int> r(3);
@@ -191,8 +194,10 @@ TEST(SpscRing, TwoThreadsTransferEverythingInOrder) {
   fs::SpscRing<std::uint64_t> r(64);
   std::thread producer([&] {
     for (std::uint64_t i = 1; i <= kCount;) {
-      if (r.try_push(i)) ++i;
-      else std::this_thread::yield();
+      if (r.try_push(i))
+        ++i;
+      else
+        std::this_thread::yield();
     }
   });
   std::uint64_t expected = 1, sum = 0;

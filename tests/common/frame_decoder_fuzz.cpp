@@ -47,11 +47,21 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         const auto original = stream.subspan(f.offset, fs::wire::kFrameOverhead + f.payload.size());
         if (f.header.minor == 0 && original[7] == 0) {
           switch (msg.type) {
-            case fs::msg::Type::ScanBegin: check_reencode(f, msg.scan_begin, scratch, original); break;
-            case fs::msg::Type::Stripe: check_reencode(f, msg.stripe, scratch, original); break;
-            case fs::msg::Type::ScanEnd: check_reencode(f, msg.scan_end, scratch, original); break;
-            case fs::msg::Type::Heartbeat: check_reencode(f, msg.heartbeat, scratch, original); break;
-            case fs::msg::Type::Fault: check_reencode(f, msg.fault, scratch, original); break;
+            case fs::msg::Type::ScanBegin:
+              check_reencode(f, msg.scan_begin, scratch, original);
+              break;
+            case fs::msg::Type::Stripe:
+              check_reencode(f, msg.stripe, scratch, original);
+              break;
+            case fs::msg::Type::ScanEnd:
+              check_reencode(f, msg.scan_end, scratch, original);
+              break;
+            case fs::msg::Type::Heartbeat:
+              check_reencode(f, msg.heartbeat, scratch, original);
+              break;
+            case fs::msg::Type::Fault:
+              check_reencode(f, msg.fault, scratch, original);
+              break;
           }
         }
       } catch (const fs::Error&) {

@@ -1,7 +1,7 @@
 // parse_json_text (common/json_text.hpp): every way a JSON text can fail to parse is an fs::Error naming the
-// source -- a syntax error with its byte offset, a number too large for a double (nlohmann::json's out_of_range,
-// which escaped as a foreign exception before: the fw_config fuzz target found it). The readers of JSON files
-// (firmware config, scene, match parameters, PFRG, calibration) all parse through it.
+// source -- a syntax error with its byte offset, a number too large for a double (nlohmann::json's
+// out_of_range, which escaped as a foreign exception before: the fw_config fuzz target found it). The readers
+// of JSON files (firmware config, scene, match parameters, PFRG, calibration) all parse through it.
 #include <gtest/gtest.h>
 
 #include <string>

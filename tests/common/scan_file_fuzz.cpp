@@ -7,7 +7,8 @@
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   static fs::wire::DecodedMessage msg;
   try {
-    fs::ScanFileReader reader(std::span<const std::uint8_t>(data, size), "fuzz.fscan", fs::wire::DecoderLimits{16384});
+    fs::ScanFileReader reader(std::span<const std::uint8_t>(data, size), "fuzz.fscan",
+                              fs::wire::DecoderLimits{16384});
     while (reader.next(msg)) {
     }
   } catch (const fs::Error&) {

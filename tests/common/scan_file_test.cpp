@@ -7,9 +7,9 @@
 #include <iterator>
 
 #include "common/byte_io.hpp"
+#include "support/error_of.hpp"
 #include "tmp_dir.hpp"
 #include "wire_samples.hpp"
-#include "support/error_of.hpp"
 
 namespace {
 
@@ -52,9 +52,14 @@ Counts read_scan(ScanFileReader& r) {
         EXPECT_EQ(m.stripe.points[0].row, c.stripes);
         ++c.stripes;
         break;
-      case msg::Type::ScanEnd: ++c.end; break;
-      case msg::Type::Fault: ++c.fault; break;
-      case msg::Type::Heartbeat: break;
+      case msg::Type::ScanEnd:
+        ++c.end;
+        break;
+      case msg::Type::Fault:
+        ++c.fault;
+        break;
+      case msg::Type::Heartbeat:
+        break;
     }
   }
   return c;
@@ -131,7 +136,8 @@ TEST_F(ScanFile, InMemoryImageMatchesFile) {
 
 TEST_F(ScanFile, MissingFile) {
   EXPECT_THAT(error_of([&] { ScanFileReader r(tmp / "nope.fscan"); }), HasSubstr("nope.fscan: cannot open"));
-  EXPECT_THAT(error_of([&] { ScanFileWriter w(tmp / "no" / "dir" / "x.fscan"); }), HasSubstr("cannot create"));
+  EXPECT_THAT(error_of([&] { ScanFileWriter w(tmp / "no" / "dir" / "x.fscan"); }),
+              HasSubstr("cannot create"));
 }
 
 TEST_F(ScanFile, EmptyScanIsValid) {
@@ -198,7 +204,8 @@ TEST(ScanFileErrors, TruncationAnywhereIsReportedWithOffset) {
     } else {
       // The offset named is the start of the cut frame.
       const auto frame_start = *(std::upper_bound(boundaries.begin(), boundaries.end(), cut) - 1);
-      EXPECT_THAT(err, HasSubstr("x.fscan: at byte " + std::to_string(frame_start) + ": truncated frame")) << cut;
+      EXPECT_THAT(err, HasSubstr("x.fscan: at byte " + std::to_string(frame_start) + ": truncated frame"))
+          << cut;
       ++truncations;
     }
   }

@@ -1,9 +1,9 @@
 #pragma once
 // A fresh temporary directory per test.
+#include <unistd.h>
 #include <atomic>
 #include <filesystem>
 #include <string>
-#include <unistd.h>
 
 namespace fs::test {
 

@@ -9,8 +9,8 @@
 
 #include "common/byte_io.hpp"
 #include "common/crc32c.hpp"
-#include "wire_samples.hpp"
 #include "support/error_of.hpp"
+#include "wire_samples.hpp"
 
 namespace {
 
@@ -18,8 +18,8 @@ using namespace fs;
 using ::testing::HasSubstr;
 
 // A raw frame with arbitrary header fields and a correct CRC (to build frames the encoder never writes).
-std::vector<std::uint8_t> raw_frame(std::uint8_t type, std::span<const std::uint8_t> payload, std::uint8_t major = 1,
-                                    std::uint8_t minor = 0, std::uint32_t seq = 0) {
+std::vector<std::uint8_t> raw_frame(std::uint8_t type, std::span<const std::uint8_t> payload,
+                                    std::uint8_t major = 1, std::uint8_t minor = 0, std::uint32_t seq = 0) {
   std::vector<std::uint8_t> f(wire::kFrameHeaderSize + payload.size() + 4);
   std::memcpy(f.data(), "FSWF", 4);
   f[4] = major;
@@ -198,9 +198,9 @@ TEST(Wire, ScanEndHeartbeatFaultRoundTrip) {
 
 TEST(Wire, GoldenBytesAreLittleEndianFieldByField) {
   const auto bytes = encoded(msg::Heartbeat{0x0102030405060708ll, 0x1112131415161718ull, 0x21}, 0xA0B0C0D0u);
-  const std::vector<std::uint8_t> expect_head = {'F', 'S', 'W', 'F', 1, 0, 4, 0, 17, 0, 0, 0, 0xD0, 0xC0, 0xB0, 0xA0,
-                                                 8, 7, 6, 5, 4, 3, 2, 1, 0x18, 0x17, 0x16, 0x15, 0x14, 0x13, 0x12, 0x11,
-                                                 0x21};
+  const std::vector<std::uint8_t> expect_head = {'F',  'S',  'W',  'F',  1,    0,    4,    0,    17,  0, 0, 0,
+                                                 0xD0, 0xC0, 0xB0, 0xA0, 8,    7,    6,    5,    4,   3, 2, 1,
+                                                 0x18, 0x17, 0x16, 0x15, 0x14, 0x13, 0x12, 0x11, 0x21};
   ASSERT_EQ(bytes.size(), expect_head.size() + 4);
   EXPECT_TRUE(std::equal(expect_head.begin(), expect_head.end(), bytes.begin()));
   EXPECT_EQ(load_le<std::uint32_t>(bytes.data() + 33), crc32c({bytes.data(), 33}));
@@ -249,7 +249,8 @@ TEST(Wire, ArbitraryChunkingYieldsTheSameFrames) {
   }
 }
 
-// ---- malformed input ---------------------------------------------------------------------------------------
+// ---- malformed input
+// ---------------------------------------------------------------------------------------
 
 TEST(WireErrors, BadMagicNamesOffset) {
   auto a = encoded(test::sample_heartbeat(), 0);
@@ -280,7 +281,8 @@ TEST(WireErrors, BadCrcNamesOffset) {
 TEST(WireErrors, TruncatedFrameAtEndOfStream) {
   auto pts = test::sample_points(10);
   const auto full = encoded(msg::Stripe{test::sample_stripe_header(0), pts});
-  for (std::size_t cut : {std::size_t{1}, std::size_t{10}, std::size_t{16}, std::size_t{100}, full.size() - 1}) {
+  for (std::size_t cut :
+       {std::size_t{1}, std::size_t{10}, std::size_t{16}, std::size_t{100}, full.size() - 1}) {
     std::vector<std::uint8_t> part(full.begin(), full.begin() + static_cast<std::ptrdiff_t>(cut));
     const auto err = decode_error(part, /*finish=*/true);
     EXPECT_THAT(err, HasSubstr("s.bin: at byte 0: truncated frame")) << cut;
@@ -334,7 +336,8 @@ TEST(WireErrors, OversizeLengthRejectedFromHeader) {
 
 TEST(WireErrors, UnknownType) {
   const std::vector<std::uint8_t> payload(8, 0);
-  for (std::uint8_t t : {0, 6, 255}) EXPECT_THAT(decode_error(raw_frame(t, payload)), HasSubstr("at byte 6: unknown message type"));
+  for (std::uint8_t t : {0, 6, 255})
+    EXPECT_THAT(decode_error(raw_frame(t, payload)), HasSubstr("at byte 6: unknown message type"));
 }
 
 TEST(WireErrors, UnknownMajorVersion) {
@@ -374,7 +377,8 @@ TEST(WireErrors, BadFieldValues) {
   EXPECT_THAT(decode_error(encoded(m)), HasSubstr("ScanBegin.camera.fy must be > 0"));
   m = test::sample_scan_begin();
   m.calibration.camera.height = 0;
-  EXPECT_THAT(decode_error(encoded(m)), HasSubstr("at byte 47: ScanBegin.camera.height is 0, expected 1..65536"));
+  EXPECT_THAT(decode_error(encoded(m)),
+              HasSubstr("at byte 47: ScanBegin.camera.height is 0, expected 1..65536"));
   m = test::sample_scan_begin();
   m.calibration.laser.axis_dir.y() = std::numeric_limits<double>::infinity();
   EXPECT_THAT(decode_error(encoded(m)), HasSubstr("ScanBegin.laser.axis_dir is not finite (inf)"));
@@ -385,7 +389,8 @@ TEST(WireErrors, BadFieldValues) {
   auto good = encoded(test::sample_fault());
   std::vector<std::uint8_t> payload(good.begin() + 16, good.end() - 4);
   store_le<std::uint16_t>(payload.data() + 4, 300);
-  EXPECT_THAT(decode_error(raw_frame(5, payload)), HasSubstr("at byte 20: Fault.text: length 300 exceeds maximum 256"));
+  EXPECT_THAT(decode_error(raw_frame(5, payload)),
+              HasSubstr("at byte 20: Fault.text: length 300 exceeds maximum 256"));
 }
 
 TEST(WireErrors, DecodeAsWrongTypeIsAnError) {
@@ -393,7 +398,8 @@ TEST(WireErrors, DecodeAsWrongTypeIsAnError) {
   const auto bytes = encoded(test::sample_heartbeat());
   const auto f = decode_one(dec, bytes);
   msg::Fault fault;
-  EXPECT_THAT(error_of([&] { wire::decode(f, fault); }), HasSubstr("frame type is Heartbeat, expected Fault"));
+  EXPECT_THAT(error_of([&] { wire::decode(f, fault); }),
+              HasSubstr("frame type is Heartbeat, expected Fault"));
 }
 
 TEST(WireErrors, EncodeChecksLimits) {

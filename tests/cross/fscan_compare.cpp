@@ -83,8 +83,9 @@ int main(int argc, char** argv) {
     }
   }
   if (files.size() != 2) {
-    std::fprintf(stderr, "usage: fs_fscan_compare REFERENCE.fscan OTHER.fscan [--col-tol PX] [--width-tol PX] "
-                         "[--peak-tol N]\n");
+    std::fprintf(stderr,
+                 "usage: fs_fscan_compare REFERENCE.fscan OTHER.fscan [--col-tol PX] [--width-tol PX] "
+                 "[--peak-tol N]\n");
     return 2;
   }
   Scan a, b;
@@ -99,12 +100,13 @@ int main(int argc, char** argv) {
   auto fail = [&](const std::string& what) {
     if (++problems <= 20) std::fprintf(stderr, "DIFF: %s\n", what.c_str());
   };
-  std::printf("%s: %zu stripes, %zu points\n%s: %zu stripes, %zu points\n", files[0].c_str(), a.stripes.size(),
-              a.points, files[1].c_str(), b.stripes.size(), b.points);
+  std::printf("%s: %zu stripes, %zu points\n%s: %zu stripes, %zu points\n", files[0].c_str(),
+              a.stripes.size(), a.points, files[1].c_str(), b.stripes.size(), b.points);
   if (a.stripes.empty()) fail("the reference scan has no stripes");
   if (a.stripes.size() != b.stripes.size())
     fail("stripe count " + std::to_string(a.stripes.size()) + " vs " + std::to_string(b.stripes.size()));
-  if (a.points != b.points) fail("point count " + std::to_string(a.points) + " vs " + std::to_string(b.points));
+  if (a.points != b.points)
+    fail("point count " + std::to_string(a.points) + " vs " + std::to_string(b.points));
   if (a.has_end != b.has_end) fail("only one file has a ScanEnd message");
   if (a.has_end && b.has_end) {
     if (a.end.stripes_sent != b.end.stripes_sent) fail("ScanEnd.stripes_sent differs");
@@ -120,7 +122,8 @@ int main(int argc, char** argv) {
     const std::string where = "stripe " + std::to_string(i) + " (step " + std::to_string(sa.step) + ")";
     if (sa.step != sb.step) fail(where + ": step index " + std::to_string(sb.step) + " in the other file");
     if (sa.points.size() != sb.points.size()) {
-      fail(where + ": " + std::to_string(sa.points.size()) + " vs " + std::to_string(sb.points.size()) + " points");
+      fail(where + ": " + std::to_string(sa.points.size()) + " vs " + std::to_string(sb.points.size()) +
+           " points");
       continue;
     }
     for (std::size_t j = 0; j < sa.points.size(); ++j) {
@@ -133,13 +136,17 @@ int main(int argc, char** argv) {
       max_col = std::max(max_col, dc);
       max_width = std::max(max_width, dw);
       max_peak = std::max(max_peak, dp);
-      if (!(dc <= col_tol)) fail(where + " row " + std::to_string(pa.row) + ": column differs by " + std::to_string(dc));
-      if (!(dw <= width_tol)) fail(where + " row " + std::to_string(pa.row) + ": width differs by " + std::to_string(dw));
-      if (!(dp <= peak_tol)) fail(where + " row " + std::to_string(pa.row) + ": peak differs by " + std::to_string(dp));
+      if (!(dc <= col_tol))
+        fail(where + " row " + std::to_string(pa.row) + ": column differs by " + std::to_string(dc));
+      if (!(dw <= width_tol))
+        fail(where + " row " + std::to_string(pa.row) + ": width differs by " + std::to_string(dw));
+      if (!(dp <= peak_tol))
+        fail(where + " row " + std::to_string(pa.row) + ": peak differs by " + std::to_string(dp));
     }
   }
-  std::printf("max |d col| = %.6g px (tol %g), max |d width| = %.6g px (tol %g), max |d peak| = %g (tol %g)\n",
-              max_col, col_tol, max_width, width_tol, max_peak, peak_tol);
+  std::printf(
+      "max |d col| = %.6g px (tol %g), max |d width| = %.6g px (tol %g), max |d peak| = %g (tol %g)\n",
+      max_col, col_tol, max_width, width_tol, max_peak, peak_tol);
   if (problems) {
     std::printf("DIFFERENT: %d difference(s)\n", problems);
     return 1;

@@ -21,8 +21,8 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
-#include <sstream>
 #include <map>
+#include <sstream>
 #include <string>
 #include <thread>
 #include <utility>
@@ -58,7 +58,8 @@ std::string facetscan() { return bin("facetscan"); }
 std::string library() { return (fs::test::source_dir() / "hw-sim/scenes/meshes").string(); }
 
 stdfs::path temp_dir(const std::string& name) {
-  const stdfs::path d = stdfs::temp_directory_path() / ("facetscan-e2e-" + name + "-" + std::to_string(getpid()));
+  const stdfs::path d =
+      stdfs::temp_directory_path() / ("facetscan-e2e-" + name + "-" + std::to_string(getpid()));
   stdfs::remove_all(d);
   stdfs::create_directories(d);
   return d;
@@ -88,20 +89,22 @@ std::vector<stdfs::path> results_under(const stdfs::path& dir) {
   return v;
 }
 
-// One object of the result: the model, confident, in the scene's pose (rotation by rz_deg about z, translation t
-// in mm), within 1 degree and 2 mm. Symmetric models are reported in the symmetry-equivalent pose closest to the
-// identity, which for the shipped scenes is the scene's own.
-void expect_object(const nlohmann::json& o, const std::string& model, double rz_deg, const std::array<double, 3>& t) {
+// One object of the result: the model, confident, in the scene's pose (rotation by rz_deg about z,
+// translation t in mm), within 1 degree and 2 mm. Symmetric models are reported in the symmetry-equivalent
+// pose closest to the identity, which for the shipped scenes is the scene's own.
+void expect_object(const nlohmann::json& o, const std::string& model, double rz_deg,
+                   const std::array<double, 3>& t) {
   EXPECT_EQ(o["model"], model) << o.dump(1);
-  EXPECT_GE(o["confidence"].get<double>(), 0.6) << o.dump(1);   // the recognizer's acceptance threshold
+  EXPECT_GE(o["confidence"].get<double>(), 0.6) << o.dump(1);  // the recognizer's acceptance threshold
   const double c = std::cos(rz_deg * M_PI / 180.0), sn = std::sin(rz_deg * M_PI / 180.0);
   const double want[3][3] = {{c, -sn, 0}, {sn, c, 0}, {0, 0, 1}};
-  double trace = 0;   // trace(want^T R) = 1 + 2 cos(angle between them)
+  double trace = 0;  // trace(want^T R) = 1 + 2 cos(angle between them)
   for (int i = 0; i < 3; ++i)
     for (int k = 0; k < 3; ++k) trace += want[k][i] * o["rotation"][k][i].get<double>();
   const double angle_deg = std::acos(std::clamp((trace - 1.0) / 2.0, -1.0, 1.0)) * 180.0 / M_PI;
   EXPECT_LT(angle_deg, 1.0) << o.dump(1);
-  for (int i = 0; i < 3; ++i) EXPECT_NEAR(o["translation"][i].get<double>(), t[static_cast<std::size_t>(i)], 2.0) << o.dump(1);
+  for (int i = 0; i < 3; ++i)
+    EXPECT_NEAR(o["translation"][i].get<double>(), t[static_cast<std::size_t>(i)], 2.0) << o.dump(1);
 }
 
 // The truncated pyramid of hw-sim/scenes/pyramid.json (turned 20 degrees, at (-60, 10, 0)) is found, once.
@@ -121,10 +124,10 @@ std::string start_time_of(pid_t pid) {
   return field;
 }
 
-// One demo run of the pyramid scene on the GPIO twin, shared by the tests that need a recorded scan. ctest runs
-// every test in its own process: the first test of this ctest run (key: the parent process and its start time)
-// runs the demo under a file lock; the others wait for it and reuse its output. Run directly (./test_e2e), the
-// tests share it within the process.
+// One demo run of the pyramid scene on the GPIO twin, shared by the tests that need a recorded scan. ctest
+// runs every test in its own process: the first test of this ctest run (key: the parent process and its start
+// time) runs the demo under a file lock; the others wait for it and reuse its output. Run directly
+// (./test_e2e), the tests share it within the process.
 struct DemoRun {
   stdfs::path dir;
   CmdResult result;
@@ -177,7 +180,8 @@ TEST(EndToEndDemo, GpioTwinOverTcpLoopbackRecognizesThePyramid) {
   EXPECT_NE(d.result.out.find("--galvo sim --camera sim"), std::string::npos) << d.result.out;
   EXPECT_NE(d.result.out.find("--stream 127.0.0.1:"), std::string::npos) << d.result.out;
   EXPECT_NE(d.result.out.find("firmware exit code 0"), std::string::npos) << d.result.out;
-  EXPECT_NE(d.result.out.find("500/500 stripes received"), std::string::npos) << d.result.out;   // progress bar
+  EXPECT_NE(d.result.out.find("500/500 stripes received"), std::string::npos)
+      << d.result.out;  // progress bar
   // The result table names the model.
   EXPECT_NE(d.result.out.find("truncated_pyramid"), std::string::npos) << d.result.out;
   ASSERT_TRUE(stdfs::exists(d.dir / "scan.fscan"));
@@ -218,11 +222,12 @@ TEST(EndToEndDemo, CanTwinRecognizesTheCube) {
   const nlohmann::json& j = d.result;
   EXPECT_FALSE(j["scan"]["partial"].get<bool>()) << j.dump(1);
   ASSERT_EQ(j["objects"].size(), 1u) << j.dump(1);
-  expect_object(j["objects"][0], "cube", 30.0, {-60.0, 0.0, 0.0});   // hw-sim/scenes/cube.json
+  expect_object(j["objects"][0], "cube", 30.0, {-60.0, 0.0, 0.0});  // hw-sim/scenes/cube.json
 }
 
-// The main job: the default scene's four objects from the rendered scan, in pose (hw-sim/scenes/default.json):
-// the cube (two faces, touching the wedge) and the wedge (its slope) come from the recognizer's later rounds.
+// The main job: the default scene's four objects from the rendered scan, in pose
+// (hw-sim/scenes/default.json): the cube (two faces, touching the wedge) and the wedge (its slope) come from
+// the recognizer's later rounds.
 TEST(EndToEndDemo, DefaultSceneFindsAllFourObjects) {
   const DemoOutcome d = demo_into("", "demo-default");
   ASSERT_FALSE(HasFailure());
@@ -275,19 +280,20 @@ TEST(EndToEndOffline, RecognizesTheRecordedScan) {
   const CmdResult r = run(facetscan() + " recognize " + scan.string() + " -l " + library() + " --json " +
                           (d / "offline.json").string());
   ASSERT_EQ(r.code, 0) << r.out;
-  EXPECT_NE(r.out.find("truncated_pyramid"), std::string::npos) << r.out;   // the table
+  EXPECT_NE(r.out.find("truncated_pyramid"), std::string::npos) << r.out;  // the table
   const nlohmann::json j = read_json(d / "offline.json");
   expect_pyramid(j);
   EXPECT_EQ(j["input"]["format"], "fscan");
   EXPECT_TRUE(j["input"]["complete_scan"].get<bool>());
   EXPECT_GE(j["stats"]["rounds"].get<int>(), 1);
-  // --max-solutions: the thesis' search to exhaustion (0 = the parameters' own TH_solutions) finds the pyramid
-  // too; a negative count is refused naming the option.
+  // --max-solutions: the thesis' search to exhaustion (0 = the parameters' own TH_solutions) finds the
+  // pyramid too; a negative count is refused naming the option.
   const CmdResult all = run(facetscan() + " recognize " + scan.string() + " -l " + library() +
                             " --max-solutions 0 -q --json " + (d / "all.json").string());
   ASSERT_EQ(all.code, 0) << all.out;
   expect_pyramid(read_json(d / "all.json"));
-  const CmdResult bad = run(facetscan() + " recognize " + scan.string() + " -l " + library() + " --max-solutions -1");
+  const CmdResult bad =
+      run(facetscan() + " recognize " + scan.string() + " -l " + library() + " --max-solutions -1");
   EXPECT_NE(bad.code, 0);
   EXPECT_NE(bad.out.find("--max-solutions"), std::string::npos) << bad.out;
 }
@@ -300,8 +306,8 @@ void recognize_exported(const std::string& ext) {
   CmdResult r = run(facetscan() + " export " + scan.string() + " -o " + cloud.string());
   ASSERT_EQ(r.code, 0) << r.out;
   // A laser scan is segmented with the laser profile (auto picks it for .fscan only).
-  r = run(facetscan() + " recognize " + cloud.string() + " -l " + library() + " --segment laser --scale 1 -q --json " +
-          (d / "result.json").string());
+  r = run(facetscan() + " recognize " + cloud.string() + " -l " + library() +
+          " --segment laser --scale 1 -q --json " + (d / "result.json").string());
   ASSERT_EQ(r.code, 0) << r.out;
   const nlohmann::json j = read_json(d / "result.json");
   EXPECT_EQ(j["input"]["format"], ext);
@@ -312,7 +318,8 @@ TEST(EndToEndOffline, RecognizesAnExportedPcd) { recognize_exported("pcd"); }
 
 TEST(EndToEndOffline, RecognizesAnExportedPly) { recognize_exported("ply"); }
 
-// A directory is a batch: every input is recognized (a broken one is reported, not fatal), with summary tables.
+// A directory is a batch: every input is recognized (a broken one is reported, not fatal), with summary
+// tables.
 TEST(EndToEndOffline, BatchOverADirectoryWritesCsvAndJsonSummaries) {
   const stdfs::path scan = recorded_scan();
   const stdfs::path in = temp_dir("batch");
@@ -322,12 +329,14 @@ TEST(EndToEndOffline, BatchOverADirectoryWritesCsvAndJsonSummaries) {
   ASSERT_EQ(r.code, 0) << r.out;
   std::ofstream(in / "broken.pcd") << "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z\n";
   std::ofstream(in / "notes.txt") << "not an input\n";
-  r = run(facetscan() + " recognize " + in.string() + " -l " + library() + " --segment laser --scale 1 --summary-csv " +
-          (out / "summary.csv").string() + " --summary-json " + (out / "summary.json").string());
+  r = run(facetscan() + " recognize " + in.string() + " -l " + library() +
+          " --segment laser --scale 1 --summary-csv " + (out / "summary.csv").string() + " --summary-json " +
+          (out / "summary.json").string());
   ASSERT_EQ(r.code, 0) << r.out;
 
   // The table on stdout: one line per input.
-  for (const char* f : {"a.fscan", "b.pcd", "broken.pcd"}) EXPECT_NE(r.out.find(f), std::string::npos) << r.out;
+  for (const char* f : {"a.fscan", "b.pcd", "broken.pcd"})
+    EXPECT_NE(r.out.find(f), std::string::npos) << r.out;
   EXPECT_EQ(r.out.find("notes.txt"), std::string::npos) << r.out;
 
   // CSV: a header and one row per input, in name order.
@@ -341,9 +350,12 @@ TEST(EndToEndOffline, BatchOverADirectoryWritesCsvAndJsonSummaries) {
     std::string cur;
     bool quoted = false;
     for (char c : line) {
-      if (c == '"') quoted = !quoted;
-      else if (c == ',' && !quoted) v.push_back(std::exchange(cur, {}));
-      else cur += c;
+      if (c == '"')
+        quoted = !quoted;
+      else if (c == ',' && !quoted)
+        v.push_back(std::exchange(cur, {}));
+      else
+        cur += c;
     }
     v.push_back(cur);
     return v;
@@ -363,7 +375,8 @@ TEST(EndToEndOffline, BatchOverADirectoryWritesCsvAndJsonSummaries) {
   EXPECT_EQ(stdfs::path(bad[0]).filename(), "broken.pcd");
   EXPECT_EQ(bad[1], "error");
   EXPECT_EQ(bad[2], "0");
-  EXPECT_NE(lines[3].find("broken.pcd"), lines[3].rfind("broken.pcd")) << "the error names the file: " << lines[3];
+  EXPECT_NE(lines[3].find("broken.pcd"), lines[3].rfind("broken.pcd"))
+      << "the error names the file: " << lines[3];
 
   // JSON: the same rows, with the full recognition result of each recognized input.
   const nlohmann::json j = read_json(out / "summary.json");
@@ -430,12 +443,12 @@ bool send_stream(int port, const std::string& frames, std::size_t n) {
   return false;
 }
 
-// A scanner that dies mid-scan: serve reports the partial scan as such (once the reconnect grace expired), then
-// recognizes the next complete scan the scanner sends after reconnecting.
+// A scanner that dies mid-scan: serve reports the partial scan as such (once the reconnect grace expired),
+// then recognizes the next complete scan the scanner sends after reconnecting.
 TEST(EndToEndServe, SurvivesAScannerDisconnectingMidScan) {
   const std::string bytes = read_text(recorded_scan());
   ASSERT_GT(bytes.size(), 1000u);
-  const std::string frames = bytes.substr(16);   // the .fscan file header is 16 bytes; the rest is the stream
+  const std::string frames = bytes.substr(16);  // the .fscan file header is 16 bytes; the rest is the stream
   const stdfs::path out = temp_dir("serve");
   const stdfs::path log = out / "serve.log";
   const int port = free_loopback_port();
@@ -443,17 +456,19 @@ TEST(EndToEndServe, SurvivesAScannerDisconnectingMidScan) {
   CmdResult served;
   std::thread server([&] {
     // `timeout`: serve waits for --max-scans; if this test fails half way it must still end.
-    served = run("timeout -s INT 300 " + facetscan() + " serve --listen 127.0.0.1:" + std::to_string(port) + " -l " + library() +
-                 " --max-scans 2 --reconnect-grace 300 -o " + (out / "scans").string() + " > " + log.string());
+    served = run("timeout -s INT 300 " + facetscan() + " serve --listen 127.0.0.1:" + std::to_string(port) +
+                 " -l " + library() + " --max-scans 2 --reconnect-grace 300 -o " + (out / "scans").string() +
+                 " > " + log.string());
   });
-  const bool sent_half = send_stream(port, frames, frames.size() / 2);   // dies half way
+  const bool sent_half = send_stream(port, frames, frames.size() / 2);  // dies half way
   // Wait (event, not time) until serve has given up on the first scan and reported it as partial.
   bool partial_reported = false;
   for (int i = 0; i < 1200 && sent_half && !partial_reported; ++i) {
     partial_reported = read_text(log).find("PARTIAL") != std::string::npos;
     if (!partial_reported) std::this_thread::sleep_for(std::chrono::milliseconds(100));
   }
-  const bool sent_full = partial_reported && send_stream(port, frames, frames.size());   // reconnects: a full scan
+  const bool sent_full =
+      partial_reported && send_stream(port, frames, frames.size());  // reconnects: a full scan
   server.join();
   ASSERT_TRUE(sent_half);
   ASSERT_TRUE(partial_reported) << read_text(log);

@@ -36,9 +36,11 @@ struct Frame {
     const auto& cam = scene.calibration.camera;
     pixels.resize(static_cast<std::size_t>(cam.width) * cam.height);
     fs::sim::StripeRenderer r(scene);
-    r.render_step(250.0, 1, fs::sim::FrameBuffer{pixels.data(), cam.width, cam.height, cam.width,
-                                                 fs::sim::FrameFormat::Mono8});
-    view = fs::fw::FrameView{pixels.data(), cam.width, cam.height, cam.width, fs::fw::PixelFormat::Mono8, 0, 0, 0};
+    r.render_step(
+        250.0, 1,
+        fs::sim::FrameBuffer{pixels.data(), cam.width, cam.height, cam.width, fs::sim::FrameFormat::Mono8});
+    view = fs::fw::FrameView{
+        pixels.data(), cam.width, cam.height, cam.width, fs::fw::PixelFormat::Mono8, 0, 0, 0};
   }
   fs::sim::Scene scene;
   std::vector<std::uint8_t> pixels;
@@ -200,8 +202,10 @@ void BM_ScanRow(benchmark::State& state) {
   for (auto _ : state) {
     for (std::uint32_t y = 0; y < f.view.height; ++y) {
       const std::uint8_t* row = f.view.data + static_cast<std::size_t>(y) * f.view.stride;
-      if (state.range(0) == 0) fs::fw::detail::scan_row_portable<std::uint8_t, 1>(row, f.view.width, *scan);
-      else fs::fw::detail::scan_row<std::uint8_t, 1>(row, f.view.width, *scan);
+      if (state.range(0) == 0)
+        fs::fw::detail::scan_row_portable<std::uint8_t, 1>(row, f.view.width, *scan);
+      else
+        fs::fw::detail::scan_row<std::uint8_t, 1>(row, f.view.width, *scan);
       check += scan->sum + scan->max;
     }
     benchmark::DoNotOptimize(check);
@@ -222,7 +226,8 @@ void BM_GaussMlBatch(benchmark::State& state) {
   for (int j = 0; j < kBatch; ++j) {
     const double u = -0.45 + 0.11 * j, s = 2.5;
     for (int x = -kBatchHalf; x < kBatchHalf; ++x)
-      b.y[kBatchHalf + x][j] = static_cast<float>(150.0 * std::exp(-(x - u) * (x - u) / (2 * s * s)) + 0.3 * ((x * 7 + j) % 5));
+      b.y[kBatchHalf + x][j] =
+          static_cast<float>(150.0 * std::exp(-(x - u) * (x - u) / (2 * s * s)) + 0.3 * ((x * 7 + j) % 5));
     b.xa[j] = -10;
     b.xb[j] = 10;
     b.contrast[j] = 150.0;
@@ -235,23 +240,27 @@ void BM_GaussMlBatch(benchmark::State& state) {
     return;
   }
   for (auto _ : state) {
-    if (state.range(0) == 0) fs::fw::detail::gauss_ml_centre_batch_portable(b, noise);
-    else if (state.range(0) == 2) fs::fw::detail::gauss_ml_centre_batch_avx2(b, noise);
-    else fs::fw::detail::gauss_ml_centre_batch(b, noise);
+    if (state.range(0) == 0)
+      fs::fw::detail::gauss_ml_centre_batch_portable(b, noise);
+    else if (state.range(0) == 2)
+      fs::fw::detail::gauss_ml_centre_batch_avx2(b, noise);
+    else
+      fs::fw::detail::gauss_ml_centre_batch(b, noise);
     benchmark::DoNotOptimize(b.centre);
     benchmark::ClobberMemory();
   }
   state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * kBatch));
   state.SetLabel(state.range(0) == 0   ? "portable"
                  : state.range(0) == 2 ? "avx2"
-                 : std::string(fs::fw::detail::gauss_ml_batch_isa()) + (state.range(0) == 3 ? ", gauss-log" : ""));
+                                       : std::string(fs::fw::detail::gauss_ml_batch_isa()) +
+                                             (state.range(0) == 3 ? ", gauss-log" : ""));
 }
 BENCHMARK(BM_GaussMlBatch)->Arg(0)->Arg(1)->Arg(2)->Arg(3);
 
 BENCHMARK(BM_Extract)->Arg(0)->Arg(1)->Arg(2)->Arg(3)->Arg(4)->Arg(5);
 
-// The default method with the along-stripe refinement over 0 (off), 5, 7 or 15 rows (ExtractParams::along_stripe;
-// 15 is the default).
+// The default method with the along-stripe refinement over 0 (off), 5, 7 or 15 rows
+// (ExtractParams::along_stripe; 15 is the default).
 void BM_ExtractAlongStripe(benchmark::State& state) {
   Frame& f = frame();
   fs::fw::ExtractParams p;
@@ -262,7 +271,8 @@ void BM_ExtractAlongStripe(benchmark::State& state) {
     benchmark::DoNotOptimize(out.data());
   }
   state.SetBytesProcessed(static_cast<std::int64_t>(state.iterations() * f.pixels.size()));
-  state.SetLabel(std::string(fs::fw::to_string(p.method)) + ", along_stripe " + std::to_string(p.along_stripe));
+  state.SetLabel(std::string(fs::fw::to_string(p.method)) + ", along_stripe " +
+                 std::to_string(p.along_stripe));
 }
 BENCHMARK(BM_ExtractAlongStripe)->Arg(0)->Arg(5)->Arg(7)->Arg(15);
 

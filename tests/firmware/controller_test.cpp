@@ -108,7 +108,7 @@ TEST(Controller, CleanScanMatchesGroundTruthWithoutAllocations) {
 struct FaultCase {
   const char* spec;
   State state;
-  FaultCode code;         // fatal code, or the warning expected in a Fault message
+  FaultCode code;  // fatal code, or the warning expected in a Fault message
   bool physical_off = true;
 };
 
@@ -146,7 +146,8 @@ TEST_P(ControllerFault, EndsInDocumentedStateWithLaserOff) {
 INSTANTIATE_TEST_SUITE_P(
     Faults, ControllerFault,
     ::testing::Values(FaultCase{"galvo.stall@step=20", State::Fault, FaultCode::GalvoStall},
-                      FaultCase{"galvo.missed-steps@step=-10,count=3", State::Fault, FaultCode::GalvoMissedSteps},
+                      FaultCase{"galvo.missed-steps@step=-10,count=3", State::Fault,
+                                FaultCode::GalvoMissedSteps},
                       FaultCase{"galvo.home-stuck", State::Fault, FaultCode::HomeNotFound},
                       FaultCase{"galvo.home-stuck,level=on", State::Fault, FaultCode::HomeNotFound},
                       FaultCase{"camera.timeout@t=0.1", State::Fault, FaultCode::CameraTimeout},

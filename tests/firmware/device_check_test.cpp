@@ -9,12 +9,12 @@
 #include <string>
 
 #include "common/error.hpp"
-#include "support/error_of.hpp"
 #include "firmware/backends/device_check.hpp"
 #include "firmware/backends/factory.hpp"
 #include "firmware/fw_config.hpp"
 #include "firmware/loop/monotonic_clock.hpp"
 #include "hw-sim/can/cia402_twin.hpp"
+#include "support/error_of.hpp"
 
 namespace fs::test {
 namespace {
@@ -53,7 +53,8 @@ TEST(DeviceCheck, DriveInFaultIsReported) {
   sim::Cia402Twin twin(fds[1], clock);
   twin.inject_drive_fault(0x2310);
   CheckReport r;
-  fw::check_can_drive(r, "galvo", "pair", port, 1, clock, [&] { twin.poll(); }, 300'000'000);
+  fw::check_can_drive(
+      r, "galvo", "pair", port, 1, clock, [&] { twin.poll(); }, 300'000'000);
   ::close(fds[1]);
   EXPECT_FALSE(r.ok()) << r.text();
   const auto* sw = find_item(r, "statusword");
@@ -80,7 +81,8 @@ TEST(DeviceCheck, SilentDriveAndWrongNodeAreMissing) {
     fw::CanPort port(fds[0], true);
     sim::Cia402Twin twin(fds[1], clock);  // node 1; we ask node 7
     CheckReport r;
-    fw::check_can_drive(r, "galvo", "pair", port, 7, clock, [&] { twin.poll(); }, 20'000'000);
+    fw::check_can_drive(
+        r, "galvo", "pair", port, 7, clock, [&] { twin.poll(); }, 20'000'000);
     ::close(fds[1]);
     EXPECT_FALSE(r.ok());
     EXPECT_NE(r.text().find("node 7"), std::string::npos) << r.text();
@@ -88,21 +90,27 @@ TEST(DeviceCheck, SilentDriveAndWrongNodeAreMissing) {
 }
 
 TEST(DeviceCheck, MissingDevicesAreNamed) {
-  const CheckReport r = fw::check_devices("gpio:gpiochip99:step=17,dir=27,en=22,home=23,laser=24",
-                                          "v4l2:/dev/video99", "");
+  const CheckReport r =
+      fw::check_devices("gpio:gpiochip99:step=17,dir=27,en=22,home=23,laser=24", "v4l2:/dev/video99", "");
   EXPECT_FALSE(r.ok());
   const std::string t = r.text();
-  EXPECT_NE(t.find("[MISS] galvo: GPIO chip gpiochip99: cannot open /dev/gpiochip99: No such file or directory"),
-            std::string::npos) << t;
+  EXPECT_NE(
+      t.find("[MISS] galvo: GPIO chip gpiochip99: cannot open /dev/gpiochip99: No such file or directory"),
+      std::string::npos)
+      << t;
   EXPECT_NE(t.find("[MISS] camera: V4L2 /dev/video99: cannot open /dev/video99: No such file or directory"),
-            std::string::npos) << t;
+            std::string::npos)
+      << t;
   EXPECT_EQ(r.failed(), 2u) << t;
 
-  const CheckReport c = fw::check_devices("can:nocan7:node=3", "v4l2:/dev/video99", "gpio:no-such-label:line=4");
+  const CheckReport c =
+      fw::check_devices("can:nocan7:node=3", "v4l2:/dev/video99", "gpio:no-such-label:line=4");
   const std::string ct = c.text();
-  EXPECT_NE(ct.find("[MISS] galvo: CAN interface nocan7: no network interface 'nocan7'"), std::string::npos) << ct;
+  EXPECT_NE(ct.find("[MISS] galvo: CAN interface nocan7: no network interface 'nocan7'"), std::string::npos)
+      << ct;
   EXPECT_NE(ct.find("[MISS] laser: GPIO chip no-such-label: no GPIO chip labelled 'no-such-label'"),
-            std::string::npos) << ct;
+            std::string::npos)
+      << ct;
   EXPECT_EQ(c.failed(), 3u) << ct;
 }
 
@@ -116,7 +124,8 @@ TEST(DeviceCheck, WrongKindOfDeviceAndMissingLaser) {
 }
 
 TEST(DeviceCheck, MalformedSpecsAreFailedItemsNamingTheKey) {
-  const CheckReport r = fw::check_devices("can:can0:node=0", "v4l2:/dev/video0:fmt=RGB3", "gpio:gpiochip0:lin=3");
+  const CheckReport r =
+      fw::check_devices("can:can0:node=0", "v4l2:/dev/video0:fmt=RGB3", "gpio:gpiochip0:lin=3");
   EXPECT_EQ(r.failed(), 3u) << r.text();
   EXPECT_NE(r.text().find("node=0"), std::string::npos) << r.text();
   EXPECT_NE(r.text().find("RGB3"), std::string::npos) << r.text();
@@ -126,27 +135,33 @@ TEST(DeviceCheck, MalformedSpecsAreFailedItemsNamingTheKey) {
 
 TEST(DeviceCheck, LaserConfigKeyAndCanTimeoutKeys) {
   fw::FwConfig c;
-  fw::apply_config_json(c, R"({"galvo": "can:can0", "camera": "v4l2:/dev/video0", "laser": "gpio:gpiochip0:line=24"})",
-                        "board.json");
+  fw::apply_config_json(
+      c, R"({"galvo": "can:can0", "camera": "v4l2:/dev/video0", "laser": "gpio:gpiochip0:line=24"})",
+      "board.json");
   EXPECT_EQ(c.laser, "gpio:gpiochip0:line=24");
   try {
     fw::apply_config_json(c, R"({"laser": 24})", "board.json");
     ADD_FAILURE() << "a number for laser must be refused";
   } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("board.json: laser: expected a string"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("board.json: laser: expected a string"), std::string::npos)
+        << e.what();
   }
   // The gauss-ml noise model is configurable (a different camera / laser).
-  fw::apply_config_json(c, R"({"extract": {"method": "gauss-ml", "read_noise": 3, "shot_noise": 0.5, "speckle": 0.2}})",
-                        "board.json");
+  fw::apply_config_json(
+      c, R"({"extract": {"method": "gauss-ml", "read_noise": 3, "shot_noise": 0.5, "speckle": 0.2}})",
+      "board.json");
   EXPECT_EQ(c.loop.extract.read_noise, 3.0);
   EXPECT_EQ(c.loop.extract.shot_noise, 0.5);
   EXPECT_EQ(c.loop.extract.speckle, 0.2);
   EXPECT_THROW(fw::apply_config_json(c, R"({"extract": {"speckle": -1}})", "board.json"), Error);
-  // A numeric key: its default, values it takes, and values refused with an error naming the file and the field
-  // that leave the last value in place.
+  // A numeric key: its default, values it takes, and values refused with an error naming the file and the
+  // field that leave the last value in place.
   const auto expect_key = [&](const std::string& section, const std::string& key, auto get, auto dflt,
-                              std::initializer_list<decltype(dflt)> good, std::initializer_list<const char*> bad) {
-    const auto json = [&](const std::string& v) { return "{\"" + section + "\": {\"" + key + "\": " + v + "}}"; };
+                              std::initializer_list<decltype(dflt)> good,
+                              std::initializer_list<const char*> bad) {
+    const auto json = [&](const std::string& v) {
+      return "{\"" + section + "\": {\"" + key + "\": " + v + "}}";
+    };
     EXPECT_EQ(get(), dflt) << key;
     for (const auto v : good) {
       std::ostringstream text;

@@ -42,7 +42,8 @@ std::vector<bool> edge_rows(std::span<const sim::StripeSample> t) {
   for (int v = 0; v < h; ++v)
     for (int d = -kEdge; d < kEdge; ++d) {
       const int c = v + d;
-      if (c >= 0 && c + 1 < h && change[static_cast<std::size_t>(c)]) edge[static_cast<std::size_t>(v)] = true;
+      if (c >= 0 && c + 1 < h && change[static_cast<std::size_t>(c)])
+        edge[static_cast<std::size_t>(v)] = true;
     }
   return edge;
 }
@@ -65,9 +66,8 @@ Err measure(const sim::Scene& scene, double noise_scale, std::uint32_t along,
   for (double step : steps) {
     r.render_step(step, 7 + static_cast<std::uint64_t>(step),
                   sim::FrameBuffer{img.data(), cam.width, cam.height, cam.width, sim::FrameFormat::Mono8});
-    const fw::ExtractCounts c =
-        fw::extract_frame(fw::FrameView{img.data(), cam.width, cam.height, cam.width, fw::PixelFormat::Mono8, 0, 0, 0},
-                          p, out);
+    const fw::ExtractCounts c = fw::extract_frame(
+        fw::FrameView{img.data(), cam.width, cam.height, cam.width, fw::PixelFormat::Mono8, 0, 0, 0}, p, out);
     const std::vector<bool> edge = edge_rows(r.truth());
     for (std::uint32_t k = 0; k < c.points; ++k) {
       const auto& t = r.truth()[out[k].row];
@@ -122,11 +122,13 @@ TEST(ExtractAlongStripe, GaussLogMeetsTheTargetRefined) {
   const sim::Scene scene = sim::load_scene(test::source_dir() / "hw-sim/scenes/cube.json");
   const std::vector<double> steps = {80.0, 200.0, 260.0, 330.0};
   const Err row = measure(scene, 1.0, 0, steps, fw::SubpixelMethod::GaussLog);
-  const Err refined = measure(scene, 1.0, fw::ExtractParams{}.along_stripe, steps, fw::SubpixelMethod::GaussLog);
+  const Err refined =
+      measure(scene, 1.0, fw::ExtractParams{}.along_stripe, steps, fw::SubpixelMethod::GaussLog);
   const Err ml = measure(scene, 1.0, 0, steps, fw::SubpixelMethod::GaussMl);
-  std::printf("gauss-log at noise 1: per row %.4f px, refined %.4f px (gauss-ml per row %.4f); the %d edge rows "
-              "%.4f per row, %.4f refined\n",
-              row.mean, refined.mean, ml.mean, refined.edge_rows, row.edge_mean, refined.edge_mean);
+  std::printf(
+      "gauss-log at noise 1: per row %.4f px, refined %.4f px (gauss-ml per row %.4f); the %d edge rows "
+      "%.4f per row, %.4f refined\n",
+      row.mean, refined.mean, ml.mean, refined.edge_rows, row.edge_mean, refined.edge_mean);
   EXPECT_LE(refined.edge_mean, 1.05 * row.edge_mean + 0.001);
   EXPECT_EQ(row.outliers, 0);
   EXPECT_EQ(refined.outliers, 0);
@@ -143,9 +145,9 @@ TEST(ExtractAlongStripe, GaussLogMeetsTheTargetRefined) {
 // Prints the table quoted in the README. The refinement must still never be worse than the per-row centres,
 // all rows and the edge rows alike (it assumes nothing about the noise beyond its robust sigma); correlated
 // errors average less over a window, so its gain must shrink once neighbouring pixels are correlated (a grain
-// of 0.5 px: their correlation exp(-2) = 0.14, nearly independent). Measured (gauss-ml, per row -> refined over
-// the default 15 rows): grain 0 0.0599 -> 0.0170 px, 0.5 px 0.0626 -> 0.0188, 1 px 0.0784 -> 0.0381, 2 px
-// 0.0940 -> 0.0733 (with the noise scale of second differences, before along_stripe_scale: 0.0174, 0.0200,
+// of 0.5 px: their correlation exp(-2) = 0.14, nearly independent). Measured (gauss-ml, per row -> refined
+// over the default 15 rows): grain 0 0.0599 -> 0.0170 px, 0.5 px 0.0626 -> 0.0188, 1 px 0.0784 -> 0.0381, 2
+// px 0.0940 -> 0.0733 (with the noise scale of second differences, before along_stripe_scale: 0.0174, 0.0200,
 // 0.0605, 0.0941; over 7 rows: 0.0256, 0.0275, 0.0512, 0.0785).
 TEST(ExtractAlongStripe, CorrelatedSpeckle) {
   const sim::Scene scene = sim::load_scene(source_dir() / "hw-sim/scenes/cube.json");
@@ -184,9 +186,9 @@ TEST(ExtractAlongStripe, CorrelatedSpeckle) {
 
 // Every sub-pixel method per row and with the default refinement, at the default noise and with a 1 px
 // speckle grain: what a cheaper method than the default would cost in accuracy (issue #4's speed target
-// against its 0.05 px; the README's table of methods). Prints the table. Per row, no method reaches 0.05 px at
-// the default noise (the per-row Cramer-Rao bound is 0.058 px): only rows combined along the stripe do. The
-// refinement never makes a method worse, and the default (gauss-ml) is the most accurate refined at both
+// against its 0.05 px; the README's table of methods). Prints the table. Per row, no method reaches 0.05 px
+// at the default noise (the per-row Cramer-Rao bound is 0.058 px): only rows combined along the stripe do.
+// The refinement never makes a method worse, and the default (gauss-ml) is the most accurate refined at both
 // grains.
 TEST(ExtractAlongStripe, EveryMethodPerRowAndRefined) {
   const sim::Scene scene = sim::load_scene(source_dir() / "hw-sim/scenes/cube.json");
@@ -204,8 +206,10 @@ TEST(ExtractAlongStripe, EveryMethodPerRowAndRefined) {
                   ref.edge_mean);
       EXPECT_GT(row.mean, 0.05) << fw::to_string(m) << " grain " << grain;
       EXPECT_LE(ref.mean, row.mean) << fw::to_string(m) << " grain " << grain;
-      if (m == fw::SubpixelMethod::GaussMl) ml = ref.mean;
-      else best_other = std::min(best_other, ref.mean);
+      if (m == fw::SubpixelMethod::GaussMl)
+        ml = ref.mean;
+      else
+        best_other = std::min(best_other, ref.mean);
     }
     EXPECT_LT(ml, best_other) << "grain " << grain;
   }
@@ -257,8 +261,8 @@ TEST(ExtractAlongStripe, ScaleIsThePerRowNoise) {
   EXPECT_EQ(fw::along_stripe_scale(std::vector<msg::StripePoint>(100), 1), 0.0);
 }
 
-// The 15-row window's AVX2 build (x86-64 CPUs with AVX2) and its portable build refine every point to the same
-// bits: on the cube frames' points, independent and correlated speckle, and on synthetic runs with gaps.
+// The 15-row window's AVX2 build (x86-64 CPUs with AVX2) and its portable build refine every point to the
+// same bits: on the cube frames' points, independent and correlated speckle, and on synthetic runs with gaps.
 TEST(ExtractAlongStripe, BuildsAgreeBitForBit) {
   const sim::Scene scene = sim::load_scene(source_dir() / "hw-sim/scenes/cube.json");
   const auto& cam = scene.calibration.camera;
@@ -272,18 +276,22 @@ TEST(ExtractAlongStripe, BuildsAgreeBitForBit) {
     o.speckle_grain_px = grain;
     sim::StripeRenderer r(scene, o);
     for (const double step : {60.0, 200.0, 410.0}) {
-      r.render_step(step, 11, sim::FrameBuffer{img.data(), cam.width, cam.height, cam.width, sim::FrameFormat::Mono8});
+      r.render_step(step, 11,
+                    sim::FrameBuffer{img.data(), cam.width, cam.height, cam.width, sim::FrameFormat::Mono8});
       const fw::ExtractCounts c = fw::extract_frame(
-          fw::FrameView{img.data(), cam.width, cam.height, cam.width, fw::PixelFormat::Mono8, 0, 0, 0}, per_row, out);
+          fw::FrameView{img.data(), cam.width, cam.height, cam.width, fw::PixelFormat::Mono8, 0, 0, 0},
+          per_row, out);
       std::vector<msg::StripePoint> a(out.begin(), out.begin() + c.points), b = a;
-      for (std::size_t k = 40; k < b.size(); k += 97) b[k].row = static_cast<std::uint16_t>(b[k].row + 2);  // gaps
+      for (std::size_t k = 40; k < b.size(); k += 97)
+        b[k].row = static_cast<std::uint16_t>(b[k].row + 2);  // gaps
       a = b;
       const double sigma = fw::along_stripe_scale(a, 15);
       ASSERT_GT(sigma, 0.0);
       fw::refine_along_stripe(a, 15, sigma);
       fw::detail::refine_along_stripe_portable(b, 15, sigma);
       for (std::size_t k = 0; k < a.size(); ++k) {
-        ASSERT_EQ(std::bit_cast<std::uint32_t>(a[k].col), std::bit_cast<std::uint32_t>(b[k].col)) << "point " << k;
+        ASSERT_EQ(std::bit_cast<std::uint32_t>(a[k].col), std::bit_cast<std::uint32_t>(b[k].col))
+            << "point " << k;
         ++compared;
       }
     }
@@ -301,13 +309,14 @@ TEST(ExtractAlongStripe, SmoothsLinesButNotAcrossCornersStepsOrGaps) {
     return (static_cast<double>(seed >> 8) / 16777216.0 - 0.5) * 0.1732;
   };
   for (int v = 0; v < 300; ++v) {
-    if (v >= 200 && v < 203) continue;  // rejected rows
-    const double t = v < 100 ? 400.0 + 0.3 * v               // a line
-                     : v < 150 ? 430.0 - 0.5 * (v - 100)     // a corner at row 100
+    if (v >= 200 && v < 203) continue;                          // rejected rows
+    const double t = v < 100   ? 400.0 + 0.3 * v                // a line
+                     : v < 150 ? 430.0 - 0.5 * (v - 100)        // a corner at row 100
                      : v < 200 ? 405.0 + 6.0 + 0.1 * (v - 150)  // a step of 6 px at row 150
                                : 300.0 + 0.2 * (v - 200);       // after the gap
     truth.push_back(t);
-    pts.push_back(msg::StripePoint{static_cast<std::uint16_t>(v), static_cast<float>(t + noise()), 100, 5.0f});
+    pts.push_back(
+        msg::StripePoint{static_cast<std::uint16_t>(v), static_cast<float>(t + noise()), 100, 5.0f});
   }
   const std::vector<msg::StripePoint> raw = pts;
   const double sigma = fw::along_stripe_scale(pts, 7);
@@ -320,7 +329,8 @@ TEST(ExtractAlongStripe, SmoothsLinesButNotAcrossCornersStepsOrGaps) {
     const double eb = std::abs(raw[k].col - truth[k]), ea = std::abs(pts[k].col - truth[k]);
     (edge ? edge_before : before) += eb;
     (edge ? edge_after : after) += ea;
-    EXPECT_LE(ea, 0.2) << "row " << v;  // never pulled toward another line (the step is 6 px, the kink 0.8 px/row)
+    EXPECT_LE(ea, 0.2) << "row "
+                       << v;  // never pulled toward another line (the step is 6 px, the kink 0.8 px/row)
   }
   EXPECT_LT(after, 0.55 * before);
   EXPECT_LE(edge_after, 1.05 * edge_before);
@@ -335,14 +345,15 @@ TEST(ExtractAlongStripe, EdgesOfEveryShippedScene) {
   std::vector<double> steps;
   for (int k = 0; k < 25; ++k) steps.push_back(10.0 + 20.0 * k);
   std::printf("scene                       noise  along  mean|err|px   rows  edge rows  edge mean|err|px\n");
-  for (const char* name : {"corner", "pyramid", "cube", "cube-pyramid-separate", "cube-occludes-pyramid", "default"}) {
+  for (const char* name :
+       {"corner", "pyramid", "cube", "cube-pyramid-separate", "cube-occludes-pyramid", "default"}) {
     const sim::Scene scene = sim::load_scene(source_dir() / "hw-sim/scenes" / (std::string(name) + ".json"));
     for (double ns : {0.25, 1.0}) {
       const Err base = measure(scene, ns, 0, steps);
       for (std::uint32_t along : {0u, 7u, 15u}) {
         const Err e = along ? measure(scene, ns, along, steps) : base;
-        std::printf("%-26s  %5.2f  %5u  %11.4f  %5d  %9d  %16.4f\n", name, ns, along, e.mean, e.rows, e.edge_rows,
-                    e.edge_mean);
+        std::printf("%-26s  %5.2f  %5u  %11.4f  %5d  %9d  %16.4f\n", name, ns, along, e.mean, e.rows,
+                    e.edge_rows, e.edge_mean);
         EXPECT_EQ(e.rows, base.rows) << name << " " << ns << " " << along;
         EXPECT_EQ(e.outliers, base.outliers) << name << " " << ns << " " << along;
         EXPECT_LE(e.edge_mean, 1.05 * base.edge_mean + 0.001) << name << " " << ns << " " << along;

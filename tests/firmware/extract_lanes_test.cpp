@@ -1,8 +1,8 @@
-// The walks of 8-bit rows in SIMD lanes (firmware/extract/row_lanes.hpp) and as bit masks (row_masks.hpp, what
-// x86-64 CPUs with AVX2 take for contiguous rows) against the per-row walks
+// The walks of 8-bit rows in SIMD lanes (firmware/extract/row_lanes.hpp) and as bit masks (row_masks.hpp,
+// what x86-64 CPUs with AVX2 take for contiguous rows) against the per-row walks
 // (detail::extract_row_per_row_walks): the same status, centre, peak and width, bit for bit, on random rows
-// (stripes anywhere including the row ends, narrow and wide, flat and saturated tops, second peaks, short rows,
-// every method, other parameters) and on the scene renderer's frames, Mono8 and YUYV.
+// (stripes anywhere including the row ends, narrow and wide, flat and saturated tops, second peaks, short
+// rows, every method, other parameters) and on the scene renderer's frames, Mono8 and YUYV.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -22,7 +22,8 @@ namespace {
 
 bool same(const RowPeak& a, const RowPeak& b) {
   return a.status == b.status && std::memcmp(&a.col, &b.col, sizeof a.col) == 0 &&
-         std::memcmp(&a.peak, &b.peak, sizeof a.peak) == 0 && std::memcmp(&a.width, &b.width, sizeof a.width) == 0;
+         std::memcmp(&a.peak, &b.peak, sizeof a.peak) == 0 &&
+         std::memcmp(&a.width, &b.width, sizeof a.width) == 0;
 }
 
 bool same_point(const msg::StripePoint& a, const msg::StripePoint& b) {
@@ -49,7 +50,8 @@ TEST(ExtractLanes, RandomRowsGiveThePerRowResults) {
   std::uniform_real_distribution<double> u(0.0, 1.0);
   std::normal_distribution<double> nd(0.0, 1.0);
   const SubpixelMethod methods[] = {SubpixelMethod::GaussMl, SubpixelMethod::CentreOfGravity,
-                                    SubpixelMethod::Gaussian3, SubpixelMethod::BlaisRioux, SubpixelMethod::GaussFit};
+                                    SubpixelMethod::Gaussian3, SubpixelMethod::BlaisRioux,
+                                    SubpixelMethod::GaussFit};
   int status_seen[4] = {};
   for (int t = 0; t < 40000; ++t) {
     const std::uint32_t n = t % 5 == 0 ? 5 + static_cast<std::uint32_t>(rng() % 120) : 1280;
@@ -77,9 +79,9 @@ TEST(ExtractLanes, RandomRowsGiveThePerRowResults) {
     }
     const RowPeak want = detail::extract_row_per_row_walks(row.data(), n, 1, 255.0, p);
     const RowPeak got = extract_row<std::uint8_t>(row.data(), n, 1, 255.0, p);
-    ASSERT_TRUE(same(got, want)) << "trial " << t << " status " << int(got.status) << " / " << int(want.status)
-                                 << " col " << got.col << " / " << want.col << " width " << got.width << " / "
-                                 << want.width;
+    ASSERT_TRUE(same(got, want)) << "trial " << t << " status " << int(got.status) << " / "
+                                 << int(want.status) << " col " << got.col << " / " << want.col << " width "
+                                 << got.width << " / " << want.width;
     const RowPeak lanes = detail::extract_row_lane_walks(row.data(), n, 1, 255.0, p);
     ASSERT_TRUE(same(lanes, want)) << "lane walks, trial " << t;
     ++status_seen[static_cast<int>(want.status)];
@@ -91,24 +93,26 @@ TEST(ExtractLanes, RandomRowsGiveThePerRowResults) {
   for (int k = 0; k < 4; ++k) EXPECT_GT(status_seen[k], 100) << "status " << k;
 }
 
-// Whole frames through extract_frame (blocks of 8 rows, heights that are not multiples of 8, rows of every width
-// around the 32 / 64-sample window and block sizes, peaks at the row ends, flat tops and flat rows, the walk
-// parameters at their limits): the mask walks (where this CPU has them) and the lane walks give the per-row
-// walks' points, bit for bit. Each frame in a buffer of its exact size (the sanitizer build sees any read past
-// the last row).
+// Whole frames through extract_frame (blocks of 8 rows, heights that are not multiples of 8, rows of every
+// width around the 32 / 64-sample window and block sizes, peaks at the row ends, flat tops and flat rows, the
+// walk parameters at their limits): the mask walks (where this CPU has them) and the lane walks give the
+// per-row walks' points, bit for bit. Each frame in a buffer of its exact size (the sanitizer build sees any
+// read past the last row).
 TEST(ExtractLanes, RandomFramesGiveThePerRowResults) {
   std::mt19937 rng(12);
   std::uniform_real_distribution<double> u(0.0, 1.0);
   std::normal_distribution<double> nd(0.0, 1.0);
   const std::uint32_t widths[] = {5, 31, 32, 33, 63, 64, 65, 100, 127, 128, 129, 640, 1280};
-  const SubpixelMethod methods[] = {SubpixelMethod::GaussMl, SubpixelMethod::GaussLog, SubpixelMethod::CentreOfGravity};
+  const SubpixelMethod methods[] = {SubpixelMethod::GaussMl, SubpixelMethod::GaussLog,
+                                    SubpixelMethod::CentreOfGravity};
   int rows_compared = 0, points = 0;
   for (int t = 0; t < 1500; ++t) {
     const std::uint32_t w = widths[rng() % std::size(widths)], h = 1 + static_cast<std::uint32_t>(rng() % 19);
     std::vector<std::uint8_t> img(static_cast<std::size_t>(w) * h);
     for (std::uint32_t y = 0; y < h; ++y) {
       std::vector<double> v(w, 5.0 + 60.0 * u(rng));
-      const double c = u(rng) < 0.3 ? (u(rng) < 0.5 ? u(rng) * 40.0 : w - 1 - u(rng) * 40.0) : u(rng) * (w - 1);
+      const double c =
+          u(rng) < 0.3 ? (u(rng) < 0.5 ? u(rng) * 40.0 : w - 1 - u(rng) * 40.0) : u(rng) * (w - 1);
       if (u(rng) < 0.9) add_stripe(v, std::clamp(c, 0.0, w - 1.0), 0.5 + 3.0 * u(rng), 300.0 * u(rng));
       if (u(rng) < 0.2) add_stripe(v, u(rng) * (w - 1), 0.5 + 3.0 * u(rng), 200.0 * u(rng));
       const double noise = 3.0 * u(rng);
@@ -116,7 +120,8 @@ TEST(ExtractLanes, RandomFramesGiveThePerRowResults) {
       for (std::uint32_t i = 0; i < w; ++i)
         row[i] = static_cast<std::uint8_t>(std::clamp(std::lround(v[i] + noise * nd(rng)), 0L, 255L));
       if (u(rng) < 0.1) {  // a flat top up to 31 wide
-        const std::uint32_t at = static_cast<std::uint32_t>(rng() % w), len = 1 + static_cast<std::uint32_t>(rng() % 31);
+        const std::uint32_t at = static_cast<std::uint32_t>(rng() % w),
+                            len = 1 + static_cast<std::uint32_t>(rng() % 31);
         for (std::uint32_t i = at; i < std::min(w, at + len); ++i) row[i] = 250;
       }
       if (u(rng) < 0.03) std::fill(row, row + w, row[0]);  // a flat row
@@ -164,7 +169,8 @@ TEST(ExtractLanes, SceneFramesGiveThePerRowResults) {
       for (std::uint32_t y = 0; y < h; ++y) {
         const std::uint8_t* row = img.data() + std::size_t{y} * w;
         const RowPeak want = detail::extract_row_per_row_walks(row, w, 1, 255.0, p);
-        ASSERT_TRUE(same(extract_row<std::uint8_t>(row, w, 1, 255.0, p), want)) << "step " << step << " row " << y;
+        ASSERT_TRUE(same(extract_row<std::uint8_t>(row, w, 1, 255.0, p), want))
+            << "step " << step << " row " << y;
         ASSERT_TRUE(same(detail::extract_row_lane_walks(row, w, 1, 255.0, p), want)) << "lanes " << y;
         ok += want.status == RowStatus::Ok;
       }

@@ -92,19 +92,22 @@ TEST(ExtractScan, MaxOutsideMatchesBruteForce) {
     for (auto& v : row) v = static_cast<std::uint8_t>(rng() % 200);
     row[rng() % 1000] = 250;  // a spike somewhere
     scan_row<std::uint8_t, 1>(row.data(), 1000, *s);
-    const std::int64_t lo = static_cast<std::int64_t>(rng() % 995) - 5, hi = lo + static_cast<std::int64_t>(rng() % 120);
+    const std::int64_t lo = static_cast<std::int64_t>(rng() % 995) - 5,
+                       hi = lo + static_cast<std::int64_t>(rng() % 120);
     std::uint8_t want = 0;
     for (std::int64_t i = 0; i < 1000; ++i)
       if (i < lo || i > hi) want = std::max(want, row[static_cast<std::size_t>(i)]);
     ASSERT_EQ((max_outside<std::uint8_t, 1>(row.data(), *s, lo, hi)), want) << lo << ".." << hi;
-    // The 8-bit version (AVX2 on x86-64: writes over the lane maxima of the blocks [lo, hi] overlaps), also on
-    // rows that end inside the last block and windows at the row ends.
+    // The 8-bit version (AVX2 on x86-64: writes over the lane maxima of the blocks [lo, hi] overlaps), also
+    // on rows that end inside the last block and windows at the row ends.
     const std::uint32_t n = t % 3 ? 1000 : 1000 - static_cast<std::uint32_t>(rng() % 64);
     scan_row<std::uint8_t, 1>(row.data(), n, *s);
     // windows that hold a sample of the row (as the double-peak test's always do: the peak)
-    const std::int64_t lo8 =
-        t % 5 == 0 ? -3 : t % 5 == 1 ? static_cast<std::int64_t>(n) - 40 : std::min<std::int64_t>(lo, n - 1);
-    const std::int64_t hi8 = lo8 + 3 + static_cast<std::int64_t>(rng() % 60);  // windows hold a sample (the peak)
+    const std::int64_t lo8 = t % 5 == 0   ? -3
+                             : t % 5 == 1 ? static_cast<std::int64_t>(n) - 40
+                                          : std::min<std::int64_t>(lo, n - 1);
+    const std::int64_t hi8 =
+        lo8 + 3 + static_cast<std::int64_t>(rng() % 60);  // windows hold a sample (the peak)
     std::uint8_t want8 = 0;
     for (std::int64_t i = 0; i < n; ++i)
       if (i < lo8 || i > hi8) want8 = std::max(want8, row[static_cast<std::size_t>(i)]);
@@ -133,7 +136,8 @@ TEST(ExtractScan, FastFloatLogAndExpMatchLibm) {
     const float z = e(rng);
     const double x = std::exp(static_cast<double>(z));
     const float xf = static_cast<float>(x);
-    worst_ln = std::max(worst_ln, std::abs(static_cast<double>(fast_lnf(xf)) - std::log(static_cast<double>(xf))));
+    worst_ln =
+        std::max(worst_ln, std::abs(static_cast<double>(fast_lnf(xf)) - std::log(static_cast<double>(xf))));
     worst_exp = std::max(worst_exp, std::abs(static_cast<double>(fast_expf(z)) / x - 1.0));
   }
   EXPECT_LT(worst_ln, 2e-7 * 60);  // absolute; |ln x| up to 80: a few ulp of the result
@@ -194,7 +198,8 @@ TEST(ExtractScan, GaussMlRecoversExactGaussian) {
   for (double u : {0.0, 0.27, -0.41, 0.5}) {
     for (double s : {0.8, 1.5, 3.0, 6.0}) {
       std::vector<float> y(61 + kChunk, 0.0f);
-      for (int k = 0; k < 61; ++k) y[k] = static_cast<float>(150.0 * std::exp(-(k - 30 - u) * (k - 30 - u) / (2 * s * s)));
+      for (int k = 0; k < 61; ++k)
+        y[k] = static_cast<float>(150.0 * std::exp(-(k - 30 - u) * (k - 30 - u) / (2 * s * s)));
       const int ic = 30 + static_cast<int>(std::lround(u));
       double c = 0.0;
       ASSERT_TRUE(gauss_ml_centre(y.data(), 61, ic, 150.0, 1e9, SensorNoise{}, c)) << u << " " << s;
@@ -241,7 +246,8 @@ TEST_P(GaussMlBatchFit, MatchesTheOneRowFit) {
     for (int j = 0; j < kBatch; ++j) {
       clip[j] = round % 4 == 0 ? 150.0 : 1e9;  // some lanes with clipped tops
       win[j] = noisy_profile(uu(rng), ss(rng), aa(rng), clip[j], rng);
-      ic[j] = static_cast<int>(std::max_element(win[j].begin(), win[j].begin() + 2 * kBatchHalf) - win[j].begin());
+      ic[j] = static_cast<int>(std::max_element(win[j].begin(), win[j].begin() + 2 * kBatchHalf) -
+                               win[j].begin());
       ic[j] = std::clamp(ic[j], 1, 2 * kBatchHalf - 2);
       first[j] = std::max(1, ic[j] - half(rng));  // windows of different widths, some cut at one side
       last[j] = std::min(2 * kBatchHalf - 1, ic[j] + half(rng));
@@ -277,8 +283,8 @@ TEST_P(GaussMlBatchFit, MatchesTheOneRowFit) {
       std::vector<float> y(win[j].begin() + first[j], win[j].begin() + last[j] + 1);
       y.resize(y.size() + kChunk, 0.0f);
       double c = 0.0;
-      const bool ok = gauss_ml_centre(y.data(), last[j] - first[j] + 1, ic[j] - first[j], contrast[j], clip[j],
-                                      SensorNoise{}, c, intensity_step);
+      const bool ok = gauss_ml_centre(y.data(), last[j] - first[j] + 1, ic[j] - first[j], contrast[j],
+                                      clip[j], SensorNoise{}, c, intensity_step);
       ++compared;
       ASSERT_EQ(ok, batch.ok[j] != 0) << "round " << round << " lane " << j;
       if (!ok) continue;
@@ -290,7 +296,8 @@ TEST_P(GaussMlBatchFit, MatchesTheOneRowFit) {
       EXPECT_LT(diff, 2e-4) << "round " << round << " lane " << j;
     }
   }
-  std::printf("%d of %d lanes fitted, largest difference to the one-row fit %.2g px\n", fitted, compared, worst);
+  std::printf("%d of %d lanes fitted, largest difference to the one-row fit %.2g px\n", fitted, compared,
+              worst);
   EXPECT_GT(fitted, compared * 9 / 10);
 }
 INSTANTIATE_TEST_SUITE_P(ExtractScan, GaussMlBatchFit, ::testing::Values(true, false),

@@ -43,8 +43,8 @@ Err measure(const sim::Scene& scene, double noise_scale, fw::SubpixelMethod meth
     for (std::uint32_t v = 0; v < cam.height; ++v) {
       const auto& t = r.truth()[v];
       if (!t.valid()) continue;
-      const fw::RowPeak rp = fw::extract_row<std::uint8_t>(img.data() + static_cast<std::size_t>(v) * cam.width,
-                                                           cam.width, 1, 255.0, p);
+      const fw::RowPeak rp = fw::extract_row<std::uint8_t>(
+          img.data() + static_cast<std::size_t>(v) * cam.width, cam.width, 1, 255.0, p);
       if (rp.status != fw::RowStatus::Ok) {
         ++e.rejected;
         continue;
@@ -55,8 +55,9 @@ Err measure(const sim::Scene& scene, double noise_scale, fw::SubpixelMethod meth
         continue;
       }
       sum += d;
-      bound += std::sqrt(2.0 / M_PI * fw::detail::centre_crb(t.column, r.sigma_px()[v], r.peak()[v], o.ambient, 255.0,
-                                                             noise));
+      bound +=
+          std::sqrt(2.0 / M_PI *
+                    fw::detail::centre_crb(t.column, r.sigma_px()[v], r.peak()[v], o.ambient, 255.0, noise));
       ++e.rows;
     }
   }
@@ -69,11 +70,12 @@ TEST(ExtractScene, ErrorVersusNoiseOnCubeFrames) {
   const sim::Scene scene = sim::load_scene(source_dir() / "hw-sim/scenes/cube.json");
   std::printf("noise_scale  method       mean|err|px  CRB mean|err|  rows  outliers(>1px)  rejected\n");
   for (double ns : {0.0, 0.25, 0.5, 1.0}) {
-    for (auto m : {fw::SubpixelMethod::CentreOfGravity, fw::SubpixelMethod::Gaussian3, fw::SubpixelMethod::BlaisRioux,
-                   fw::SubpixelMethod::GaussFit, fw::SubpixelMethod::GaussMl, fw::SubpixelMethod::GaussLog}) {
+    for (auto m :
+         {fw::SubpixelMethod::CentreOfGravity, fw::SubpixelMethod::Gaussian3, fw::SubpixelMethod::BlaisRioux,
+          fw::SubpixelMethod::GaussFit, fw::SubpixelMethod::GaussMl, fw::SubpixelMethod::GaussLog}) {
       const Err e = measure(scene, ns, m);
-      std::printf("%11.2f  %-11s  %11.4f  %13.4f  %4d  %14d  %8d\n", ns, fw::to_string(m), e.mean, e.bound, e.rows,
-                  e.outliers, e.rejected);
+      std::printf("%11.2f  %-11s  %11.4f  %13.4f  %4d  %14d  %8d\n", ns, fw::to_string(m), e.mean, e.bound,
+                  e.rows, e.outliers, e.rejected);
       if (m == fw::ExtractParams{}.method) {
         EXPECT_EQ(e.outliers, 0) << "noise " << ns;
         EXPECT_EQ(e.rejected, 0) << "noise " << ns;
@@ -98,9 +100,9 @@ TEST(ExtractScene, GaussMlToleratesAWrongNoiseModel) {
     double read, shot, speckle;
   };
   std::printf("gauss-ml at noise_scale 1 with the model:        mean|err|px\n");
-  for (const Case& c : {Case{"default (1.5, 0.35, 0.12)", 1.5, 0.35, 0.12}, Case{"speckle / 2", 1.5, 0.35, 0.06},
-                        Case{"speckle x 2", 1.5, 0.35, 0.24}, Case{"read x 2", 3.0, 0.35, 0.12},
-                        Case{"no shot noise", 1.5, 0.0, 0.12}}) {
+  for (const Case& c : {Case{"default (1.5, 0.35, 0.12)", 1.5, 0.35, 0.12},
+                        Case{"speckle / 2", 1.5, 0.35, 0.06}, Case{"speckle x 2", 1.5, 0.35, 0.24},
+                        Case{"read x 2", 3.0, 0.35, 0.12}, Case{"no shot noise", 1.5, 0.0, 0.12}}) {
     fw::ExtractParams p;
     p.read_noise = c.read;
     p.shot_noise = c.shot;
@@ -112,8 +114,8 @@ TEST(ExtractScene, GaussMlToleratesAWrongNoiseModel) {
   }
 }
 
-// extract_frame works through blocks of rows (the batched GaussMl fit, rows in SIMD lanes); extract_row fits a
-// row alone. Both must give the same points bit for bit, for every method and pixel format, on the
+// extract_frame works through blocks of rows (the batched GaussMl fit, rows in SIMD lanes); extract_row fits
+// a row alone. Both must give the same points bit for bit, for every method and pixel format, on the
 // renderer's frames (so the accuracy measured above through extract_row is the frame path's).
 TEST(ExtractScene, FrameGivesTheRowByRowResults) {
   const sim::Scene scene = sim::load_scene(source_dir() / "hw-sim/scenes/cube.json");
@@ -131,16 +133,22 @@ TEST(ExtractScene, FrameGivesTheRowByRowResults) {
       yuyv[2 * i] = img[i];
       yuyv[2 * i + 1] = static_cast<std::uint8_t>(i);
     }
-    for (auto m : {fw::SubpixelMethod::GaussMl, fw::SubpixelMethod::GaussLog, fw::SubpixelMethod::CentreOfGravity,
-                   fw::SubpixelMethod::GaussFit}) {
+    for (auto m : {fw::SubpixelMethod::GaussMl, fw::SubpixelMethod::GaussLog,
+                   fw::SubpixelMethod::CentreOfGravity, fw::SubpixelMethod::GaussFit}) {
       fw::ExtractParams p;
       p.method = m;
       p.along_stripe = 0;  // the per-row centres (the refinement across rows: the next test)
       for (int format = 0; format < 3; ++format) {
         const fw::FrameView f =
             format == 0   ? fw::FrameView{img.data(), w, h, w, fw::PixelFormat::Mono8, 0, 0, 0}
-            : format == 1 ? fw::FrameView{reinterpret_cast<const std::uint8_t*>(img16.data()), w, h, 2 * w,
-                                          fw::PixelFormat::Mono16, 0, 0, 0}
+            : format == 1 ? fw::FrameView{reinterpret_cast<const std::uint8_t*>(img16.data()),
+                                          w,
+                                          h,
+                                          2 * w,
+                                          fw::PixelFormat::Mono16,
+                                          0,
+                                          0,
+                                          0}
                           : fw::FrameView{yuyv.data(), w, h, 2 * w, fw::PixelFormat::Yuyv, 0, 0, 0};
         const fw::ExtractCounts c = fw::extract_frame(f, p, out);
         std::uint32_t k = 0, no_stripe = 0;
@@ -182,7 +190,8 @@ TEST(ExtractScene, FrameIsTheRowsRefinedAlongTheStripe) {
   ASSERT_EQ(p.along_stripe, 15u);
   for (double step : {30.0, 250.0, 470.0}) {
     r.render_step(step, 3, sim::FrameBuffer{img.data(), w, h, w, sim::FrameFormat::Mono8});
-    const fw::ExtractCounts c = fw::extract_frame(fw::FrameView{img.data(), w, h, w, fw::PixelFormat::Mono8, 0, 0, 0}, p, out);
+    const fw::ExtractCounts c =
+        fw::extract_frame(fw::FrameView{img.data(), w, h, w, fw::PixelFormat::Mono8, 0, 0, 0}, p, out);
     rows.clear();
     for (std::uint32_t v = 0; v < h; ++v) {
       const fw::RowPeak rp = fw::extract_row<std::uint8_t>(img.data() + std::size_t{v} * w, w, 1, 255.0, p);
@@ -199,8 +208,10 @@ TEST(ExtractScene, FrameIsTheRowsRefinedAlongTheStripe) {
     for (std::size_t k = 0; k < rows.size(); ++k) {
       ASSERT_EQ(out[k].row, rows[k].row);
       ASSERT_EQ(out[k].col, rows[k].col) << "row " << rows[k].row;
-      moved += out[k].col != static_cast<float>(
-                                 fw::extract_row<std::uint8_t>(img.data() + std::size_t{rows[k].row} * w, w, 1, 255.0, p).col);
+      moved +=
+          out[k].col !=
+          static_cast<float>(
+              fw::extract_row<std::uint8_t>(img.data() + std::size_t{rows[k].row} * w, w, 1, 255.0, p).col);
     }
     EXPECT_GT(moved, static_cast<int>(rows.size()) * 9 / 10);  // nearly every row is refined
   }

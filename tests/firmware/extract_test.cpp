@@ -16,8 +16,8 @@ namespace fs::fw {
 namespace {
 
 // A stripe row: ambient + amplitude * exp(-(x-c)^2 / (2 s^2)) integrated over each pixel, + Gaussian noise.
-std::vector<std::uint8_t> gaussian_row(std::uint32_t n, double centre, double sigma, double amplitude, double ambient,
-                                       double noise, std::mt19937& rng) {
+std::vector<std::uint8_t> gaussian_row(std::uint32_t n, double centre, double sigma, double amplitude,
+                                       double ambient, double noise, std::mt19937& rng) {
   std::normal_distribution<double> nd(0.0, 1.0);
   std::vector<std::uint8_t> row(n);
   for (std::uint32_t i = 0; i < n; ++i) {
@@ -33,7 +33,8 @@ std::vector<std::uint8_t> gaussian_row(std::uint32_t n, double centre, double si
 
 // matched_model: GaussMl's sensor noise model set to these rows' noise (additive only) instead of the default
 // (the hw-sim camera's, dominated by 12 % speckle).
-double mean_abs_error(SubpixelMethod m, double noise, int trials, std::uint32_t seed, bool matched_model = false) {
+double mean_abs_error(SubpixelMethod m, double noise, int trials, std::uint32_t seed,
+                      bool matched_model = false) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> uc(100.0, 500.0), us(1.2, 2.5);
   ExtractParams p;
@@ -78,8 +79,9 @@ TEST(Extract, DefaultMethodMeetsAccuracyAtDefaultNoise) {
 }
 
 TEST(Extract, ErrorVersusNoiseTable) {
-  std::printf("noise_dn  cog      gauss3   blais-rioux  gauss-fit  gauss-ml  gauss-ml(matched model)  (mean |error| "
-              "px, 2000 rows each)\n");
+  std::printf(
+      "noise_dn  cog      gauss3   blais-rioux  gauss-fit  gauss-ml  gauss-ml(matched model)  (mean |error| "
+      "px, 2000 rows each)\n");
   double prev_gauss = 0.0;
   for (double noise : {0.0, 1.0, 2.0, 4.0, 8.0}) {
     const double cog = mean_abs_error(SubpixelMethod::CentreOfGravity, noise, 2000, 11);
@@ -103,7 +105,8 @@ TEST(Extract, RejectsRowWithoutStripe) {
   std::vector<std::uint8_t> row(400);
   std::normal_distribution<double> nd(30.0, 3.0);
   for (auto& v : row) v = static_cast<std::uint8_t>(std::clamp(std::lround(nd(rng)), 0L, 255L));
-  EXPECT_EQ(extract_row<std::uint8_t>(row.data(), 400, 1, 255.0, ExtractParams{}).status, RowStatus::NoStripe);
+  EXPECT_EQ(extract_row<std::uint8_t>(row.data(), 400, 1, 255.0, ExtractParams{}).status,
+            RowStatus::NoStripe);
 }
 
 TEST(Extract, FlagsDoublePeakAsAmbiguous) {
@@ -124,7 +127,8 @@ TEST(Extract, FlagsDoublePeakAsAmbiguous) {
 TEST(Extract, FlagsSaturationPlateau) {
   std::mt19937 rng(4);
   const auto row = gaussian_row(400, 200.0, 3.0, 900.0, 20.0, 0.0, rng);  // clipped at 255 over many pixels
-  EXPECT_EQ(extract_row<std::uint8_t>(row.data(), 400, 1, 255.0, ExtractParams{}).status, RowStatus::Saturated);
+  EXPECT_EQ(extract_row<std::uint8_t>(row.data(), 400, 1, 255.0, ExtractParams{}).status,
+            RowStatus::Saturated);
 }
 
 TEST(Extract, TwoClippedSamplesStillGiveTheCentre) {
@@ -162,15 +166,16 @@ TEST(Extract, CentreStaysInsideTheRowAtItsEdges) {
 }
 
 // A stripe with a shoulder above half maximum that reaches exactly one sample past the support's bound
-// (max_half_width = 24 samples right of the peak): the half-maximum walk stops at the bound, not on a flank, so
-// the FWHM keeps the bound there instead of interpolating towards the next shoulder sample (which, alternating
-// by 3 DN, extrapolated by up to ~17 px either way: the fuzzer found widths of -4500 px on such Mono16 rows).
-// Every method and walk path, 8 and 16 bit.
+// (max_half_width = 24 samples right of the peak): the half-maximum walk stops at the bound, not on a flank,
+// so the FWHM keeps the bound there instead of interpolating towards the next shoulder sample (which,
+// alternating by 3 DN, extrapolated by up to ~17 px either way: the fuzzer found widths of -4500 px on such
+// Mono16 rows). Every method and walk path, 8 and 16 bit.
 TEST(Extract, FwhmStaysInsideASupportCutByMaxHalfWidth) {
   std::vector<std::uint8_t> row(100, 10);
   row[39] = 60;
   row[40] = 250;  // the peak
-  for (int i = 41; i <= 65; ++i) row[static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(180 + (i % 2) * 3);
+  for (int i = 41; i <= 65; ++i)
+    row[static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(180 + (i % 2) * 3);
   std::vector<std::uint16_t> row16(row.size());
   for (std::size_t i = 0; i < row.size(); ++i) row16[i] = static_cast<std::uint16_t>(row[i] * 257);
   for (auto m : {SubpixelMethod::GaussMl, SubpixelMethod::GaussLog, SubpixelMethod::CentreOfGravity,
@@ -214,7 +219,8 @@ TEST(Extract, FrameFormatsAgree) {
   }
   std::vector<msg::StripePoint> out8(h), out16(h), outy(h);
   FrameView f8{mono8.data(), w, h, w, PixelFormat::Mono8, 0, 0, 0};
-  FrameView f16{reinterpret_cast<const std::uint8_t*>(mono16.data()), w, h, w * 2, PixelFormat::Mono16, 0, 0, 0};
+  FrameView f16{
+      reinterpret_cast<const std::uint8_t*>(mono16.data()), w, h, w * 2, PixelFormat::Mono16, 0, 0, 0};
   FrameView fy{yuyv.data(), w, h, w * 2, PixelFormat::Yuyv, 0, 0, 0};
   const auto c8 = extract_frame(f8, ExtractParams{}, out8);
   const auto c16 = extract_frame(f16, ExtractParams{}, out16);

@@ -33,7 +33,8 @@ TEST(HilCube, RecordedScanMatchesGroundTruth) {
   resample_steps(scene.calibration, kSteps);
   sim::SceneFrameRenderer renderer(scene);
   sim::SimRig rig(renderer);
-  const auto path = std::filesystem::temp_directory_path() / ("hil_cube_" + std::to_string(::getpid()) + ".fscan");
+  const auto path =
+      std::filesystem::temp_directory_path() / ("hil_cube_" + std::to_string(::getpid()) + ".fscan");
   {
     ScanFileWriter file(path);
     fw::QueuedPublisherConfig pc;
@@ -98,8 +99,11 @@ TEST(HilCube, RecordedScanMatchesGroundTruth) {
         ++ends;
         end = m.scan_end;
         break;
-      case msg::Type::Fault: ++faults; break;
-      case msg::Type::Heartbeat: break;
+      case msg::Type::Fault:
+        ++faults;
+        break;
+      case msg::Type::Heartbeat:
+        break;
     }
   }
   std::filesystem::remove(path);
@@ -114,11 +118,13 @@ TEST(HilCube, RecordedScanMatchesGroundTruth) {
   EXPECT_EQ(rig.camera.frames_dropped(), 0u);
   ASSERT_GT(matched, 0u);
   const double mean = err_sum / static_cast<double>(matched);
-  std::printf("HIL cube: %u stripes, %llu points, %llu truth rows, matched %llu, spurious %llu, mean |err| %.4f px, "
-              "max %.3f px\n",
-              stripes, static_cast<unsigned long long>(points), static_cast<unsigned long long>(truth_rows),
-              static_cast<unsigned long long>(matched), static_cast<unsigned long long>(spurious), mean, err_max);
-  EXPECT_GE(static_cast<double>(matched), 0.97 * static_cast<double>(truth_rows));  // rows with a stripe found
+  std::printf(
+      "HIL cube: %u stripes, %llu points, %llu truth rows, matched %llu, spurious %llu, mean |err| %.4f px, "
+      "max %.3f px\n",
+      stripes, static_cast<unsigned long long>(points), static_cast<unsigned long long>(truth_rows),
+      static_cast<unsigned long long>(matched), static_cast<unsigned long long>(spurious), mean, err_max);
+  EXPECT_GE(static_cast<double>(matched),
+            0.97 * static_cast<double>(truth_rows));  // rows with a stripe found
   EXPECT_LE(static_cast<double>(spurious), 0.005 * static_cast<double>(points));
   // The renderer's default noise includes 12 % laser speckle: ~0.11 px is the noise floor there (see
   // extract_scene_test.cpp); without speckle the same frames give < 0.02 px.

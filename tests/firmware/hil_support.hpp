@@ -43,14 +43,22 @@ inline Decoded decode_all(std::span<const std::uint8_t> bytes) {
     while (dec.next(f)) {
       wire::decode(f, m, "hil");
       switch (m.type) {
-        case msg::Type::ScanBegin: ++d.scan_begins; break;
+        case msg::Type::ScanBegin:
+          ++d.scan_begins;
+          break;
         case msg::Type::Stripe:
           d.stripes.push_back(m.stripe.header);
           d.points.emplace_back(m.stripe.points.begin(), m.stripe.points.end());
           break;
-        case msg::Type::ScanEnd: d.ends.push_back(m.scan_end); break;
-        case msg::Type::Heartbeat: d.heartbeats.push_back(m.heartbeat); break;
-        case msg::Type::Fault: d.faults.push_back(m.fault); break;
+        case msg::Type::ScanEnd:
+          d.ends.push_back(m.scan_end);
+          break;
+        case msg::Type::Heartbeat:
+          d.heartbeats.push_back(m.heartbeat);
+          break;
+        case msg::Type::Fault:
+          d.faults.push_back(m.fault);
+          break;
       }
     }
   }
@@ -72,7 +80,8 @@ struct Hil {
     cfg.steps = steps;
     cfg.first_step = 0;
     cfg.max_rows = cal.camera.height;
-    ctl = std::make_unique<fw::Controller>(fw::Devices{rig.clock, rig.galvo, rig.laser, rig.camera}, cfg, *pub, cal);
+    ctl = std::make_unique<fw::Controller>(fw::Devices{rig.clock, rig.galvo, rig.laser, rig.camera}, cfg,
+                                           *pub, cal);
   }
   Decoded decoded() {
     pub->flush();

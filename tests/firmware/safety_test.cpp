@@ -56,9 +56,9 @@ std::string run_child(int how) {
     PipeGalvo galvo(p[1]);
     install_safety_handlers(&laser, &galvo, nullptr);
     laser.set(true, 0);
-    if (how == 0) std::abort();           // crash
-    if (how == 1) std::exit(3);           // exit without cleanup of the stack objects
-    if (how == 2) ::raise(SIGTERM);       // stop signal without a controller: safe + exit 130
+    if (how == 0) std::abort();      // crash
+    if (how == 1) std::exit(3);      // exit without cleanup of the stack objects
+    if (how == 2) ::raise(SIGTERM);  // stop signal without a controller: safe + exit 130
     _exit(0);
   }
   close(p[1]);

@@ -101,7 +101,8 @@ TEST(TcpSink, DeliversAndReconnectsWithBufferedFrames) {
   EXPECT_EQ(read_heartbeats(c1, 3, 3000), (std::vector<std::uint64_t>{0, 1, 2}));
   close(c1);  // the host goes away; the sink notices (EOF) and connects again (the listener's backlog
               // completes the connection at once, so frames written now may be sent before accept())
-  for (int i = 0; i < 300 && sink.connections() < 2; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  for (int i = 0; i < 300 && sink.connections() < 2; ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
   EXPECT_EQ(sink.connections(), 2u);
   for (int i = 3; i < 8; ++i) sink.write(heartbeat_frame(i));
   const int c2 = l.accept_within(3000);
@@ -144,7 +145,8 @@ TEST(TcpSink, HostHeartbeatTimeout) {
     // Silence: the sink gives up on this connection and reconnects.
     const int c2 = l.accept_within(3000);
     EXPECT_GE(c2, 0);
-    for (int i = 0; i < 300 && sink.connections() < 2; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    for (int i = 0; i < 300 && sink.connections() < 2; ++i)
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
     EXPECT_GE(sink.connections(), 2u);
     close(c);
     if (c2 >= 0) close(c2);

@@ -1,5 +1,5 @@
-// Frames per second of the stripe renderer at 1280x1024 with noise (target >= 100 on one core), and the cost of
-// the parts: stripe geometry (ray casting) alone, and a full ground-truth grid.
+// Frames per second of the stripe renderer at 1280x1024 with noise (target >= 100 on one core), and the cost
+// of the parts: stripe geometry (ray casting) alone, and a full ground-truth grid.
 #include <benchmark/benchmark.h>
 
 #include <vector>
@@ -31,12 +31,15 @@ void render(benchmark::State& state, fs::sim::FrameFormat format, bool reflectio
     benchmark::DoNotOptimize(pixels.data());
     ++frame;
   }
-  state.counters["frames/s"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+  state.counters["frames/s"] =
+      benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
 }
 
 void BM_RenderMono8Noise(benchmark::State& state) { render(state, fs::sim::FrameFormat::Mono8, false); }
 void BM_RenderMono16Noise(benchmark::State& state) { render(state, fs::sim::FrameFormat::Mono16, false); }
-void BM_RenderMono8NoiseReflection(benchmark::State& state) { render(state, fs::sim::FrameFormat::Mono8, true); }
+void BM_RenderMono8NoiseReflection(benchmark::State& state) {
+  render(state, fs::sim::FrameFormat::Mono8, true);
+}
 
 void BM_StripeGeometryOnly(benchmark::State& state) {
   const auto& s = scene();
@@ -47,7 +50,8 @@ void BM_StripeGeometryOnly(benchmark::State& state) {
     t.trace(s.calibration.laser.plane_at_step(static_cast<double>(k++ % s.calibration.step_count)), rows);
     benchmark::DoNotOptimize(rows.data());
   }
-  state.counters["planes/s"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+  state.counters["planes/s"] =
+      benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
 }
 
 void BM_GroundTruthGrid500Steps(benchmark::State& state) {

@@ -1,5 +1,5 @@
-// Fuzz target: scene JSON (objects, poses, table, scanner overrides). Any input must parse or raise fs::Error;
-// model paths resolve against the shipped scenes folder, so inputs can name the real meshes.
+// Fuzz target: scene JSON (objects, poses, table, scanner overrides). Any input must parse or raise
+// fs::Error; model paths resolve against the shipped scenes folder, so inputs can name the real meshes.
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>

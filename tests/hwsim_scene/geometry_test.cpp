@@ -1,4 +1,5 @@
-// Laser plane geometry, ray casting, visibility and the ground-truth grid, checked against independent ray casts.
+// Laser plane geometry, ray casting, visibility and the ground-truth grid, checked against independent ray
+// casts.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -14,7 +15,8 @@ using fs::Vec2;
 using fs::Vec3;
 
 fs::sim::Scene scene_file(const char* name, std::uint32_t steps = 0) {
-  fs::sim::Scene s = fs::sim::load_scene(fs::test::source_dir() / "hw-sim/scenes" / (std::string(name) + ".json"));
+  fs::sim::Scene s =
+      fs::sim::load_scene(fs::test::source_dir() / "hw-sim/scenes" / (std::string(name) + ".json"));
   if (steps > 0) fs::sim::resample_sweep(s.calibration, steps);  // fewer steps, same sweep: fast tests
   return s;
 }
@@ -39,7 +41,8 @@ fs::sim::Scene cube_at(const Vec3& t, double edge = 50.0) {
   fs::Mesh m;
   m.name = "cube";
   const double h = edge / 2;
-  m.vertices = {{-h, -h, 0}, {h, -h, 0}, {h, h, 0}, {-h, h, 0}, {-h, -h, edge}, {h, -h, edge}, {h, h, edge}, {-h, h, edge}};
+  m.vertices = {{-h, -h, 0},    {h, -h, 0},    {h, h, 0},    {-h, h, 0},
+                {-h, -h, edge}, {h, -h, edge}, {h, h, edge}, {-h, h, edge}};
   m.faces = {{0, 3, 2, 1}, {4, 5, 6, 7}, {0, 1, 5, 4}, {1, 2, 6, 5}, {2, 3, 7, 6}, {3, 0, 4, 7}};
   fs::sim::Scene s;
   s.source = "test";
@@ -145,7 +148,8 @@ TEST(Visibility, PointBehindBoxIsNotLitOrNotSeen) {
   tracer2.trace(fs::Plane{n2, n2.dot(mirror)}, rows);
   ASSERT_TRUE(far.calibration.camera.project(hidden, px));
   const auto row2 = static_cast<std::size_t>(std::lround(px.y()));
-  EXPECT_FALSE(rows[row2].valid() && rows[row2].object == 0 && std::abs(rows[row2].point.x() - hidden.x()) < 1.0);
+  EXPECT_FALSE(rows[row2].valid() && rows[row2].object == 0 &&
+               std::abs(rows[row2].point.x() - hidden.x()) < 1.0);
 }
 
 // Every valid cell is on its laser plane, projects onto its row and column, lies in its face polygon, and is
@@ -172,7 +176,8 @@ void check_grid_consistent(const fs::sim::Scene& s, const fs::sim::GroundTruthGr
       ASSERT_TRUE(rc.cast(S, (c.true_point - S).normalized(), 1e9, h));
       ASSERT_NEAR((h.point - c.true_point).norm(), 0.0, 1e-3) << "step " << k << " row " << r;
       if (c.object > 0) {
-        const auto& f = s.objects[static_cast<std::size_t>(c.object - 1)].faces[static_cast<std::size_t>(c.face)];
+        const auto& f =
+            s.objects[static_cast<std::size_t>(c.object - 1)].faces[static_cast<std::size_t>(c.face)];
         ASSERT_NEAR(f.plane.signed_distance(c.true_point), 0.0, 1e-6);
         ASSERT_EQ(c.normal, f.plane.n);
       } else {
@@ -205,12 +210,13 @@ TEST(GroundTruthGrid, CellsAreLitSeenAndOnTheirPlane) {
   EXPECT_EQ(g.rows(), 1024u);
   check_grid_consistent(s, g);
   // Every object shows up, with several faces each.
-  for (std::int32_t o = 1; o <= static_cast<std::int32_t>(s.objects.size()); ++o) EXPECT_GT(g.count_object(o), 100u);
+  for (std::int32_t o = 1; o <= static_cast<std::int32_t>(s.objects.size()); ++o)
+    EXPECT_GT(g.count_object(o), 100u);
   EXPECT_GT(g.count_object(0), g.valid_count() / 2);
 }
 
-// Completeness: scan image rows with camera rays; wherever the seen surface crosses the laser plane between two
-// neighbouring columns and that surface is lit, the grid must have the stripe point in between.
+// Completeness: scan image rows with camera rays; wherever the seen surface crosses the laser plane between
+// two neighbouring columns and that surface is lit, the grid must have the stripe point in between.
 class GroundTruthCompleteness : public ::testing::TestWithParam<bool> {};
 
 TEST_P(GroundTruthCompleteness, FindsEveryLitAndSeenCrossing) {

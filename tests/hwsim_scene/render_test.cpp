@@ -1,4 +1,5 @@
-// Stripe renderer: profile centroid vs ground truth, determinism, noise, width/intensity model, no allocation.
+// Stripe renderer: profile centroid vs ground truth, determinism, noise, width/intensity model, no
+// allocation.
 #include <gtest/gtest.h>
 
 #include <atomic>
@@ -77,7 +78,8 @@ void check_centroids(const char* scene_name, FrameFormat format, double max_err,
       const auto& t = r.truth()[row];
       const double sig = r.sigma_px()[row];
       if (!t.valid() || r.peak()[row] < min_peak || sig > 6.0) continue;
-      const int x0 = static_cast<int>(std::floor(t.column - 5 * sig)), x1 = static_cast<int>(std::ceil(t.column + 5 * sig));
+      const int x0 = static_cast<int>(std::floor(t.column - 5 * sig)),
+                x1 = static_cast<int>(std::ceil(t.column + 5 * sig));
       if (x0 < 0 || x1 >= static_cast<int>(f.fb.width)) continue;
       double sw = 0.0, swx = 0.0;
       for (int x = x0; x <= x1; ++x) {
@@ -96,7 +98,9 @@ void check_centroids(const char* scene_name, FrameFormat format, double max_err,
   ::testing::Test::RecordProperty("worst_centroid_error_px", std::to_string(worst));
 }
 
-TEST(StripeRenderer, CentroidMatchesTruthWithoutNoiseMono8) { check_centroids("default", FrameFormat::Mono8, 0.05, 50.0f); }
+TEST(StripeRenderer, CentroidMatchesTruthWithoutNoiseMono8) {
+  check_centroids("default", FrameFormat::Mono8, 0.05, 50.0f);
+}
 TEST(StripeRenderer, CentroidMatchesTruthWithoutNoiseMono16) {
   check_centroids("cube-occludes-pyramid", FrameFormat::Mono16, 0.05, 1.0f);
 }
@@ -141,10 +145,10 @@ TEST(StripeRenderer, BackgroundNoiseHasTheConfiguredLevel) {
 
 TEST(StripeRenderer, WidthAndPeakFollowDistanceAndIncidence) {
   // Peak: laser_peak * cos(incidence) * (reference distance / distance)^2.
-  // Width: on the surface, the sheet (sigma = sheet_sigma + divergence * distance) leaves a band of half-width
-  // a = sheet / |n_L . d| across the stripe (d: in the surface, across the stripe line l). In the image, the
-  // profile's sigma along the row is the horizontal distance, on that row, to the band's edge X + a d + t l,
-  // combined with the optics blur. Checked here by solving for the edge on the row independently.
+  // Width: on the surface, the sheet (sigma = sheet_sigma + divergence * distance) leaves a band of
+  // half-width a = sheet / |n_L . d| across the stripe (d: in the surface, across the stripe line l). In the
+  // image, the profile's sigma along the row is the horizontal distance, on that row, to the band's edge X +
+  // a d + t l, combined with the optics blur. Checked here by solving for the edge on the row independently.
   const auto s = load("default");
   fs::sim::RenderOptions opt;
   opt.noise_scale = 0.0;
@@ -183,7 +187,8 @@ TEST(StripeRenderer, WidthAndPeakFollowDistanceAndIncidence) {
       ASSERT_TRUE(cam.project(edge + x * l, p));
       if (std::abs(p.y() - row) > 1e-3) continue;  // stripe line nearly along the row: capped width
       const double h = std::abs(p.x() - t.column);
-      const double expected = std::min(std::sqrt(h * h + opt.min_sigma_px * opt.min_sigma_px), opt.max_sigma_px);
+      const double expected =
+          std::min(std::sqrt(h * h + opt.min_sigma_px * opt.min_sigma_px), opt.max_sigma_px);
       EXPECT_NEAR(r.sigma_px()[row], expected, 0.02 * expected + 1e-3) << "step " << step << " row " << row;
       widest = std::max(widest, expected);
       narrowest = std::min(narrowest, expected);

@@ -68,7 +68,8 @@ double separation(const std::vector<fs::Vec2>& a, const std::vector<fs::Vec2>& b
 }
 
 TEST(Scene, ShippedScenesLoadAndRestOnTheTable) {
-  const char* names[] = {"corner", "pyramid", "cube", "cube-pyramid-separate", "cube-occludes-pyramid", "default"};
+  const char* names[] = {"corner", "pyramid", "cube", "cube-pyramid-separate", "cube-occludes-pyramid",
+                         "default"};
   for (const char* name : names) {
     SCOPED_TRACE(name);
     const fs::sim::Scene s = fs::sim::load_scene(scenes_dir() / (std::string(name) + ".json"));
@@ -90,7 +91,8 @@ TEST(Scene, ShippedScenesLoadAndRestOnTheTable) {
       for (const auto& f : o.faces) {
         for (const auto& v : f.polygon) EXPECT_NEAR(f.plane.signed_distance(v), 0.0, 1e-9);
         fs::Vec3 n = fs::Vec3::Zero();
-        for (std::size_t k = 0; k < f.polygon.size(); ++k) n += f.polygon[k].cross(f.polygon[(k + 1) % f.polygon.size()]);
+        for (std::size_t k = 0; k < f.polygon.size(); ++k)
+          n += f.polygon[k].cross(f.polygon[(k + 1) % f.polygon.size()]);
         EXPECT_GT(n.dot(f.plane.n), 0.0) << o.name;
         for (std::size_t k = 1; k + 1 < f.polygon.size(); ++k)
           v6 += f.polygon[0].dot(f.polygon[k].cross(f.polygon[k + 1]));
@@ -120,11 +122,13 @@ TEST(Scene, DefaultSceneHasDifferentTouchingObjects) {
 
 TEST(Scene, PosesFromMatrixAndQuaternionAgree) {
   const auto a = fs::sim::parse_scene(nlohmann::json::parse(R"({"objects":[{"model":"cube",
-      "rotation":[[0,-1,0],[1,0,0],[0,0,1]],"translation":[10,20,0]}]})"), scenes_dir(), "a.json");
+      "rotation":[[0,-1,0],[1,0,0],[0,0,1]],"translation":[10,20,0]}]})"),
+                                      scenes_dir(), "a.json");
   const double h = std::sqrt(0.5);
-  const auto b = fs::sim::parse_scene(nlohmann::json::parse(
-      R"({"objects":[{"model":"meshes/cube.off","quaternion":[)" + std::to_string(h) + "," + "0,0," +
-      std::to_string(h) + R"(],"translation":[10,20,0]}]})"), scenes_dir(), "b.json");
+  const auto b = fs::sim::parse_scene(
+      nlohmann::json::parse(R"({"objects":[{"model":"meshes/cube.off","quaternion":[)" + std::to_string(h) +
+                            "," + "0,0," + std::to_string(h) + R"(],"translation":[10,20,0]}]})"),
+      scenes_dir(), "b.json");
   ASSERT_EQ(a.objects.size(), 1u);
   ASSERT_EQ(b.objects.size(), 1u);
   EXPECT_TRUE(a.objects[0].rotation.isApprox(b.objects[0].rotation, 1e-6));
@@ -142,7 +146,8 @@ TEST(Scene, ScannerOverridesAndTable) {
   const auto s = fs::sim::parse_scene(nlohmann::json::parse(R"({"objects":[],
       "scanner":{"steps":200,"camera":{"width":640,"height":480,"fx":800,"position":[0,0,450]},
                  "laser":{"axis_point":[180,0,450]}},
-      "table":{"normal":[0,0,1],"d":5}})"), scenes_dir(), "s.json");
+      "table":{"normal":[0,0,1],"d":5}})"),
+                                      scenes_dir(), "s.json");
   EXPECT_EQ(s.calibration.step_count, 200u);
   EXPECT_EQ(s.calibration.camera.width, 640u);
   EXPECT_EQ(s.calibration.camera.height, 480u);
@@ -152,14 +157,16 @@ TEST(Scene, ScannerOverridesAndTable) {
   EXPECT_EQ(s.calibration.table.d, 5.0);
   const auto def = fs::ScannerCalibration::bench_default(200);
   EXPECT_DOUBLE_EQ(s.calibration.laser.rad_per_step, def.laser.rad_per_step);
-  const auto no_table = fs::sim::parse_scene(nlohmann::json::parse(R"({"objects":[],"table":false})"), scenes_dir(), "n");
+  const auto no_table =
+      fs::sim::parse_scene(nlohmann::json::parse(R"({"objects":[],"table":false})"), scenes_dir(), "n");
   EXPECT_FALSE(no_table.has_table);
 }
 
 TEST(Scene, ErrorsNameFileAndField) {
   EXPECT_THAT(scene_error(R"({})"), HasSubstr("t.json: objects: missing"));
   EXPECT_THAT(scene_error(R"({"objects":{}})"), HasSubstr("t.json: objects: expected an array"));
-  EXPECT_THAT(scene_error(R"({"objects":[{}]})"), HasSubstr("t.json: objects[0].model: expected a mesh path"));
+  EXPECT_THAT(scene_error(R"({"objects":[{}]})"),
+              HasSubstr("t.json: objects[0].model: expected a mesh path"));
   EXPECT_THAT(scene_error(R"({"objects":[{"model":"cube","rotation":[[1,0,0],[0,1,0]]}]})"),
               HasSubstr("objects[0].rotation: expected a 3x3 array"));
   EXPECT_THAT(scene_error(R"({"objects":[{"model":"cube","rotation":[[1,0,0],[0,2,0],[0,0,1]]}]})"),
@@ -173,13 +180,17 @@ TEST(Scene, ErrorsNameFileAndField) {
   EXPECT_THAT(scene_error(R"({"objects":[{"model":"cube"},{"model":"nope.off"}]})"),
               HasSubstr("objects[1].model: "));
   EXPECT_THAT(scene_error(R"({"objects":[{"model":"nope.off"}]})"), HasSubstr("cannot open mesh file"));
-  EXPECT_THAT(scene_error(R"({"objects":[{"model":"cube","colour":1}]})"), HasSubstr("objects[0].colour: unknown field"));
+  EXPECT_THAT(scene_error(R"({"objects":[{"model":"cube","colour":1}]})"),
+              HasSubstr("objects[0].colour: unknown field"));
   EXPECT_THAT(scene_error(R"({"objects":[],"scanner":{"steps":0}})"), HasSubstr("scanner.steps: must be in"));
-  EXPECT_THAT(scene_error(R"({"objects":[],"scanner":{"camera":{"fx":-1}}})"), HasSubstr("scanner.camera.fx: must be positive"));
+  EXPECT_THAT(scene_error(R"({"objects":[],"scanner":{"camera":{"fx":-1}}})"),
+              HasSubstr("scanner.camera.fx: must be positive"));
   EXPECT_THAT(scene_error(R"({"objects":[],"scanner":{"laser":{"axis_dir":[0,0,0]}}})"),
               HasSubstr("scanner.laser.axis_dir: zero-length"));
-  EXPECT_THAT(scene_error(R"({"objects":[],"table":{"normal":[0,0,1],"d":"low"}})"), HasSubstr("table.d: expected a number"));
-  EXPECT_THAT(scene_error(R"({"objects":[{"model":"cube","scale":1e300}]})"), HasSubstr("objects[0].model: "));
+  EXPECT_THAT(scene_error(R"({"objects":[],"table":{"normal":[0,0,1],"d":"low"}})"),
+              HasSubstr("table.d: expected a number"));
+  EXPECT_THAT(scene_error(R"({"objects":[{"model":"cube","scale":1e300}]})"),
+              HasSubstr("objects[0].model: "));
   EXPECT_THAT(scene_error(R"({"objects":[{"model":"cube","scale":1e300}]})"), HasSubstr("out of range"));
   // A bad file: JSON syntax error with the byte offset.
   const auto p = fsys::temp_directory_path() / ("fs_scene_test_" + std::to_string(::getpid()) + ".json");

@@ -341,8 +341,8 @@ TEST(FaultSpec, ParsesAndRejects) {
   EXPECT_FALSE(b.level);
   EXPECT_EQ(parse_fault_spec("galvo.missed-steps").count, 3);
   for (const char* bad : {"", "galvo", "galvo.melt", "galvo.stall@frame=3", "camera.drop@frame=-1",
-                          "camera.drop@frame=x", "laser.stuck,level=maybe", "galvo.stall@t=nan", "galvo.stall,x",
-                          "galvo.stall,colour=red", "galvo.stall@t"}) {
+                          "camera.drop@frame=x", "laser.stuck,level=maybe", "galvo.stall@t=nan",
+                          "galvo.stall,x", "galvo.stall,colour=red", "galvo.stall@t"}) {
     EXPECT_THROW(parse_fault_spec(bad), fs::Error) << bad;
   }
   try {

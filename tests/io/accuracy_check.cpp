@@ -12,8 +12,9 @@ TEST(Accuracy, EndToEndDefaultNoiseOnDefaultScene) {
   const auto scene = sim::load_scene(source_dir() / "hw-sim/scenes/default.json");
   // Every 25th of the 500 steps keeps this test fast under ASan.
   const auto r = end_to_end_accuracy(scene, 1.0, 25, 11);
-  std::printf("end-to-end default noise: %zu points, rms %.4f mm (all %.4f), median %.4f, p95 %.4f, gross %zu\n",
-              r.points, r.rms_mm, r.rms_all_mm, r.median_mm, r.p95_mm, r.gross);
+  std::printf(
+      "end-to-end default noise: %zu points, rms %.4f mm (all %.4f), median %.4f, p95 %.4f, gross %zu\n",
+      r.points, r.rms_mm, r.rms_all_mm, r.median_mm, r.p95_mm, r.gross);
   EXPECT_GT(r.points, 5000u);
   EXPECT_LE(r.rms_mm, 0.1);
   EXPECT_LT(double(r.gross), 0.01 * double(r.points)) << "edge outliers should be rare";
@@ -26,12 +27,15 @@ TEST(Accuracy, EndToEndDefaultNoiseOnDefaultScene) {
   const auto r0 = end_to_end_accuracy(scene, 1.0, 25, 11, raw, 2.0, per_row);
   const auto rh = end_to_end_accuracy(scene, 1.0, 25, 11, {}, 2.0, per_row);
   const auto rf = end_to_end_accuracy(scene, 1.0, 25, 11, raw);
-  std::printf("end-to-end default noise: no smoothing rms %.4f mm, host smoothing only %.4f, firmware along-stripe "
-              "refinement only %.4f, both (the defaults) %.4f\n", r0.rms_mm, rh.rms_mm, rf.rms_mm, r.rms_mm);
+  std::printf(
+      "end-to-end default noise: no smoothing rms %.4f mm, host smoothing only %.4f, firmware along-stripe "
+      "refinement only %.4f, both (the defaults) %.4f\n",
+      r0.rms_mm, rh.rms_mm, rf.rms_mm, r.rms_mm);
   EXPECT_GT(r0.rms_mm, 1.4 * r.rms_mm);
   EXPECT_GT(r0.rms_mm, 1.4 * rh.rms_mm);
   EXPECT_GT(r0.rms_mm, 1.4 * rf.rms_mm);
-  EXPECT_LE(r.rms_mm, 1.02 * rh.rms_mm);  // the firmware's refinement does not hurt the host's smoothed result
+  EXPECT_LE(r.rms_mm,
+            1.02 * rh.rms_mm);  // the firmware's refinement does not hurt the host's smoothed result
 }
 
 TEST(Accuracy, ExactColumnsGiveExactPoints) {

@@ -21,9 +21,9 @@
 namespace fs::test {
 
 struct AccuracyResult {
-  std::size_t points = 0;       // compared points
-  std::size_t gross = 0;        // of which off by more than gross_mm
-  double rms_mm = 0.0;          // without the gross ones
+  std::size_t points = 0;  // compared points
+  std::size_t gross = 0;   // of which off by more than gross_mm
+  double rms_mm = 0.0;     // without the gross ones
   double rms_all_mm = 0.0;
   double median_mm = 0.0;
   double p95_mm = 0.0;
@@ -52,9 +52,10 @@ inline AccuracyResult summarize(std::vector<double>& err, double gross_mm) {
   return r;
 }
 
-inline AccuracyResult end_to_end_accuracy(const sim::Scene& scene, double noise_scale, std::uint32_t step_stride,
-                                          std::uint64_t seed, const host::TriangulationOptions& topt = {},
-                                          double gross_mm = 2.0, const fw::ExtractParams& extract = {}) {
+inline AccuracyResult end_to_end_accuracy(const sim::Scene& scene, double noise_scale,
+                                          std::uint32_t step_stride, std::uint64_t seed,
+                                          const host::TriangulationOptions& topt = {}, double gross_mm = 2.0,
+                                          const fw::ExtractParams& extract = {}) {
   const auto& cal = scene.calibration;
   RenderExtract rx(scene, noise_scale, extract);
   host::Triangulator tri(cal, topt);
@@ -80,8 +81,9 @@ inline AccuracyResult end_to_end_accuracy(const sim::Scene& scene, double noise_
   return summarize(err, gross_mm);
 }
 
-inline AccuracyResult column_noise_accuracy(const sim::GroundTruthGrid& gt, double sigma_px, std::uint64_t seed,
-                                            const host::TriangulationOptions& topt = {}, double gross_mm = 2.0) {
+inline AccuracyResult column_noise_accuracy(const sim::GroundTruthGrid& gt, double sigma_px,
+                                            std::uint64_t seed, const host::TriangulationOptions& topt = {},
+                                            double gross_mm = 2.0) {
   const auto& cal = gt.calibration();
   host::Triangulator tri(cal, topt);
   host::OrganizedCloud cloud;
@@ -97,8 +99,8 @@ inline AccuracyResult column_noise_accuracy(const sim::GroundTruthGrid& gt, doub
     for (std::uint32_t r = 0; r < gt.rows(); ++r) {
       const auto& c = gt.at(k, r);
       if (!c.valid()) continue;
-      pts.push_back(msg::StripePoint{static_cast<std::uint16_t>(r), static_cast<float>(c.column + sigma_px * noise(rng)),
-                                     200, 3.0f});
+      pts.push_back(msg::StripePoint{static_cast<std::uint16_t>(r),
+                                     static_cast<float>(c.column + sigma_px * noise(rng)), 200, 3.0f});
     }
     msg::StripeHeader h;
     h.step_index = static_cast<std::uint32_t>(gt.first_step()) + k;

@@ -10,13 +10,15 @@ int main() {
   const auto scene = fs::sim::load_scene(source_dir() / "hw-sim/scenes/default.json");
   fs::host::TriangulationOptions raw;
   raw.smooth_half_window = 0;
-  const fs::host::TriangulationOptions smoothed{};   // defaults: +-2 rows
+  const fs::host::TriangulationOptions smoothed{};  // defaults: +-2 rows
   const fs::host::TriangulationOptions* settings[] = {&smoothed, &raw};
   for (const fs::host::TriangulationOptions* o : settings) {
-    std::printf("\nEnd to end (renderer noise x scale -> firmware %s extraction -> triangulation, smoothing "
-                "half window %u), every 5th of 500 steps:\n",
-                fs::fw::to_string(fs::fw::ExtractParams{}.method), o->smooth_half_window);
-    std::printf("| noise_scale | points | rms_mm (<=2 mm) | rms_all_mm | median_mm | p95_mm | gross (>2 mm) |\n");
+    std::printf(
+        "\nEnd to end (renderer noise x scale -> firmware %s extraction -> triangulation, smoothing "
+        "half window %u), every 5th of 500 steps:\n",
+        fs::fw::to_string(fs::fw::ExtractParams{}.method), o->smooth_half_window);
+    std::printf(
+        "| noise_scale | points | rms_mm (<=2 mm) | rms_all_mm | median_mm | p95_mm | gross (>2 mm) |\n");
     std::printf("|---|---|---|---|---|---|---|\n");
     for (double s : {0.0, 0.5, 1.0, 2.0, 4.0}) {
       const auto r = end_to_end_accuracy(scene, s, 5, 11, *o);

@@ -17,10 +17,14 @@ int main(int argc, char** argv) {
   const auto truth = perturbed_truth(nominal);
   const double heights[] = {0.0, 12.0, 24.0, 36.0, 48.0, 60.0};
   const std::vector<std::vector<int>> sets = {{0, 1}, {0, 5}, {0, 2, 5}, {0, 1, 3, 5}, {0, 1, 2, 3, 4, 5}};
-  std::printf("Calibration on rendered flat targets, %u steps, row stride 8; cube scene rendered at the same noise.\n",
-              steps);
-  std::printf("| noise_scale | heights (mm) | residual rms before -> after (mm) | cube 3D rms: nominal | calibrated | "
-              "true model | model alone (calibrated vs true, same stripes) |\n|---|---|---|---|---|---|---|\n");
+  std::printf(
+      "Calibration on rendered flat targets, %u steps, row stride 8; cube scene rendered at the same "
+      "noise.\n",
+      steps);
+  std::printf(
+      "| noise_scale | heights (mm) | residual rms before -> after (mm) | cube 3D rms: nominal | calibrated "
+      "| "
+      "true model | model alone (calibrated vs true, same stripes) |\n|---|---|---|---|---|---|---|\n");
   for (double noise : {0.5, 1.0, 2.0, 4.0}) {
     std::vector<SynthScan> targets;
     for (std::size_t i = 0; i < std::size(heights); ++i)

@@ -1,16 +1,16 @@
 // Laser calibration on hw-sim renders (issue 6): flat-target scans at several known heights are rendered with
-// a perturbed ("true") scanner geometry and extracted by the firmware's extractor; the scans' headers carry the
-// nominal geometry. `calibrate_laser` (and the `facetscan calibrate` binary on .fscan files of the same
-// renders) must recover a laser model that triangulates another rendered scene (the cube) with an RMS 3D error
-// below 0.1 mm against the renderer's ground truth, while the nominal model is millimetres off.
+// a perturbed ("true") scanner geometry and extracted by the firmware's extractor; the scans' headers carry
+// the nominal geometry. `calibrate_laser` (and the `facetscan calibrate` binary on .fscan files of the same
+// renders) must recover a laser model that triangulates another rendered scene (the cube) with an RMS 3D
+// error below 0.1 mm against the renderer's ground truth, while the nominal model is millimetres off.
 #include <gtest/gtest.h>
 
+#include <unistd.h>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
-#include <unistd.h>
 
 #include "host/io/calibrate.hpp"
 #include "host/io/calibration_json.hpp"
@@ -27,8 +27,8 @@ constexpr double kHeights[] = {0.0, 20.0, 40.0, 60.0};
 struct Renders {
   ScannerCalibration nominal = ScannerCalibration::bench_default(kSteps);
   ScannerCalibration truth = perturbed_truth(nominal);
-  std::vector<SynthScan> targets;   // one per kHeights entry, default noise
-  SynthScan cube;                   // the check scene, default noise
+  std::vector<SynthScan> targets;  // one per kHeights entry, default noise
+  SynthScan cube;                  // the check scene, default noise
   Renders() {
     for (std::size_t i = 0; i < std::size(kHeights); ++i)
       targets.push_back(render_scan(flat_target_scene(truth, kHeights[i]), nominal, 1.0, 10 + i));
@@ -44,7 +44,8 @@ const Renders& renders() {
 }
 
 struct TempDir {
-  std::filesystem::path p = std::filesystem::temp_directory_path() / ("fs_io_calr_" + std::to_string(::getpid()));
+  std::filesystem::path p =
+      std::filesystem::temp_directory_path() / ("fs_io_calr_" + std::to_string(::getpid()));
   TempDir() { std::filesystem::create_directories(p); }
   ~TempDir() { std::filesystem::remove_all(p); }
 };
@@ -77,10 +78,11 @@ TEST(CalibrateRendered, RecoversPerturbedGeometryAndTriangulatesTheCubeScene) {
     targets.push_back({&scans[i], kHeights[i], "h" + std::to_string(int(kHeights[i]))});
   }
   const host::CalibrationResult res = host::calibrate_laser(r.nominal, targets);
-  std::printf("rendered flat targets (0/20/40/60 mm, default noise, %u steps): residual rms %.4f mm (nominal) -> "
-              "%.4f (linear init) -> %.4f mm (%d iterations, %zu points, %zu outliers), max %.4f mm\n",
-              kSteps, res.rms_before_mm, res.rms_init_mm, res.rms_after_mm, res.iterations, res.points,
-              res.outliers, res.max_after_mm);
+  std::printf(
+      "rendered flat targets (0/20/40/60 mm, default noise, %u steps): residual rms %.4f mm (nominal) -> "
+      "%.4f (linear init) -> %.4f mm (%d iterations, %zu points, %zu outliers), max %.4f mm\n",
+      kSteps, res.rms_before_mm, res.rms_init_mm, res.rms_after_mm, res.iterations, res.points, res.outliers,
+      res.max_after_mm);
   EXPECT_GT(res.rms_before_mm, 1.0) << "the perturbation must matter";
   EXPECT_LT(res.rms_after_mm, 0.1);
   for (const auto& t : res.targets) {
@@ -92,10 +94,11 @@ TEST(CalibrateRendered, RecoversPerturbedGeometryAndTriangulatesTheCubeScene) {
   const ModelError before = model_error(r.cube, r.nominal);
   const ModelError after = model_error(r.cube, res.calibration);
   const ModelError ideal = model_error(r.cube, r.truth);
-  std::printf("cube scene 3D error vs ground truth (%zu points): nominal model rms %.4f mm (%zu > 2 mm), "
-              "calibrated %.4f mm (all %.4f, %zu > 2 mm), true model %.4f mm\n",
-              after.points, before.rms_all_mm, before.gross, after.rms_mm, after.rms_all_mm, after.gross,
-              ideal.rms_mm);
+  std::printf(
+      "cube scene 3D error vs ground truth (%zu points): nominal model rms %.4f mm (%zu > 2 mm), "
+      "calibrated %.4f mm (all %.4f, %zu > 2 mm), true model %.4f mm\n",
+      after.points, before.rms_all_mm, before.gross, after.rms_mm, after.rms_all_mm, after.gross,
+      ideal.rms_mm);
   EXPECT_GT(after.points, std::size_t(kSteps) * 800);
   EXPECT_GT(before.rms_all_mm, 1.0) << "the nominal model must be far off";
   EXPECT_LT(after.rms_mm, 0.1) << "RMS 3D error after calibration";
@@ -118,8 +121,8 @@ TEST(CalibrateRendered, TwoHeightsSuffice) {
   fill_scan(r.targets[3], b);
   const auto res = host::calibrate_laser(r.nominal, {{&a, kHeights[0], "low"}, {&b, kHeights[3], "high"}});
   const ModelError after = model_error(r.cube, res.calibration);
-  std::printf("two heights (0/60 mm): residual rms %.4f -> %.4f mm, cube 3D error %.4f mm\n", res.rms_before_mm,
-              res.rms_after_mm, after.rms_mm);
+  std::printf("two heights (0/60 mm): residual rms %.4f -> %.4f mm, cube 3D error %.4f mm\n",
+              res.rms_before_mm, res.rms_after_mm, after.rms_mm);
   EXPECT_LT(after.rms_mm, 0.1);
 }
 
@@ -155,8 +158,8 @@ TEST(CalibrateRendered, FacetscanCalibrateOnFscanFiles) {
   EXPECT_EQ(j.at("residuals").at("targets").size(), std::size(kHeights));
   // Two targets at the same height cannot determine the model: a clear error, non-zero exit.
   const std::string bad = (bin_dir() / "facetscan").string() + " calibrate --target " +
-                          (dir.p / "flat0.fscan").string() + "@5 --target " + (dir.p / "flat20.fscan").string() +
-                          "@5 > " + log_path.string() + " 2>&1";
+                          (dir.p / "flat0.fscan").string() + "@5 --target " +
+                          (dir.p / "flat20.fscan").string() + "@5 > " + log_path.string() + " 2>&1";
   EXPECT_NE(std::system(bad.c_str()), 0);
   std::stringstream bad_log;
   bad_log << std::ifstream(log_path).rdbuf();

@@ -1,10 +1,10 @@
 // Laser calibration from flat targets at known heights, and the calibration JSON file.
 #include <gtest/gtest.h>
 
+#include <unistd.h>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
-#include <unistd.h>
 
 #include "common/error.hpp"
 #include "host/io/calibrate.hpp"
@@ -16,7 +16,8 @@ namespace fs::host {
 namespace {
 
 // RMS 3D distance between the cloud triangulated with `model` and the synthetic truth.
-double rms_3d_error(const ScannerCalibration& model, const fs::test::SynthScan& synth, std::size_t* n_out = nullptr) {
+double rms_3d_error(const ScannerCalibration& model, const fs::test::SynthScan& synth,
+                    std::size_t* n_out = nullptr) {
   Scan scan;
   fs::test::fill_scan(synth, scan);
   auto header = synth.begin;
@@ -53,13 +54,15 @@ TEST(Calibrate, RecoversPerturbedLaserFromFlatTargets) {
   std::vector<Scan> scans(4);
   std::vector<FlatTarget> targets;
   const double heights[] = {0.0, 25.0, 50.0, 75.0};
-  for (int i = 0; i < 4; ++i) synth.push_back(fs::test::synth_flat_scan(truth, nominal, heights[i], noise_px, 10 + i, 1, 8));
+  for (int i = 0; i < 4; ++i)
+    synth.push_back(fs::test::synth_flat_scan(truth, nominal, heights[i], noise_px, 10 + i, 1, 8));
   for (int i = 0; i < 4; ++i) {
     fs::test::fill_scan(synth[static_cast<std::size_t>(i)], scans[static_cast<std::size_t>(i)]);
-    targets.push_back({&scans[static_cast<std::size_t>(i)], heights[i], "h" + std::to_string(int(heights[i]))});
+    targets.push_back(
+        {&scans[static_cast<std::size_t>(i)], heights[i], "h" + std::to_string(int(heights[i]))});
   }
   CalibrateOptions opt;
-  opt.row_stride = 1;   // the synthetic scans already use every 8th row
+  opt.row_stride = 1;  // the synthetic scans already use every 8th row
   const CalibrationResult res = calibrate_laser(nominal, targets, opt);
   EXPECT_GT(res.rms_before_mm, 1.0) << "the perturbation must matter";
   EXPECT_LT(res.rms_after_mm, 0.1);
@@ -76,9 +79,10 @@ TEST(Calibrate, RecoversPerturbedLaserFromFlatTargets) {
   EXPECT_GT(n, 5000u);
   EXPECT_GT(before, 1.0);
   EXPECT_LT(after, 0.1) << "RMS 3D error after calibration";
-  std::printf("calibration: residual rms %.4f mm (nominal) -> %.4f (linear init) -> %.4f mm (%d iterations); "
-              "3D error on an independent scan %.4f -> %.4f mm\n",
-              res.rms_before_mm, res.rms_init_mm, res.rms_after_mm, res.iterations, before, after);
+  std::printf(
+      "calibration: residual rms %.4f mm (nominal) -> %.4f (linear init) -> %.4f mm (%d iterations); "
+      "3D error on an independent scan %.4f -> %.4f mm\n",
+      res.rms_before_mm, res.rms_init_mm, res.rms_after_mm, res.iterations, before, after);
   // The recovered planes agree with the true ones across the sweep.
   for (double step : {0.0, 60.0, 119.0}) {
     const Plane a = truth.laser.plane_at_step(step), b = res.calibration.laser.plane_at_step(step);
@@ -93,7 +97,8 @@ TEST(Calibrate, WithoutLinearInitStillConvergesFromNominal) {
   std::vector<FlatTarget> targets;
   const double heights[] = {0.0, 60.0};
   for (int i = 0; i < 2; ++i) {
-    fs::test::fill_scan(fs::test::synth_flat_scan(truth, nominal, heights[i], 0.0, 1, 1, 16), scans[std::size_t(i)]);
+    fs::test::fill_scan(fs::test::synth_flat_scan(truth, nominal, heights[i], 0.0, 1, 1, 16),
+                        scans[std::size_t(i)]);
     targets.push_back({&scans[std::size_t(i)], heights[i], "t"});
   }
   CalibrateOptions opt;
@@ -146,7 +151,8 @@ TEST(CalibrationJson, RoundTripsAndRejectsBadFields) {
   bad["step_count"] = -5;
   expect_bad(bad, "step_count");
   bad = j;
-  bad["laser"]["normal_at_zero"] = c.laser.axis_dir.x() == 0 ? nlohmann::json{0, 1, 0} : nlohmann::json{1, 0, 0};
+  bad["laser"]["normal_at_zero"] =
+      c.laser.axis_dir.x() == 0 ? nlohmann::json{0, 1, 0} : nlohmann::json{1, 0, 0};
   bad["laser"]["axis_dir"] = bad["laser"]["normal_at_zero"];
   expect_bad(bad, "perpendicular");
   expect_bad(nlohmann::json::array(), "not a JSON object");

@@ -1,13 +1,13 @@
 // PCD / PLY readers and writers: real mOSD scans, round trips in every encoding, malformed input.
 #include <gtest/gtest.h>
 
+#include <unistd.h>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <map>
 #include <set>
 #include <string>
-#include <unistd.h>
 
 #include "common/error.hpp"
 #include "host/io/cloud_readers.hpp"
@@ -67,7 +67,7 @@ TEST(Pcd, ReadsRealMosdScanWithLabelsInMillimetres) {
   OrganizedCloud cloud;
   const LoadInfo info = load_cloud(path, cloud);
   EXPECT_EQ(info.format, "pcd");
-  EXPECT_EQ(info.scale, 1000.0);   // Kinect clouds are in metres
+  EXPECT_EQ(info.scale, 1000.0);  // Kinect clouds are in metres
   EXPECT_EQ(cloud.width, 640u);
   EXPECT_EQ(cloud.height, 480u);
   EXPECT_TRUE(cloud.organized);
@@ -86,7 +86,7 @@ TEST(Pcd, ReadsRealMosdScanWithLabelsInMillimetres) {
     zmin = std::min<double>(zmin, p.z());
     zmax = std::max<double>(zmax, p.z());
   }
-  EXPECT_GT(zmin, 300.0);   // Kinect range in mm
+  EXPECT_GT(zmin, 300.0);  // Kinect range in mm
   EXPECT_LT(zmax, 3000.0);
   EXPECT_TRUE(labels.count(1)) << "table label";
   EXPECT_TRUE(std::any_of(labels.begin(), labels.end(), [](int l) { return l >= 20; })) << "object labels";
@@ -151,8 +151,9 @@ TEST(Pcd, ReadsHandWrittenAsciiWithExtraFieldsAndCounts) {
 
 TEST(Pcd, BinaryWithMixedTypesAndPadding) {
   // x as double, y/z float, an int16 label, one padding byte field "_".
-  std::string s = "VERSION 0.7\nFIELDS x _ y z label\nSIZE 8 1 4 4 2\nTYPE F U F F I\nCOUNT 1 1 1 1 1\n"
-                  "WIDTH 2\nHEIGHT 1\nPOINTS 2\nDATA binary\n";
+  std::string s =
+      "VERSION 0.7\nFIELDS x _ y z label\nSIZE 8 1 4 4 2\nTYPE F U F F I\nCOUNT 1 1 1 1 1\n"
+      "WIDTH 2\nHEIGHT 1\nPOINTS 2\nDATA binary\n";
   auto rec = [&](double x, float y, float z, std::int16_t l) {
     s.append(reinterpret_cast<const char*>(&x), 8);
     s.push_back('\x7f');
@@ -215,23 +216,33 @@ TEST(Ply, RoundTripsOrganizedBinaryAndAscii) {
     read_ply(bytes_of(s), "mem.ply", back);
     EXPECT_TRUE(back.organized);
     OrganizedCloud expected = c;
-    expected.labels[expected.index(1, 2)] = -1;   // PLY stores valid points only: no-data cells lose labels
+    expected.labels[expected.index(1, 2)] = -1;  // PLY stores valid points only: no-data cells lose labels
     expect_same(expected, back);
   }
 }
 
 TEST(Ply, BigEndianWithFacesAndGridFromObjInfo) {
-  std::string s = "ply\nformat binary_big_endian 1.0\ncomment x\nobj_info width 2\nobj_info height 1\n"
-                  "element vertex 2\nproperty double x\nproperty float y\nproperty float z\nproperty uchar label\n"
-                  "element face 1\nproperty list uchar int vertex_indices\nend_header\n";
+  std::string s =
+      "ply\nformat binary_big_endian 1.0\ncomment x\nobj_info width 2\nobj_info height 1\n"
+      "element vertex 2\nproperty double x\nproperty float y\nproperty float z\nproperty uchar label\n"
+      "element face 1\nproperty list uchar int vertex_indices\nend_header\n";
   auto be = [&](auto v) {
     char b[sizeof(v)];
     std::memcpy(b, &v, sizeof(v));
     for (int i = sizeof(v) - 1; i >= 0; --i) s.push_back(b[i]);
   };
-  be(1.0); be(2.0f); be(3.0f); be(std::uint8_t{5});
-  be(-1.0); be(-2.0f); be(-3.0f); be(std::uint8_t{6});
-  be(std::uint8_t{3}); be(std::int32_t{0}); be(std::int32_t{1}); be(std::int32_t{0});
+  be(1.0);
+  be(2.0f);
+  be(3.0f);
+  be(std::uint8_t{5});
+  be(-1.0);
+  be(-2.0f);
+  be(-3.0f);
+  be(std::uint8_t{6});
+  be(std::uint8_t{3});
+  be(std::int32_t{0});
+  be(std::int32_t{1});
+  be(std::int32_t{0});
   OrganizedCloud c;
   read_ply(bytes_of(s), "be.ply", c);
   EXPECT_TRUE(c.organized);
@@ -242,8 +253,9 @@ TEST(Ply, BigEndianWithFacesAndGridFromObjInfo) {
 }
 
 TEST(Ply, WithoutGridIsFlaggedUnorganized) {
-  const std::string s = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
-                        "property float z\nend_header\n1 2 3\n4 5 6\n7 8 9\n";
+  const std::string s =
+      "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+      "property float z\nend_header\n1 2 3\n4 5 6\n7 8 9\n";
   OrganizedCloud c;
   read_ply(bytes_of(s), "u.ply", c);
   EXPECT_FALSE(c.organized);
@@ -268,8 +280,10 @@ TEST(Ply, MalformedInputNamesFileAndOffset) {
   expect_error([&] { read(bin.substr(0, bin.size() - 3)); }, {"bad.ply", "at byte", "truncated"});
   expect_error([&] { read(asc.substr(0, asc.size() - 10)); }, {"bad.ply", "at byte"});
   expect_error([&] { read("plx\n"); }, {"not a PLY file"});
-  expect_error([&] { read(replace(bin, "element vertex 11", "element vertex 99999999999")); }, {"exceeds the limit"});
-  expect_error([&] { read(replace(bin, "obj_info num_cols 4", "obj_info num_cols 5")); }, {"range_grid has 12 cells"});
+  expect_error([&] { read(replace(bin, "element vertex 11", "element vertex 99999999999")); },
+               {"exceeds the limit"});
+  expect_error([&] { read(replace(bin, "obj_info num_cols 4", "obj_info num_cols 5")); },
+               {"range_grid has 12 cells"});
   expect_error([&] { read(replace(bin, "property float x", "property quux x")); }, {"unknown property type"});
   expect_error([&] { read(replace(bin, "end_header", "end_headr")); }, {"unknown header keyword"});
   expect_error([&] { read(replace(asc, "\n-3.25 ", "\nfoo ")); }, {"'foo' is not a number"});
@@ -278,7 +292,7 @@ TEST(Ply, MalformedInputNamesFileAndOffset) {
 
 TEST(Load, UnitsAndExplicitScale) {
   OrganizedCloud c = small_cloud(false);
-  for (auto& p : c.points) p /= 1000.0f;   // now in metres
+  for (auto& p : c.points) p /= 1000.0f;  // now in metres
   const auto dir = std::filesystem::temp_directory_path() / ("fs_io_units_" + std::to_string(::getpid()));
   std::filesystem::create_directories(dir);
   const auto path = (dir / "m.pcd").string();

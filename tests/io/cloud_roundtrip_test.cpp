@@ -1,19 +1,19 @@
 // Export round trips: a scan exported to PLY and PCD (every encoding) and read back gives the same organized
-// cloud, point by point, with the same sensor viewpoint. (A PLY read back without its viewpoint segmented into
-// ~1000 regions instead of 5: segmentation orients normals toward the viewpoint and scales its noise model by
-// the range from it.) Also: the PLY viewpoint comment and PCL's camera element on input.
+// cloud, point by point, with the same sensor viewpoint. (A PLY read back without its viewpoint segmented
+// into ~1000 regions instead of 5: segmentation orients normals toward the viewpoint and scales its noise
+// model by the range from it.) Also: the PLY viewpoint comment and PCL's camera element on input.
 #include <gtest/gtest.h>
 
+#include <unistd.h>
 #include <cstring>
 #include <filesystem>
 #include <sstream>
-#include <unistd.h>
 
 #include "common/error.hpp"
+#include "fscan_file.hpp"
 #include "host/io/cloud_readers.hpp"
 #include "host/io/cloud_writers.hpp"
 #include "host/io/io_tools.hpp"
-#include "fscan_file.hpp"
 #include "host/io/load.hpp"
 
 namespace fs::host {
@@ -24,7 +24,8 @@ std::span<const std::byte> bytes_of(const std::string& s) {
 }
 
 struct TempDir {
-  std::filesystem::path p = std::filesystem::temp_directory_path() / ("fs_io_rt_" + std::to_string(::getpid()));
+  std::filesystem::path p =
+      std::filesystem::temp_directory_path() / ("fs_io_rt_" + std::to_string(::getpid()));
   TempDir() { std::filesystem::create_directories(p); }
   ~TempDir() { std::filesystem::remove_all(p); }
   std::string operator()(const std::string& n) const { return (p / n).string(); }
@@ -40,7 +41,8 @@ void expect_identical(const OrganizedCloud& a, const OrganizedCloud& b, const st
   std::size_t differ = 0;
   for (std::size_t i = 0; i < a.points.size(); ++i) {
     const bool va = OrganizedCloud::valid(a.points[i]), vb = OrganizedCloud::valid(b.points[i]);
-    if (va != vb || (va && std::memcmp(a.points[i].data(), b.points[i].data(), sizeof(float) * 3) != 0)) ++differ;
+    if (va != vb || (va && std::memcmp(a.points[i].data(), b.points[i].data(), sizeof(float) * 3) != 0))
+      ++differ;
   }
   EXPECT_EQ(differ, 0u) << "cells differing";
   EXPECT_EQ(a.labels, b.labels);
@@ -65,7 +67,11 @@ TEST(ExportRoundTrip, ScanToPlyAndPcdReadsBackTheSameOrganizedCloud) {
   EXPECT_STREQ(segment_profile_for(ref_info), "laser");
   ASSERT_GT(ref.viewpoint.norm(), 100.0) << "a viewpoint a lost one (0) cannot pass for";
 
-  struct Case { std::string file; PcdEncoding pcd; bool ply_ascii; };
+  struct Case {
+    std::string file;
+    PcdEncoding pcd;
+    bool ply_ascii;
+  };
   const Case cases[] = {{"b.ply", PcdEncoding::Binary, false},
                         {"a.ply", PcdEncoding::Binary, true},
                         {"c.pcd", PcdEncoding::BinaryCompressed, false},
@@ -106,7 +112,7 @@ TEST(ExportRoundTrip, PlyViewpointIsScaledWithTheUnits) {
   TempDir dir;
   write_cloud(dir("m.ply"), c);
   OrganizedCloud back;
-  const LoadInfo info = load_cloud(dir("m.ply"), back);   // auto units: metres
+  const LoadInfo info = load_cloud(dir("m.ply"), back);  // auto units: metres
   EXPECT_EQ(info.scale, 1000.0);
   EXPECT_STREQ(segment_profile_for(info), "kinect");
   EXPECT_NEAR((back.viewpoint - Vec3(0, 0, 500)).norm(), 0.0, 1e-9);
@@ -120,18 +126,21 @@ TEST(PlyViewpoint, FromPclCameraElementAndMalformedComment) {
       "element camera 1\nproperty float view_px\nproperty float view_py\nproperty float view_pz\n"
       "property float x_axisx\nproperty float focal\n";
   OrganizedCloud c;
-  read_ply(bytes_of("ply\nformat ascii 1.0\n" + grid + vertices + camera + "end_header\n1 2 3\n4 5 6\n"
+  read_ply(bytes_of("ply\nformat ascii 1.0\n" + grid + vertices + camera +
+                    "end_header\n1 2 3\n4 5 6\n"
                     "10 20 30 1 525\n"),
            "pcl.ply", c);
   EXPECT_EQ(c.viewpoint, Vec3(10, 20, 30));
   EXPECT_EQ(c.at(0, 1), Eigen::Vector3f(4, 5, 6));
   // The element before the vertices works too.
-  read_ply(bytes_of("ply\nformat ascii 1.0\n" + grid + camera + vertices + "end_header\n-1 -2 -3 1 525\n1 2 3\n"
+  read_ply(bytes_of("ply\nformat ascii 1.0\n" + grid + camera + vertices +
+                    "end_header\n-1 -2 -3 1 525\n1 2 3\n"
                     "4 5 6\n"),
            "pcl2.ply", c);
   EXPECT_EQ(c.viewpoint, Vec3(-1, -2, -3));
   // Without any: the origin (PCL's default sensor origin), as before.
-  read_ply(bytes_of("ply\nformat ascii 1.0\n" + grid + vertices + "end_header\n1 2 3\n4 5 6\n"), "none.ply", c);
+  read_ply(bytes_of("ply\nformat ascii 1.0\n" + grid + vertices + "end_header\n1 2 3\n4 5 6\n"), "none.ply",
+           c);
   EXPECT_EQ(c.viewpoint, Vec3::Zero());
   // Other comments are free text; ours must be well formed and finite.
   read_ply(bytes_of("ply\nformat ascii 1.0\ncomment viewpoint of the sensor: unknown\n" + grid + vertices +
@@ -139,13 +148,14 @@ TEST(PlyViewpoint, FromPclCameraElementAndMalformedComment) {
            "free.ply", c);
   auto expect_error = [&](const std::string& header_line, const std::string& fragment) {
     try {
-      read_ply(bytes_of("ply\nformat ascii 1.0\n" + header_line + grid + vertices + "end_header\n1 2 3\n4 5 6\n"),
-               "bad.ply", c);
+      read_ply(
+          bytes_of("ply\nformat ascii 1.0\n" + header_line + grid + vertices + "end_header\n1 2 3\n4 5 6\n"),
+          "bad.ply", c);
       ADD_FAILURE() << "accepted " << header_line;
     } catch (const fs::Error& e) {
       const std::string m = e.what();
       EXPECT_NE(m.find("bad.ply"), std::string::npos) << m;
-      EXPECT_NE(m.find("at byte 21"), std::string::npos) << m;   // the comment line's offset
+      EXPECT_NE(m.find("at byte 21"), std::string::npos) << m;  // the comment line's offset
       EXPECT_NE(m.find(fragment), std::string::npos) << m;
     }
   };
@@ -153,7 +163,8 @@ TEST(PlyViewpoint, FromPclCameraElementAndMalformedComment) {
   expect_error("comment facetscan_viewpoint 1 2 nan 1 0 0 0\n", "'nan' is not a finite number");
   expect_error("comment facetscan_viewpoint 1 2 x 1 0 0 0\n", "'x' is not a finite number");
   try {
-    read_ply(bytes_of("ply\nformat ascii 1.0\n" + grid + vertices + camera + "end_header\n1 2 3\n4 5 6\n"
+    read_ply(bytes_of("ply\nformat ascii 1.0\n" + grid + vertices + camera +
+                      "end_header\n1 2 3\n4 5 6\n"
                       "nan 20 30 1 525\n"),
              "cam.ply", c);
     ADD_FAILURE() << "accepted a NaN camera position";

@@ -9,7 +9,7 @@
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   fs::host::OrganizedCloud cloud;
   fs::host::CloudReadOptions options;
-  options.max_points = 1u << 20;   // keep the fuzzer's memory bounded
+  options.max_points = 1u << 20;  // keep the fuzzer's memory bounded
   try {
     fs::host::read_pcd(std::span(reinterpret_cast<const std::byte*>(data), size), "fuzz.pcd", cloud, options);
     if (cloud.points.size() != std::size_t(cloud.width) * cloud.height) __builtin_trap();

@@ -1,22 +1,23 @@
 // The export and calibrate commands (host/io/io_tools.hpp, what `facetscan export|calibrate` run).
 #include <gtest/gtest.h>
 
+#include <unistd.h>
 #include <filesystem>
 #include <sstream>
-#include <unistd.h>
 
 #include "common/error.hpp"
 #include "common/scan_file.hpp"
+#include "fscan_file.hpp"
 #include "host/io/calibration_json.hpp"
 #include "host/io/io_tools.hpp"
-#include "fscan_file.hpp"
 #include "synth_scan.hpp"
 
 namespace fs::host {
 namespace {
 
 struct Dir {
-  std::filesystem::path p = std::filesystem::temp_directory_path() / ("fs_io_tools_" + std::to_string(::getpid()));
+  std::filesystem::path p =
+      std::filesystem::temp_directory_path() / ("fs_io_tools_" + std::to_string(::getpid()));
   Dir() { std::filesystem::create_directories(p); }
   ~Dir() { std::filesystem::remove_all(p); }
   std::string operator()(const std::string& n) const { return (p / n).string(); }

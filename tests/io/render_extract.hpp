@@ -1,7 +1,7 @@
 #pragma once
-// Test helper: one scene renderer (hw-sim/scene/stripe_renderer.hpp) and the firmware's stripe extractor wired
-// to one camera frame buffer. step() draws a galvo step and extracts its stripe; the renderer's true 3D point
-// of every row stays available through renderer().truth() until the next step.
+// Test helper: one scene renderer (hw-sim/scene/stripe_renderer.hpp) and the firmware's stripe extractor
+// wired to one camera frame buffer. step() draws a galvo step and extracts its stripe; the renderer's true 3D
+// point of every row stays available through renderer().truth() until the next step.
 #include <cstdint>
 #include <span>
 #include <vector>

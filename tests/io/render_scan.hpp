@@ -1,6 +1,6 @@
 #pragma once
-// Test helper: laser scans rendered by hw-sim instead of computed exactly. Each step's camera frame is drawn by
-// the scene renderer (hw-sim/scene/stripe_renderer.hpp, its noise model scaled by noise_scale) with the
+// Test helper: laser scans rendered by hw-sim instead of computed exactly. Each step's camera frame is drawn
+// by the scene renderer (hw-sim/scene/stripe_renderer.hpp, its noise model scaled by noise_scale) with the
 // scene's TRUE geometry, the stripe is extracted by the firmware's extractor (default sub-pixel method), and
 // the scan header carries whatever calibration the caller says the scanner believes in (the nominal one
 // before calibration). The renderer's true 3D point of every (row, step) is kept in SynthScan::truth.
@@ -14,10 +14,10 @@
 #include <vector>
 
 #include "firmware/extract/stripe_extractor.hpp"
+#include "fscan_file.hpp"
 #include "host/io/triangulate.hpp"
 #include "hw-sim/scene/scene.hpp"
 #include "hw-sim/scene/stripe_renderer.hpp"
-#include "fscan_file.hpp"
 #include "render_extract.hpp"
 #include "synth_scan.hpp"
 
@@ -28,13 +28,14 @@ inline Mesh plate_mesh(double a, double b, double h) {
   Mesh m;
   m.name = "plate";
   for (double z : {0.0, h})
-    for (const auto& xy : {Vec2(-a, -b), Vec2(a, -b), Vec2(a, b), Vec2(-a, b)}) m.vertices.emplace_back(xy.x(), xy.y(), z);
+    for (const auto& xy : {Vec2(-a, -b), Vec2(a, -b), Vec2(a, b), Vec2(-a, b)})
+      m.vertices.emplace_back(xy.x(), xy.y(), z);
   m.faces = {{4, 5, 6, 7}, {0, 3, 2, 1}, {0, 1, 5, 4}, {1, 2, 6, 5}, {2, 3, 7, 6}, {3, 0, 4, 7}};
   return m;
 }
 
-// The flat target `height` mm above the table, scanned with the true geometry `truth`. The plate (800 x 700 mm)
-// covers everything the camera sees, so every stripe point lies on its top face.
+// The flat target `height` mm above the table, scanned with the true geometry `truth`. The plate (800 x 700
+// mm) covers everything the camera sees, so every stripe point lies on its top face.
 inline sim::Scene flat_target_scene(const ScannerCalibration& truth, double height) {
   sim::Scene s;
   s.calibration = truth;
@@ -80,9 +81,9 @@ inline SynthScan render_scan(const sim::Scene& scene, const ScannerCalibration& 
 }
 
 struct ModelError {
-  std::size_t points = 0;   // triangulated points with a true point
-  std::size_t gross = 0;    // of which more than gross_mm off (stripes straddling a depth edge)
-  double rms_mm = 0.0;      // without the gross ones
+  std::size_t points = 0;  // triangulated points with a true point
+  std::size_t gross = 0;   // of which more than gross_mm off (stripes straddling a depth edge)
+  double rms_mm = 0.0;     // without the gross ones
   double rms_all_mm = 0.0;
 };
 
@@ -97,12 +98,15 @@ inline ModelError model_error(const SynthScan& s, const ScannerCalibration& mode
   ModelError e;
   double sq = 0, sq_all = 0;
   for (std::size_t i = 0; i < cloud.points.size(); ++i) {
-    if (!host::OrganizedCloud::valid(cloud.points[i]) || !host::OrganizedCloud::valid(s.truth.points[i])) continue;
+    if (!host::OrganizedCloud::valid(cloud.points[i]) || !host::OrganizedCloud::valid(s.truth.points[i]))
+      continue;
     const double d2 = (cloud.points[i] - s.truth.points[i]).cast<double>().squaredNorm();
     ++e.points;
     sq_all += d2;
-    if (d2 > gross_mm * gross_mm) ++e.gross;
-    else sq += d2;
+    if (d2 > gross_mm * gross_mm)
+      ++e.gross;
+    else
+      sq += d2;
   }
   if (e.points) e.rms_all_mm = std::sqrt(sq_all / double(e.points));
   if (e.points > e.gross) e.rms_mm = std::sqrt(sq / double(e.points - e.gross));

@@ -2,9 +2,9 @@
 // load_cloud, export round trip.
 #include <gtest/gtest.h>
 
+#include <unistd.h>
 #include <filesystem>
 #include <fstream>
-#include <unistd.h>
 
 #include "common/error.hpp"
 #include "common/scan_file.hpp"
@@ -66,7 +66,7 @@ TEST_F(ScanTest, CompleteScan) {
   EXPECT_EQ(a.stats().last_state, 2);
   EXPECT_EQ(a.stats().scans_complete, 1u);
   EXPECT_FALSE(a.in_scan());
-  a.end_of_stream();   // nothing in progress: no second delivery
+  a.end_of_stream();  // nothing in progress: no second delivery
   EXPECT_EQ(c.status.size(), 1u);
 }
 
@@ -144,8 +144,9 @@ TEST_F(ScanTest, RejectsAbsurdScanBegin) {
 
 class TempDir {
  public:
-  TempDir() : path_(std::filesystem::temp_directory_path() / ("fs_io_" + std::to_string(::getpid()) + "_" +
-                                                               std::to_string(counter_++))) {
+  TempDir()
+      : path_(std::filesystem::temp_directory_path() /
+              ("fs_io_" + std::to_string(::getpid()) + "_" + std::to_string(counter_++))) {
     std::filesystem::create_directories(path_);
   }
   ~TempDir() { std::filesystem::remove_all(path_); }

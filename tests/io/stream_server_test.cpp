@@ -46,8 +46,8 @@ void send_all(int fd, std::span<const std::uint8_t> bytes, std::size_t chunk = 1
 }
 
 // Frames of a synthetic scan: [begin, stripes[from, to), end?].
-std::vector<std::uint8_t> frames(const fs::test::SynthScan& s, bool begin, std::size_t from, std::size_t to, bool end,
-                                 std::uint32_t seq = 0) {
+std::vector<std::uint8_t> frames(const fs::test::SynthScan& s, bool begin, std::size_t from, std::size_t to,
+                                 bool end, std::uint32_t seq = 0) {
   wire::VectorSink sink;
   wire::FrameWriter w(sink, seq);
   if (begin) w.send(s.begin);
@@ -103,7 +103,7 @@ TEST_F(StreamTest, CompleteScanAndHeartbeatsToScanner) {
   ASSERT_GE(fd, 0);
   ASSERT_TRUE(pump(*server, [&] { return server->connected(); }));
   const auto bytes = frames(synth, true, 0, 30, true);
-  send_all(fd, bytes, 7);   // odd chunking: frames split across reads
+  send_all(fd, bytes, 7);  // odd chunking: frames split across reads
   ASSERT_TRUE(pump(*server, [&] { return !statuses.empty(); }));
   EXPECT_EQ(statuses[0], ScanStatus::Complete);
   EXPECT_EQ(stripe_counts[0], 30u);
@@ -152,7 +152,7 @@ TEST_F(StreamTest, ReconnectWithinGraceContinuesTheScan) {
   ASSERT_TRUE(pump(*server, [&] { return server->stats().bytes >= first.size() - 40; }));
   ::close(fd);
   ASSERT_TRUE(pump(*server, [&] { return !server->connected(); }));
-  clock.t += 1'000'000'000;   // 1 s later, within the grace
+  clock.t += 1'000'000'000;  // 1 s later, within the grace
   server->poll_once(0);
   EXPECT_TRUE(statuses.empty());
   fd = connect_to(server->port());

@@ -24,7 +24,7 @@ struct SynthScan {
   msg::ScanBegin begin;
   std::vector<SynthStripe> stripes;
   msg::ScanEnd end;
-  host::OrganizedCloud truth;   // step x row grid of true points (NaN where the stripe is off the image)
+  host::OrganizedCloud truth;  // step x row grid of true points (NaN where the stripe is off the image)
 };
 
 // Intersection line of two planes: point closest to `near` and unit direction.
@@ -32,7 +32,8 @@ inline bool plane_line(const Plane& a, const Plane& b, const Vec3& near, Vec3& p
   dir = a.n.cross(b.n);
   if (dir.norm() < 1e-9) return false;
   dir.normalize();
-  // Solve for the point on both planes closest to `near`: minimize |x - near|^2 s.t. a.n x = a.d, b.n x = b.d.
+  // Solve for the point on both planes closest to `near`: minimize |x - near|^2 s.t. a.n x = a.d, b.n x =
+  // b.d.
   Eigen::Matrix<double, 2, 3> N;
   N.row(0) = a.n.transpose();
   N.row(1) = b.n.transpose();
@@ -41,8 +42,9 @@ inline bool plane_line(const Plane& a, const Plane& b, const Vec3& near, Vec3& p
   return true;
 }
 
-inline SynthScan synth_flat_scan(const ScannerCalibration& truth, const ScannerCalibration& header_calibration,
-                                 double height, double noise_px, std::uint64_t seed, std::uint64_t scan_id = 1,
+inline SynthScan synth_flat_scan(const ScannerCalibration& truth,
+                                 const ScannerCalibration& header_calibration, double height, double noise_px,
+                                 std::uint64_t seed, std::uint64_t scan_id = 1,
                                  std::uint32_t row_stride = 1) {
   SynthScan s;
   s.begin.scan_id = scan_id;
@@ -67,7 +69,7 @@ inline SynthScan synth_flat_scan(const ScannerCalibration& truth, const ScannerC
       // Make v increase with t.
       Vec2 a, b;
       if (v_of(0.0, a) && v_of(1.0, b) && b.y() < a.y()) dir = -dir;
-      double t = 0.0;   // warm start from the previous row
+      double t = 0.0;  // warm start from the previous row
       for (std::uint32_t r = 0; r < cam.height; r += row_stride) {
         Vec2 px;
         bool ok = false;

@@ -30,11 +30,13 @@ TEST(Triangulate, MatchesDoublePrecisionReference) {
     tri.add_stripe(h, pts, cloud, stats);
     for (const auto& sp : pts) {
       Vec3 ref;
-      const bool ok = Triangulator::triangulate_point(calib, k, sp.row, sp.col, std::sin(3.0 * M_PI / 180), ref);
+      const bool ok =
+          Triangulator::triangulate_point(calib, k, sp.row, sp.col, std::sin(3.0 * M_PI / 180), ref);
       const auto& p = cloud.at(sp.row, k);
       ASSERT_EQ(ok, OrganizedCloud::valid(p)) << "row " << sp.row << " step " << k;
       if (ok) {
-        EXPECT_LT((p.cast<double>() - ref).norm(), 2e-3) << "row " << sp.row << " col " << sp.col << " step " << k;
+        EXPECT_LT((p.cast<double>() - ref).norm(), 2e-3)
+            << "row " << sp.row << " col " << sp.col << " step " << k;
       }
     }
   }
@@ -92,7 +94,7 @@ TEST(Triangulate, RejectsGrazingRays) {
   for (int dc = -300; dc <= 300; dc += 3)
     if (trace.x() + dc >= 0.0 && trace.x() + dc <= 1279.0)
       pts.push_back(msg::StripePoint{static_cast<std::uint16_t>(std::lround(trace.y())),
-                                   static_cast<float>(trace.x() + dc), 100, 2.0f});
+                                     static_cast<float>(trace.x() + dc), 100, 2.0f});
   TriangulationStats stats;
   tri.add_stripe(h, pts, cloud, stats);
   // Count what the reference says: ray-plane angle below 3 degrees.
@@ -165,12 +167,12 @@ TEST(Triangulate, OutOfImageAndOutOfScanPointsAreCounted) {
   msg::StripeHeader h;
   h.step_index = 10;
   const float nan = std::numeric_limits<float>::quiet_NaN();
-  std::vector<msg::StripePoint> pts = {{5, -1.0f, 0, 0}, {5, 1279.5f, 0, 0}, {2000, 10.0f, 0, 0}, {6, nan, 0, 0},
-                                       {7, 600.0f, 0, 0}};
+  std::vector<msg::StripePoint> pts = {
+      {5, -1.0f, 0, 0}, {5, 1279.5f, 0, 0}, {2000, 10.0f, 0, 0}, {6, nan, 0, 0}, {7, 600.0f, 0, 0}};
   tri.add_stripe(h, pts, cloud, stats);
   EXPECT_EQ(stats.out_of_image, 4u);
   EXPECT_EQ(stats.points, 1u);
-  h.step_index = 100;   // beyond the scan's steps
+  h.step_index = 100;  // beyond the scan's steps
   tri.add_stripe(h, pts, cloud, stats);
   EXPECT_EQ(stats.out_of_image, 9u);
 }
@@ -185,10 +187,10 @@ TEST(Triangulate, NoAllocationPerScanAfterWarmUp) {
   Triangulator tri(calib);
   OrganizedCloud cloud;
   cloud.reserve(120 * 1024);
-  tri.triangulate(scan, cloud);   // warm-up
+  tri.triangulate(scan, cloud);  // warm-up
   fs::AllocCounter counter;
   for (int i = 0; i < 3; ++i) {
-    fs::test::fill_scan(synth, scan2);   // Scan::start/add_stripe within capacity
+    fs::test::fill_scan(synth, scan2);  // Scan::start/add_stripe within capacity
     const auto st = tri.triangulate(scan2, cloud);
     EXPECT_GT(st.points, 100000u);
   }
@@ -215,7 +217,7 @@ TEST(Triangulate, FullScan500x1024ReusesTheGridWithoutAllocating) {
   OrganizedCloud cloud;
   cloud.reserve(std::size_t(500) * 1024);
   fs::test::fill_scan(synth, scan);
-  const auto warm = tri.triangulate(scan, cloud);   // warm-up (the smoothing scratch buffer)
+  const auto warm = tri.triangulate(scan, cloud);  // warm-up (the smoothing scratch buffer)
   ASSERT_EQ(cloud.width, 500u);
   ASSERT_EQ(cloud.height, 1024u);
   fs::AllocCounter counter;

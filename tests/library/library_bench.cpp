@@ -34,7 +34,8 @@ void BM_LoadPolyhedraLibrary(benchmark::State& state) {
 BENCHMARK(BM_LoadPolyhedraLibrary)->Unit(benchmark::kMillisecond);
 
 void BM_EnumeratePolycubes(benchmark::State& state) {
-  for (auto _ : state) benchmark::DoNotOptimize(fs::host::enumerate_polycubes(static_cast<int>(state.range(0))));
+  for (auto _ : state)
+    benchmark::DoNotOptimize(fs::host::enumerate_polycubes(static_cast<int>(state.range(0))));
 }
 BENCHMARK(BM_EnumeratePolycubes)->Arg(6)->Arg(8)->Unit(benchmark::kMillisecond);
 
@@ -44,7 +45,8 @@ void BM_PolycubeLibrary6(benchmark::State& state) {
     const auto all = fs::host::enumerate_polycubes(6);
     for (std::size_t v = 0; v < all.size(); ++v)
       for (std::size_t i = 0; i < all[v].size(); ++i)
-        lib.add(fs::host::polycube_model(all[v][i], 20, fs::host::polycube_name(static_cast<int>(v + 1), i + 1)));
+        lib.add(
+            fs::host::polycube_model(all[v][i], 20, fs::host::polycube_name(static_cast<int>(v + 1), i + 1)));
     benchmark::DoNotOptimize(lib);
   }
 }
@@ -58,8 +60,8 @@ void BM_SymmetrySnubDodecahedron(benchmark::State& state) {
 BENCHMARK(BM_SymmetrySnubDodecahedron)->Unit(benchmark::kMicrosecond);
 
 void BM_PartialView(benchmark::State& state) {
-  const auto m = fs::host::build_model(
-      fs::read_mesh(fs::test::shared_data() / "polyhedra/polyhedra-viewer/off/truncated-icosidodecahedron.off"));
+  const auto m = fs::host::build_model(fs::read_mesh(
+      fs::test::shared_data() / "polyhedra/polyhedra-viewer/off/truncated-icosidodecahedron.off"));
   const fs::Mat3 R = Eigen::AngleAxisd(0.3, fs::Vec3(1, 2, 3).normalized()).toRotationMatrix();
   for (auto _ : state) benchmark::DoNotOptimize(fs::host::partial_view(m, R, fs::Vec3(0, 0, -1)));
 }

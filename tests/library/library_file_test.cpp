@@ -17,7 +17,8 @@ using namespace fs::host;
 Library small_library() {
   Library lib;
   const auto dir = fs::test::shared_data() / "polyhedra/polyhedra-viewer/off";
-  for (const char* n : {"cube", "tetrahedron", "square-pyramid"}) lib.add(build_model(fs::read_mesh(dir / (std::string(n) + ".off"))));
+  for (const char* n : {"cube", "tetrahedron", "square-pyramid"})
+    lib.add(build_model(fs::read_mesh(dir / (std::string(n) + ".off"))));
   lib.add(polycube_model({{0, 0, 0}, {1, 0, 0}, {2, 0, 0}, {1, 1, 0}}, 20, "T"));
   fs::host::Polycube ring;
   for (int x = 0; x < 3; ++x)
@@ -91,7 +92,8 @@ TEST(LibraryFile, EveryTruncationIsAnError) {
   lib.add(polycube_model({{0, 0, 0}}, 1, "c"));
   const auto bytes = lib.to_bytes();
   for (std::size_t n = 0; n < bytes.size(); ++n) {
-    const std::string e = error_of(std::vector<std::uint8_t>(bytes.begin(), bytes.begin() + static_cast<std::ptrdiff_t>(n)));
+    const std::string e =
+        error_of(std::vector<std::uint8_t>(bytes.begin(), bytes.begin() + static_cast<std::ptrdiff_t>(n)));
     EXPECT_NE(e.find("bad.fslib: at byte"), std::string::npos) << n << ": " << e;
   }
 }
@@ -103,7 +105,8 @@ TEST(LibraryFile, CorruptionIsReportedWithOffsets) {
   EXPECT_NE(error_of(magic).find("bad magic"), std::string::npos);
   auto version = good;
   version[8] = 7;
-  EXPECT_NE(error_of(version).find("at byte 8: unsupported .fslib version 7"), std::string::npos) << error_of(version);
+  EXPECT_NE(error_of(version).find("at byte 8: unsupported .fslib version 7"), std::string::npos)
+      << error_of(version);
   auto flipped = good;
   flipped[good.size() / 2] ^= 0x40;
   EXPECT_NE(error_of(flipped).find("CRC mismatch"), std::string::npos);

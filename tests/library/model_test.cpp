@@ -25,7 +25,8 @@ Mesh triangulated_box(double a, double b, double c) {
   Mesh m;
   m.name = "box";
   for (int i = 0; i < 8; ++i) m.vertices.emplace_back(i & 1 ? a : 0, i & 2 ? b : 0, i & 4 ? c : 0);
-  const std::uint32_t q[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
+  const std::uint32_t q[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4},
+                                 {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
   for (const auto& f : q) {
     m.faces.push_back({f[0], f[1], f[2]});
     m.faces.push_back({f[0], f[2], f[3]});
@@ -66,7 +67,9 @@ TEST(BuildModel, StlFileCubeGivesSixFaces) {
     out << "solid cube\n";
     for (const auto& f : box.faces) {
       out << " facet normal 0 0 0\n  outer loop\n";
-      for (auto i : f) out << "   vertex " << box.vertices[i].x() << ' ' << box.vertices[i].y() << ' ' << box.vertices[i].z() << '\n';
+      for (auto i : f)
+        out << "   vertex " << box.vertices[i].x() << ' ' << box.vertices[i].y() << ' ' << box.vertices[i].z()
+            << '\n';
       out << "  endloop\n endfacet\n";
     }
     out << "endsolid cube\n";
@@ -81,7 +84,8 @@ TEST(BuildModel, ReversedAndMixedWindingGiveOutwardNormals) {
   for (auto& f : m.faces) std::reverse(f.begin(), f.end());
   expect_box(build_model(m), 10, 20, 30);
   Mesh mixed = triangulated_box(10, 20, 30);
-  for (std::size_t i = 0; i < mixed.faces.size(); i += 3) std::reverse(mixed.faces[i].begin(), mixed.faces[i].end());
+  for (std::size_t i = 0; i < mixed.faces.size(); i += 3)
+    std::reverse(mixed.faces[i].begin(), mixed.faces[i].end());
   expect_box(build_model(mixed), 10, 20, 30);
 }
 
@@ -94,7 +98,8 @@ TEST(BuildModel, ScaleAndSeparateVerticesPerTriangle) {
     std::vector<std::uint32_t> idx;
     for (auto i : f) {
       idx.push_back(static_cast<std::uint32_t>(soup.vertices.size()));
-      soup.vertices.push_back(box.vertices[i] + Vec3::Constant(1e-9 * static_cast<double>(soup.vertices.size() % 3)));
+      soup.vertices.push_back(box.vertices[i] +
+                              Vec3::Constant(1e-9 * static_cast<double>(soup.vertices.size() % 3)));
     }
     soup.faces.push_back(idx);
   }
@@ -146,7 +151,8 @@ TEST(BuildModel, BadInputNamesTheMesh) {
     build_model(bad);
     FAIL();
   } catch (const fs::Error& e) {
-    EXPECT_NE(std::string(e.what()).find("box: face 3: vertex index 99 out of range"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("box: face 3: vertex index 99 out of range"), std::string::npos)
+        << e.what();
   }
   Mesh flat;
   flat.name = "flat";

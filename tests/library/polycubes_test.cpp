@@ -82,7 +82,9 @@ TEST(Polycubes, ModelsAreConsistentSurfaces) {
       std::vector<double> border(m.face_count(), 0.0);
       for (const auto& a : m.graph.arcs) {
         EXPECT_GT(a.border, 0.0);
-        EXPECT_NE(m.faces[static_cast<std::size_t>(a.a)].normal.dot(m.faces[static_cast<std::size_t>(a.b)].normal), 1.0);
+        EXPECT_NE(
+            m.faces[static_cast<std::size_t>(a.a)].normal.dot(m.faces[static_cast<std::size_t>(a.b)].normal),
+            1.0);
         border[static_cast<std::size_t>(a.a)] += a.border;
         border[static_cast<std::size_t>(a.b)] += a.border;
       }

@@ -54,7 +54,8 @@ std::vector<Row> read_index() {
 }
 
 Model load(const std::string& name) {
-  return fs::host::build_model(fs::read_mesh(fs::test::shared_data() / "polyhedra/polyhedra-viewer/off" / (name + ".off")));
+  return fs::host::build_model(
+      fs::read_mesh(fs::test::shared_data() / "polyhedra/polyhedra-viewer/off" / (name + ".off")));
 }
 
 TEST(Polyhedra, AllSolidsMatchIndex) {
@@ -102,13 +103,28 @@ TEST(Polyhedra, AllSolidsMatchIndex) {
 }
 
 TEST(Polyhedra, SymmetryGroupOrders) {
-  const std::map<std::string, std::size_t> expected{
-      {"cube", 24}, {"tetrahedron", 12}, {"octahedron", 24}, {"dodecahedron", 60}, {"icosahedron", 60},
-      {"square-pyramid", 4}, {"pentagonal-pyramid", 5}, {"triangular-prism", 6}, {"hexagonal-prism", 12},
-      {"square-antiprism", 8}, {"snub-cube", 24}, {"snub-dodecahedron", 60}, {"truncated-icosidodecahedron", 60},
-      {"triangular-bipyramid", 6}, {"pentagonal-rotunda", 5}, {"elongated-square-gyrobicupola", 8},
-      {"gyrate-rhombicosidodecahedron", 5}, {"truncated-tetrahedron", 12}, {"cuboctahedron", 24},
-      {"snub-disphenoid", 4}, {"sphenomegacorona", 2}, {"bilunabirotunda", 4}};
+  const std::map<std::string, std::size_t> expected{{"cube", 24},
+                                                    {"tetrahedron", 12},
+                                                    {"octahedron", 24},
+                                                    {"dodecahedron", 60},
+                                                    {"icosahedron", 60},
+                                                    {"square-pyramid", 4},
+                                                    {"pentagonal-pyramid", 5},
+                                                    {"triangular-prism", 6},
+                                                    {"hexagonal-prism", 12},
+                                                    {"square-antiprism", 8},
+                                                    {"snub-cube", 24},
+                                                    {"snub-dodecahedron", 60},
+                                                    {"truncated-icosidodecahedron", 60},
+                                                    {"triangular-bipyramid", 6},
+                                                    {"pentagonal-rotunda", 5},
+                                                    {"elongated-square-gyrobicupola", 8},
+                                                    {"gyrate-rhombicosidodecahedron", 5},
+                                                    {"truncated-tetrahedron", 12},
+                                                    {"cuboctahedron", 24},
+                                                    {"snub-disphenoid", 4},
+                                                    {"sphenomegacorona", 2},
+                                                    {"bilunabirotunda", 4}};
   for (const auto& [name, order] : expected) {
     SCOPED_TRACE(name);
     const Model m = load(name);
@@ -120,8 +136,9 @@ TEST(Polyhedra, SymmetryGroupOrders) {
       for (const auto& f : m.faces) {
         bool hit = false;
         for (const auto& g : m.faces)
-          hit = hit || ((S * f.normal - g.normal).norm() < 1e-2 &&
-                        (S * (f.centroid - m.center) - (g.centroid - m.center)).norm() < 1e-2 * m.bounding_radius);
+          hit = hit ||
+                ((S * f.normal - g.normal).norm() < 1e-2 &&
+                 (S * (f.centroid - m.center) - (g.centroid - m.center)).norm() < 1e-2 * m.bounding_radius);
         EXPECT_TRUE(hit);
       }
     }

@@ -34,8 +34,11 @@ TEST(Views, CornerViewShowsThreeFaces) {
   int super_arcs = 0;
   double inner = 0;
   for (const auto& a : g.arcs) {
-    if (a.b == 6) { ++super_arcs; EXPECT_NEAR(a.border, 20, 1e-12); }
-    else inner += a.border;
+    if (a.b == 6) {
+      ++super_arcs;
+      EXPECT_NEAR(a.border, 20, 1e-12);
+    } else
+      inner += a.border;
   }
   EXPECT_EQ(super_arcs, 3);
   EXPECT_NEAR(inner, 30, 1e-12);
@@ -72,8 +75,10 @@ TEST(Views, NonConvexModelKeepsConcaveArcsBetweenVisibleFaces) {
   bool concave = false;
   for (const auto& a : g.arcs) {
     if (a.a >= 8 || a.b >= 8) continue;
-    const Vec3 na = L.faces[static_cast<std::size_t>(a.a)].normal, nb = L.faces[static_cast<std::size_t>(a.b)].normal;
-    const Vec3 d = L.faces[static_cast<std::size_t>(a.b)].centroid - L.faces[static_cast<std::size_t>(a.a)].centroid;
+    const Vec3 na = L.faces[static_cast<std::size_t>(a.a)].normal,
+               nb = L.faces[static_cast<std::size_t>(a.b)].normal;
+    const Vec3 d =
+        L.faces[static_cast<std::size_t>(a.b)].centroid - L.faces[static_cast<std::size_t>(a.a)].centroid;
     concave = concave || (na.dot(d) > 1e-9 && nb.dot(-d) > 1e-9);
   }
   EXPECT_TRUE(concave);

@@ -1,11 +1,14 @@
 // bench_match: states/s and time to the best solution of the inexact matcher (thesis ch. 7).
-//  - BM_AllPolyhedra/mode: the 120 polyhedra of ../shared/data/polyhedra, each against a rigid partial view of
+//  - BM_AllPolyhedra/mode: the 120 polyhedra of ../shared/data/polyhedra, each against a rigid partial view
+//  of
 //                          itself; mode 0 = first solution (TH_solutions = 1), 1 = full search (budget 50000)
 //  - BM_PolyhedronView/i:  polyhedron i alone, first-solution mode
 //  - BM_ByGraphSize/n:     prisms with n faces, growth with graph size (both modes)
 //  - BM_Library/N/T:       one scene against the first N polyhedra, ParallelMatcher with T threads
-//  - BM_LibraryAllViews/T: every polyhedron's view against all 120, T threads: time per scene, own reference first
-//  - BM_RecognizerLibrary/scene/N: a hw-sim scan's scene graph against N polyhedra, the recognizer's parameters
+//  - BM_LibraryAllViews/T: every polyhedron's view against all 120, T threads: time per scene, own reference
+//  first
+//  - BM_RecognizerLibrary/scene/N: a hw-sim scan's scene graph against N polyhedra, the recognizer's
+//  parameters
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
@@ -15,15 +18,15 @@
 #include <random>
 #include <vector>
 
+#include <chrono>
 #include "common/mesh.hpp"
 #include "host/match/inexact.hpp"
 #include "host/match/parallel.hpp"
 #include "host/match/params.hpp"
 #include "host/pfrg/pfrg.hpp"
-#include "support/test_paths.hpp"
 #include "match_helpers.hpp"
+#include "support/test_paths.hpp"
 #include "test_graphs.hpp"
-#include <chrono>
 
 namespace {
 
@@ -52,7 +55,8 @@ const std::vector<Pair>& polyhedra() {
   static const std::vector<Pair> pairs = [] {
     std::vector<Pair> out;
     std::vector<std::filesystem::path> files;
-    for (const auto& e : std::filesystem::directory_iterator(fs::test::shared_data() / "polyhedra/polyhedra-viewer/off"))
+    for (const auto& e :
+         std::filesystem::directory_iterator(fs::test::shared_data() / "polyhedra/polyhedra-viewer/off"))
       files.push_back(e.path());
     std::sort(files.begin(), files.end());
     std::mt19937 rng(1);
@@ -91,7 +95,8 @@ fs::Mesh prism(int sides) {
 
 void report(benchmark::State& state, std::int64_t states, std::int64_t matches) {
   state.counters["states/s"] = benchmark::Counter(static_cast<double>(states), benchmark::Counter::kIsRate);
-  state.counters["states/match"] = benchmark::Counter(static_cast<double>(states) / static_cast<double>(matches));
+  state.counters["states/match"] =
+      benchmark::Counter(static_cast<double>(states) / static_cast<double>(matches));
 }
 
 void BM_AllPolyhedra(benchmark::State& state) {
@@ -104,7 +109,8 @@ void BM_AllPolyhedra(benchmark::State& state) {
     for (const Pair& p : polyhedra()) {
       const auto t0 = std::chrono::steady_clock::now();
       const MatchResult& r = m.match(p.scene, p.model, params);
-      const double us = std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count();
+      const double us =
+          std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count();
       max_us = std::max(max_us, us);
       if (p.model.nodes.size() <= 30) max30_us = std::max(max30_us, us);
       sum_us += us;
@@ -120,7 +126,8 @@ void BM_AllPolyhedra(benchmark::State& state) {
   state.counters["max_us/pair"] = max_us;
   state.counters["max_us/pair<=30"] = max30_us;
   state.counters["correct_first_%"] = 100.0 * static_cast<double>(correct) / static_cast<double>(pairs);
-  state.counters["budget_stops"] = static_cast<double>(budget_stops) / static_cast<double>(state.iterations());
+  state.counters["budget_stops"] =
+      static_cast<double>(budget_stops) / static_cast<double>(state.iterations());
   state.counters["states/s"] = static_cast<double>(states) / (sum_us * 1e-6);
 }
 
@@ -177,7 +184,7 @@ void BM_Library(benchmark::State& state) {
   ParallelMatcher pm(threads);
   const MatchParams params = mode_params(0);
   std::int64_t states = 0, k = 0, expanded = 0, fits = 0, candidates = 0;
-  int true_rank = 0;   // rank of the view's own reference (7) among the references by solution 1
+  int true_rank = 0;  // rank of the view's own reference (7) among the references by solution 1
   for (auto _ : state) {
     const auto res = pm.match(scene, refs, params, 4);
     for (const auto& r : res) {
@@ -196,16 +203,18 @@ void BM_Library(benchmark::State& state) {
   }
   report(state, states, k);
   if (n > 7) state.counters["true_ref_rank"] = true_rank;
-  const auto per = [&](std::int64_t v) { return benchmark::Counter(static_cast<double>(v) / static_cast<double>(k)); };
+  const auto per = [&](std::int64_t v) {
+    return benchmark::Counter(static_cast<double>(v) / static_cast<double>(k));
+  };
   state.counters["expanded/match"] = per(expanded);
   state.counters["fits/match"] = per(fits);
   state.counters["candidates/match"] = per(candidates);
 }
 
-// Every polyhedron's view against all 120 references (ParallelMatcher, T threads, first solution): the wall time
-// per scene (mean and max over the 120 scenes) and how often the view's own reference explains it best (solution
-// 1 of the highest level, then the lowest cost + zeta U; symmetric twins of the model in the library count as
-// wrong). One iteration = 120 scenes.
+// Every polyhedron's view against all 120 references (ParallelMatcher, T threads, first solution): the wall
+// time per scene (mean and max over the 120 scenes) and how often the view's own reference explains it best
+// (solution 1 of the highest level, then the lowest cost + zeta U; symmetric twins of the model in the
+// library count as wrong). One iteration = 120 scenes.
 void BM_LibraryAllViews(benchmark::State& state) {
   const int threads = static_cast<int>(state.range(0));
   std::vector<Pfrg> refs;
@@ -218,7 +227,8 @@ void BM_LibraryAllViews(benchmark::State& state) {
     for (std::size_t v = 0; v < polyhedra().size(); ++v) {
       const auto t0 = std::chrono::steady_clock::now();
       const auto res = pm.match(polyhedra()[v].scene, refs, params, 1);
-      const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+      const double ms =
+          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
       max_ms = std::max(max_ms, ms);
       sum_ms += ms;
       ++scenes;
@@ -233,9 +243,9 @@ void BM_LibraryAllViews(benchmark::State& state) {
   state.counters["own_ref_first_%"] = 100.0 * top1 / scenes;
 }
 
-// One hw-sim scan's scene PFRG (tests/match/data/hwsim_*.json, written by `facetscan graph` from `facetscan demo`
-// recordings) against the 120 polyhedra with the recognizer's matching parameters: preset t9.3, all solutions,
-// a 20000-state budget (host/recognize RecognizeParams::max_states), one thread.
+// One hw-sim scan's scene PFRG (tests/match/data/hwsim_*.json, written by `facetscan graph` from `facetscan
+// demo` recordings) against the 120 polyhedra with the recognizer's matching parameters: preset t9.3, all
+// solutions, a 20000-state budget (host/recognize RecognizeParams::max_states), one thread.
 void BM_RecognizerLibrary(benchmark::State& state) {
   static const char* kScenes[] = {"hwsim_default_scene.json", "hwsim_occlusion_scene.json"};
   const auto idx = static_cast<std::size_t>(state.range(0));
@@ -258,19 +268,27 @@ void BM_RecognizerLibrary(benchmark::State& state) {
     ++k;
   }
   report(state, states, k);
-  const auto per = [&](std::int64_t v) { return benchmark::Counter(static_cast<double>(v) / static_cast<double>(k)); };
+  const auto per = [&](std::int64_t v) {
+    return benchmark::Counter(static_cast<double>(v) / static_cast<double>(k));
+  };
   state.counters["expanded/match"] = per(expanded);
   state.counters["fits/match"] = per(fits);
   state.counters["budget_stops"] = per(budget_stops);
-  state.SetLabel(std::string(kScenes[idx]) + ", " + std::to_string(fs::test::real_ids(scene).size()) + " faces");
+  state.SetLabel(std::string(kScenes[idx]) + ", " + std::to_string(fs::test::real_ids(scene).size()) +
+                 " faces");
 }
 
 }  // namespace
 
-BENCHMARK(BM_RecognizerLibrary)->ArgsProduct({{0, 1}, {30, 120}})->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_RecognizerLibrary)
+    ->ArgsProduct({{0, 1}, {30, 120}})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 BENCHMARK(BM_AllPolyhedra)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->Iterations(1);
 BENCHMARK(BM_PolyhedronView)->DenseRange(0, 119)->Unit(benchmark::kMicrosecond);
-BENCHMARK(BM_ByGraphSize)->ArgsProduct({{6, 8, 10, 14, 18, 22, 26, 30}, {0, 1}})->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_ByGraphSize)
+    ->ArgsProduct({{6, 8, 10, 14, 18, 22, 26, 30}, {0, 1}})
+    ->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_Library)->ArgsProduct({{10, 30, 60, 120}, {1, 2}})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_LibraryAllViews)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->Iterations(1)->UseRealTime();
 BENCHMARK_MAIN();

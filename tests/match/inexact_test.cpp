@@ -29,7 +29,7 @@ using fs::Mat3;
 using fs::Vec3;
 using fs::host::Pfrg;
 
-const Vec3 kViewDir(0, 0, -1);   // sensor on +z looking down
+const Vec3 kViewDir(0, 0, -1);  // sensor on +z looking down
 
 fs::Mesh johnson(const std::string& name) {
   return fs::read_mesh(fs::test::shared_data() / "polyhedra/polyhedra-viewer/off" / (name + ".off"));
@@ -54,16 +54,16 @@ TEST(Inexact, CornerWithMissingArc) {
   const Mat3 R = fs::test::random_rotation(rng);
   Pfrg scene;
   scene.name = "corner";
-  for (int id : {1, 3, 4}) {   // top, +x side, +y side (mutually adjacent)
+  for (int id : {1, 3, 4}) {  // top, +x side, +y side (mutually adjacent)
     auto n = *cube.find(id);
     n.normal = R * n.normal;
     scene.nodes.push_back(n);
   }
-  fs::host::PfrgNode sn;   // the rest of the scene (unknown regions)
+  fs::host::PfrgNode sn;  // the rest of the scene (unknown regions)
   sn.id = 99;
   sn.supernode = true;
   scene.nodes.push_back(sn);
-  scene.arcs = {{1, 3, 100}, {1, 4, 100}, {1, 99, 200}, {3, 99, 200}, {4, 99, 200}};   // 3-4 missing
+  scene.arcs = {{1, 3, 100}, {1, 4, 100}, {1, 99, 200}, {3, 99, 200}, {4, 99, 200}};  // 3-4 missing
   InexactMatcher m;
   const MatchResult& r = m.match(scene, cube, preset("t7.19"));
   ASSERT_GE(r.solutions.size(), 1u) << format_result(r, "corner");
@@ -125,8 +125,9 @@ TEST(Inexact, RigidViewsCorrectFirst) {
 // rotation error < 5 deg); the names of the wrong ones and the cost ratios are appended to the strings.
 struct PerturbedRun {
   int checked = 0, correct = 0;
-  int correspondence = 0;     // solution 1 has the right correspondence (up to symmetry), whatever its rotation error
-  double max_rot_err = 0.0;   // over the views with the right correspondence first
+  int correspondence =
+      0;  // solution 1 has the right correspondence (up to symmetry), whatever its rotation error
+  double max_rot_err = 0.0;  // over the views with the right correspondence first
   std::string wrong, ratios;
 };
 PerturbedRun run_perturbed(const MatchParams& p, unsigned seed) {
@@ -155,7 +156,8 @@ PerturbedRun run_perturbed(const MatchParams& p, unsigned seed) {
         ++out.correct;
       } else {
         out.wrong += c.name + " ";
-        EXPECT_FALSE(must) << p.name << " " << c.name << ": solution 1 not correct\n" << format_result(r, c.name, 2);
+        EXPECT_FALSE(must) << p.name << " " << c.name << ": solution 1 not correct\n"
+                           << format_result(r, c.name, 2);
       }
       out.ratios += c.name + "=" + std::to_string(r.stats.cost_ratio) + " ";
     }
@@ -164,12 +166,14 @@ PerturbedRun run_perturbed(const MatchParams& p, unsigned seed) {
 }
 
 // With the thesis ranking (t7.34: by cost, which is normalized per level), Johnson solids with congruent face
-// configurations (cupolas: squares and triangles meeting at equal angles) often put a small wrong 3-face match
-// of an ambiguous part of the view first once the split face raises the correct match's cost, or a wrong large
-// match whose rotation fit is poor. A solution is correct when its correspondence is right up to the model's
-// symmetry (match_helpers.hpp: judge) and its rotation within 5 deg of the truth. The `scan` preset (params.cpp: solutions ranked by cost + zeta * unexplained
-// neighbour area, rotation-fit increments <= 0.005, TH_omega 10 deg from level-1 parents on) fixes most of them. Nine seeds of views: the cube and the
-// truncated pyramid must always come out right; the share of correct first solutions is reported and bounded.
+// configurations (cupolas: squares and triangles meeting at equal angles) often put a small wrong 3-face
+// match of an ambiguous part of the view first once the split face raises the correct match's cost, or a
+// wrong large match whose rotation fit is poor. A solution is correct when its correspondence is right up to
+// the model's symmetry (match_helpers.hpp: judge) and its rotation within 5 deg of the truth. The `scan`
+// preset (params.cpp: solutions ranked by cost + zeta * unexplained neighbour area, rotation-fit increments
+// <= 0.005, TH_omega 10 deg from level-1 parents on) fixes most of them. Nine seeds of views: the cube and
+// the truncated pyramid must always come out right; the share of correct first solutions is reported and
+// bounded.
 TEST(Inexact, PerturbedViewsCorrectFirst) {
   PerturbedRun thesis, scan;
   for (unsigned seed : {23u, 1u, 2u, 3u, 4u, 5u, 6u, 7u, 8u}) {
@@ -183,18 +187,21 @@ TEST(Inexact, PerturbedViewsCorrectFirst) {
     scan.max_rot_err = std::max(scan.max_rot_err, s.max_rot_err);
     if (seed == 23u) thesis.ratios = t.ratios;
   }
-  std::printf("perturbed views, t7.34: %d of %d correct first; wrong: %s\ncost ratio solution 2 / solution 1 "
-              "(seed 23): %s\n", thesis.correct, thesis.checked, thesis.wrong.c_str(), thesis.ratios.c_str());
+  std::printf(
+      "perturbed views, t7.34: %d of %d correct first; wrong: %s\ncost ratio solution 2 / solution 1 "
+      "(seed 23): %s\n",
+      thesis.correct, thesis.checked, thesis.wrong.c_str(), thesis.ratios.c_str());
   std::printf("perturbed views, scan: %d of %d correct first; wrong: %s\n", scan.correct, scan.checked,
               scan.wrong.c_str());
-  std::printf("right correspondence first (any rotation error): t7.34 %d, scan %d of %d; largest rotation error "
-              "then: t7.34 %.2f deg, scan %.2f deg\n", thesis.correspondence, scan.correspondence, scan.checked,
-              thesis.max_rot_err, scan.max_rot_err);
+  std::printf(
+      "right correspondence first (any rotation error): t7.34 %d, scan %d of %d; largest rotation error "
+      "then: t7.34 %.2f deg, scan %.2f deg\n",
+      thesis.correspondence, scan.correspondence, scan.checked, thesis.max_rot_err, scan.max_rot_err);
   RecordProperty("cost_ratios", thesis.ratios);
   EXPECT_GE(thesis.checked, 200);
-  EXPECT_GE(scan.correct * 100, scan.checked * 97) << "wrong first under scan: " << scan.wrong;   // >= 97 %
-  EXPECT_GE(scan.correspondence * 100, scan.checked * 99);   // right correspondence first: >= 99 %
-  EXPECT_GE(scan.correct - thesis.correct, thesis.checked / 5);   // the ranking fixes >= 20 % of the views
+  EXPECT_GE(scan.correct * 100, scan.checked * 97) << "wrong first under scan: " << scan.wrong;  // >= 97 %
+  EXPECT_GE(scan.correspondence * 100, scan.checked * 99);       // right correspondence first: >= 99 %
+  EXPECT_GE(scan.correct - thesis.correct, thesis.checked / 5);  // the ranking fixes >= 20 % of the views
 }
 
 Pfrg pyram2_scene(std::mt19937& rng, Mat3& R) {
@@ -223,11 +230,12 @@ TEST(Inexact, Pyram2AllAttributesSearchMuchSmallerThanNoOrientation) {
   MatchParams p34 = preset("t7.34");
   const MatchResult& r34 = m.match(scene, model, p34);
   const MatchStats s34 = r34.stats;
-  std::printf("PYRAM2-like: t7.28 %lld states (%lld solutions, stop: %s), t7.34 %lld states (%lld solutions, "
-              "stop: %s)\n",
-              static_cast<long long>(s28.states_created), static_cast<long long>(s28.solutions),
-              std::string(stop_name(s28.stop)).c_str(), static_cast<long long>(s34.states_created),
-              static_cast<long long>(s34.solutions), std::string(stop_name(s34.stop)).c_str());
+  std::printf(
+      "PYRAM2-like: t7.28 %lld states (%lld solutions, stop: %s), t7.34 %lld states (%lld solutions, "
+      "stop: %s)\n",
+      static_cast<long long>(s28.states_created), static_cast<long long>(s28.solutions),
+      std::string(stop_name(s28.stop)).c_str(), static_cast<long long>(s34.states_created),
+      static_cast<long long>(s34.solutions), std::string(stop_name(s34.stop)).c_str());
   EXPECT_GT(s28.states_created, 5 * s34.states_created);
   EXPECT_EQ(s28.removed[static_cast<int>(Condition::kRigidity)], 0);
   EXPECT_GT(s34.removed[static_cast<int>(Condition::kRigidity)], 0);
@@ -244,7 +252,8 @@ TEST(Inexact, ConditionsAreCountedAndSwitchable) {
   InexactMatcher m;
   MatchParams p = preset("t7.34");
   const MatchStats on = m.match(scene, model, p).stats;
-  for (Condition c : {Condition::kConnectivity, Condition::kSupernode, Condition::kRigidity, Condition::kNewMatch})
+  for (Condition c :
+       {Condition::kConnectivity, Condition::kSupernode, Condition::kRigidity, Condition::kNewMatch})
     EXPECT_GT(on.removed[static_cast<int>(c)], 0) << condition_name(c);
   p.set(Condition::kRigidity, false);
   const MatchStats off = m.match(scene, model, p).stats;
@@ -290,8 +299,8 @@ TEST(Inexact, SolutionsOrderedMinLevelNoSubsets) {
       if (k == i) continue;
       std::set<std::pair<int, int>> sb;
       for (auto x : r.solutions[k].matches) sb.insert({x.scene, x.ref});
-      EXPECT_FALSE(std::includes(sb.begin(), sb.end(), sa.begin(), sa.end())) << "solution " << i + 1
-                                                                             << " is a subset of " << k + 1;
+      EXPECT_FALSE(std::includes(sb.begin(), sb.end(), sa.begin(), sa.end()))
+          << "solution " << i + 1 << " is a subset of " << k + 1;
     }
   }
   EXPECT_NEAR(r.stats.cost_ratio, r.solutions[1].cost / r.solutions[0].cost, 1e-12);
@@ -304,7 +313,7 @@ TEST(Inexact, StateBudgetIsAGlobalStopWithIncompleteSolutions) {
   Mat3 R;
   const Pfrg scene = pyram2_scene(rng, R);
   MatcherLimits lim;
-  lim.max_states = 300;   // the pool itself is the budget
+  lim.max_states = 300;  // the pool itself is the budget
   InexactMatcher m(lim);
   MatchParams p = preset("t7.28");
   const MatchResult& r = m.match(scene, model, p);
@@ -325,7 +334,7 @@ TEST(Inexact, StateBudgetIsAGlobalStopWithIncompleteSolutions) {
 class FakeClock final : public MatchClock {
  public:
   mutable std::int64_t t = 0;
-  std::int64_t now_ns() const override { return t += 1'000'000; }   // 1 ms per reading
+  std::int64_t now_ns() const override { return t += 1'000'000; }  // 1 ms per reading
 };
 
 TEST(Inexact, TimeBudgetWithInjectedClock) {
@@ -383,7 +392,7 @@ TEST(Inexact, NoHeapAllocationDuringMatch) {
   lim.max_states = 3000;
   InexactMatcher m(lim);
   MatchParams p = preset("t7.34");
-  MatchParams p28 = preset("t7.28");   // runs into the pool limit
+  MatchParams p28 = preset("t7.28");  // runs into the pool limit
   (void)m.match(scene, model, p);     // warm-up (nothing to warm, but the rule is "after warm-up")
 #if FS_HAVE_ALLOC_COUNTER
   fs::AllocCounter counter;
@@ -457,7 +466,9 @@ TEST(Params, PresetsAndJson) {
   EXPECT_EQ(preset("t7.30").alpha, 0.0);
   EXPECT_THROW(preset("nope"), fs::Error);
   const MatchParams p = params_from_json(
-      nlohmann::json::parse(R"({"preset":"t7.41","alpha":0.2,"th_maxlevel":4,"conditions":{"rigidity":false}})"), "p");
+      nlohmann::json::parse(
+          R"({"preset":"t7.41","alpha":0.2,"th_maxlevel":4,"conditions":{"rigidity":false}})"),
+      "p");
   EXPECT_EQ(p.alpha, 0.2);
   EXPECT_EQ(p.beta, 0.1);
   EXPECT_EQ(p.th_maxlevel, 4);
@@ -484,9 +495,9 @@ TEST(Params, PresetsAndJson) {
 namespace {
 
 // The one-sided area condition (th_area_ratio, beyond the thesis): a view whose faces are all twice the
-// reference's can only come from a larger object: with the condition every pair is removed (counted under node
-// similarity) and nothing matches; the reference's own view (scene areas <= reference areas) still matches
-// exactly as without it.
+// reference's can only come from a larger object: with the condition every pair is removed (counted under
+// node similarity) and nothing matches; the reference's own view (scene areas <= reference areas) still
+// matches exactly as without it.
 TEST(Inexact, AreaRatioConditionRemovesScenesLargerThanTheReference) {
   const Pfrg model = fs::test::mesh_pfrg(fs::test::truncated_pyramid());
   const Mat3 R = Mat3::Identity();
@@ -498,7 +509,7 @@ TEST(Inexact, AreaRatioConditionRemovesScenesLargerThanTheReference) {
   MatchParams p = preset("t9.3");
   const auto base = m.match(own, model, p).solutions.size();
   ASSERT_GE(base, 1u);
-  ASSERT_GE(m.match(larger, model, p).solutions.size(), 1u);   // without the condition areas do not matter
+  ASSERT_GE(m.match(larger, model, p).solutions.size(), 1u);  // without the condition areas do not matter
 
   p.th_area_ratio = 1.3;
   p.th_area_slack_mm2 = 30.0;
@@ -522,23 +533,25 @@ namespace {
 
 // Solution ranking by cost + zeta * U (beyond the thesis). U of a solution = area of the unmatched real scene
 // faces adjacent to its matched faces / (that + matched area). The cube's corner view with one extra face
-// attached to the top (an occluder's face): the complete corner solution leaves that face unexplained, so U is
-// its share of the area; the search, the state count and the costs do not depend on zeta, only the order does.
+// attached to the top (an occluder's face): the complete corner solution leaves that face unexplained, so U
+// is its share of the area; the search, the state count and the costs do not depend on zeta, only the order
+// does.
 TEST(Inexact, UnexplainedNeighbourAreaRanksSolutions) {
   const Pfrg cube = fs::test::mesh_pfrg(fs::test::box(100, 100, 100));
   Pfrg scene;
   scene.name = "corner+1";
-  for (int id : {1, 3, 4}) scene.nodes.push_back(*cube.find(id));   // top, +x, +y: areas 10000
+  for (int id : {1, 3, 4}) scene.nodes.push_back(*cube.find(id));  // top, +x, +y: areas 10000
   fs::host::PfrgNode extra;
   extra.id = 7;
   extra.area = 2500.0;
-  extra.normal = Vec3(0, 0, 1);   // parallel to the top: no cube face can take it next to the corner
+  extra.normal = Vec3(0, 0, 1);  // parallel to the top: no cube face can take it next to the corner
   scene.nodes.push_back(extra);
   fs::host::PfrgNode sn;
   sn.id = 99;
   sn.supernode = true;
   scene.nodes.push_back(sn);
-  scene.arcs = {{1, 3, 100}, {1, 4, 100}, {3, 4, 100}, {1, 7, 50}, {1, 99, 200}, {3, 99, 200}, {4, 99, 200}, {7, 99, 100}};
+  scene.arcs = {{1, 3, 100},  {1, 4, 100},  {3, 4, 100},  {1, 7, 50},
+                {1, 99, 200}, {3, 99, 200}, {4, 99, 200}, {7, 99, 100}};
   InexactMatcher m;
   MatchParams p = preset("t7.34");
   const MatchResult& r0 = m.match(scene, cube, p);

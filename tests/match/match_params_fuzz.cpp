@@ -1,6 +1,6 @@
-// Fuzz target: the matching-parameter JSON (`facetscan match|recognize --params FILE`, match::params_from_json).
-// Any input must give parameters or fs::Error, never a crash or hang; parameters that parse must survive
-// to_json -> params_from_json unchanged.
+// Fuzz target: the matching-parameter JSON (`facetscan match|recognize --params FILE`,
+// match::params_from_json). Any input must give parameters or fs::Error, never a crash or hang; parameters
+// that parse must survive to_json -> params_from_json unchanged.
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>
@@ -18,7 +18,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   try {
     const fs::host::match::MatchParams p = fs::host::match::params_from_json(j, "fuzz");
     const nlohmann::json out = fs::host::match::to_json(p);
-    if (fs::host::match::to_json(fs::host::match::params_from_json(out, "fuzz round trip")) != out) std::abort();
+    if (fs::host::match::to_json(fs::host::match::params_from_json(out, "fuzz round trip")) != out)
+      std::abort();
   } catch (const fs::Error&) {
   }
   return 0;

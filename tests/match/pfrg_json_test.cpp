@@ -72,7 +72,8 @@ TEST(PfrgJson, RoundTripThroughFile) {
 }
 
 TEST(PfrgJson, NormalsAreNormalized) {
-  const Pfrg g = fs::host::pfrg_from_json(json::parse(R"({"nodes":[{"id":1,"area":1,"normal":[0,0,5]}]})"), "x");
+  const Pfrg g =
+      fs::host::pfrg_from_json(json::parse(R"({"nodes":[{"id":1,"area":1,"normal":[0,0,5]}]})"), "x");
   EXPECT_DOUBLE_EQ(g.nodes[0].normal.z(), 1.0);
 }
 
@@ -81,21 +82,25 @@ TEST(PfrgJson, ErrorsNameSourceAndField) {
   EXPECT_NE(error_of(R"({"arcs":[]})").find("nodes: missing"), std::string::npos);
   EXPECT_NE(error_of(R"({"nodes":[{"id":1,"area":-1,"normal":[0,0,1]}]})").find("nodes[0].area: negative"),
             std::string::npos);
-  EXPECT_NE(error_of(R"({"nodes":[{"id":1,"area":1,"normal":[0,0]}]})").find("nodes[0].normal"), std::string::npos);
-  EXPECT_NE(error_of(R"({"nodes":[{"id":1,"area":1,"normal":[0,0,0]}]})").find("zero length"), std::string::npos);
+  EXPECT_NE(error_of(R"({"nodes":[{"id":1,"area":1,"normal":[0,0]}]})").find("nodes[0].normal"),
+            std::string::npos);
+  EXPECT_NE(error_of(R"({"nodes":[{"id":1,"area":1,"normal":[0,0,0]}]})").find("zero length"),
+            std::string::npos);
   EXPECT_NE(error_of(R"({"nodes":[{"id":1,"area":1,"normal":[0,0,1]},{"id":1,"supernode":true}]})")
                 .find("nodes[1].id: duplicate"),
             std::string::npos);
   EXPECT_NE(error_of(R"({"nodes":[{"id":1,"area":1,"normal":[0,0,1]}],"arcs":[{"a":1,"b":2}]})")
                 .find("arcs[0].b: unknown node id 2"),
             std::string::npos);
-  EXPECT_NE(error_of(R"({"nodes":[{"id":1,"area":1,"normal":[0,0,1]}],"arcs":[{"a":1,"b":1}]})").find("itself"),
-            std::string::npos);
+  EXPECT_NE(
+      error_of(R"({"nodes":[{"id":1,"area":1,"normal":[0,0,1]}],"arcs":[{"a":1,"b":1}]})").find("itself"),
+      std::string::npos);
   EXPECT_NE(error_of(R"({"nodes":[{"id":1,"area":1,"normal":[0,0,1]},{"id":2,"area":1,"normal":[0,0,1]}],)"
                      R"("arcs":[{"a":1,"b":2},{"a":2,"b":1}]})")
                 .find("duplicate arc"),
             std::string::npos);
-  EXPECT_NE(error_of(R"({"nodes":[{"id":"x","area":1,"normal":[0,0,1]}]})").find("nodes[0].id"), std::string::npos);
+  EXPECT_NE(error_of(R"({"nodes":[{"id":"x","area":1,"normal":[0,0,1]}]})").find("nodes[0].id"),
+            std::string::npos);
 }
 
 TEST(PfrgJson, SyntaxErrorNamesByteOffset) {

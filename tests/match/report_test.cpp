@@ -58,7 +58,7 @@ TEST(Report, NewMatchConditionPreventsDuplicateStates) {
   const std::int64_t with = m.match(scene, ref, p).stats.states_created;
   p.set(Condition::kNewMatch, false);
   const MatchResult& r = m.match(scene, ref, p);
-  EXPECT_GT(r.stats.states_created, with);   // the lattice instead of a tree
+  EXPECT_GT(r.stats.states_created, with);  // the lattice instead of a tree
   EXPECT_EQ(r.stats.removed[static_cast<int>(Condition::kNewMatch)], 0);
   // Without the test the same match set is reached along several paths; identical sets are not proper
   // subsets, so such a leaf is listed once per path.

@@ -80,7 +80,7 @@ TEST(RotationFit, SameErrorAsKabschOnNoisyData) {
     EXPECT_NEAR(f.lambda_min, ek, 1e-9 * (1 + ek));
     EXPECT_NEAR(fit_error(f.R, d.r, d.s, d.w), ek, 1e-9 * (1 + ek));
     EXPECT_LT(rotation_angle_deg(f.R, K), 1e-6);
-    EXPECT_GT(f.lambda_min, 0.0);   // noise: a non-zero error
+    EXPECT_GT(f.lambda_min, 0.0);  // noise: a non-zero error
   }
 }
 
@@ -90,7 +90,7 @@ TEST(RotationFit, IncrementalEqualsBatch) {
   const Data d = make(rng, R, 6, 2.0);
   Mat4 B = Mat4::Zero();
   for (std::size_t n = 0; n < d.r.size(); ++n) {
-    add_pair(B, d.r[n], d.s[n], d.w[n]);   // B_n = B_{n-1} + gamma_n A_n
+    add_pair(B, d.r[n], d.s[n], d.w[n]);  // B_n = B_{n-1} + gamma_n A_n
     if (n == 0) continue;
     Data prefix{{d.r.begin(), d.r.begin() + static_cast<long>(n + 1)},
                 {d.s.begin(), d.s.begin() + static_cast<long>(n + 1)},
@@ -123,15 +123,16 @@ TEST(RotationFit, FastPathEqualsFullSolverOnIncrementalSequences) {
       EXPECT_NEAR(fast.lambda_min, full.lambda_min, 1e-9 * full.lambda_min + 1e-13 * scale) << t << " " << n;
       EXPECT_LT((fast.R - full.R).cwiseAbs().maxCoeff(), 1e-9) << t << " " << n;
       EXPECT_NEAR(fast.R.determinant(), 1.0, 1e-12);
-      EXPECT_LE(fast.lambda_gap, full.lambda_gap * (1 + 1e-9) + 1e-13 * scale);   // a lower bound
-      EXPECT_GE(fast.lambda_min, lower * (1 - 1e-9) - 1e-13 * scale);              // Weyl: monotone
+      EXPECT_LE(fast.lambda_gap, full.lambda_gap * (1 + 1e-9) + 1e-13 * scale);  // a lower bound
+      EXPECT_GE(fast.lambda_min, lower * (1 - 1e-9) - 1e-13 * scale);            // Weyl: monotone
       lower = fast.lambda_min;
       hint = fast.q;
       ++compared;
     }
   }
   EXPECT_GT(compared, 1000);
-  // Nearly all of them take the fast path (the point of it); the rest fell back and are exact by construction.
+  // Nearly all of them take the fast path (the point of it); the rest fell back and are exact by
+  // construction.
   EXPECT_GT(stats.fast, compared * 9 / 10) << "fallbacks " << stats.fallback;
 }
 
@@ -180,7 +181,7 @@ TEST(RotationFit, DegenerateSingleNormalHasZeroGap) {
   Mat4 B = Mat4::Zero();
   add_pair(B, Vec3::UnitX(), Vec3::UnitY(), 1.0);
   const RotationFit f = solve_rotation(B);
-  EXPECT_NEAR(f.lambda_gap, 0.0, 1e-12);   // a one-parameter family of rotations
+  EXPECT_NEAR(f.lambda_gap, 0.0, 1e-12);  // a one-parameter family of rotations
   EXPECT_LT((f.R * Vec3::UnitX() - Vec3::UnitY()).norm(), 1e-12);
 }
 
@@ -199,13 +200,25 @@ TEST(RotationFit, TwoPairClosedFormEqualsEigenSolver) {
     const Mat3 R = fs::test::random_rotation(rng);
     const Vec3 r1 = Vec3(nd(rng), nd(rng), nd(rng)).normalized();
     Vec3 r2 = Vec3(nd(rng), nd(rng), nd(rng)).normalized();
-    if (it % 10 == 0) r2 = fs::test::tilt(r1, 0.5, rng);   // nearly parallel reference normals
+    if (it % 10 == 0) r2 = fs::test::tilt(r1, 0.5, rng);  // nearly parallel reference normals
     Vec3 s1, s2;
     switch (it % 4) {
-      case 0: s1 = R * r1; s2 = R * r2; break;                                               // exact
-      case 1: s1 = fs::test::tilt(R * r1, noise(rng), rng); s2 = fs::test::tilt(R * r2, noise(rng), rng); break;
-      case 2: s1 = Vec3(nd(rng), nd(rng), nd(rng)).normalized(); s2 = Vec3(nd(rng), nd(rng), nd(rng)).normalized(); break;
-      default: s1 = R * r1; s2 = fs::test::tilt(s1, 0.3, rng); break;                        // parallel-ish scene
+      case 0:
+        s1 = R * r1;
+        s2 = R * r2;
+        break;  // exact
+      case 1:
+        s1 = fs::test::tilt(R * r1, noise(rng), rng);
+        s2 = fs::test::tilt(R * r2, noise(rng), rng);
+        break;
+      case 2:
+        s1 = Vec3(nd(rng), nd(rng), nd(rng)).normalized();
+        s2 = Vec3(nd(rng), nd(rng), nd(rng)).normalized();
+        break;
+      default:
+        s1 = R * r1;
+        s2 = fs::test::tilt(s1, 0.3, rng);
+        break;  // parallel-ish scene
     }
     const double g1 = std::sqrt(area(rng) * area(rng)), g2 = std::sqrt(area(rng) * area(rng));
     Mat4 B = Mat4::Zero();

@@ -1,9 +1,9 @@
 // Regression pin of the inexact matcher's output: the speed work of issue 9 (lazy rotation fits, pair tables,
 // top-k selection of the reported solutions) must not change any result. For a set of scene / reference pairs
-// and presets the full solution lists (rank, state number, path, matches, arc counts, dissimilarities, rotation,
-// cost, flags) and the search statistics (states, expansions, candidates, removals per condition, stop) are
-// printed with round-trip precision and compared with tests/match/data/solutions_golden.txt, which was written
-// by the matcher before those changes.
+// and presets the full solution lists (rank, state number, path, matches, arc counts, dissimilarities,
+// rotation, cost, flags) and the search statistics (states, expansions, candidates, removals per condition,
+// stop) are printed with round-trip precision and compared with tests/match/data/solutions_golden.txt, which
+// was written by the matcher before those changes.
 //
 // Regenerate (only when a result change is intended): FS_MATCH_WRITE_GOLDEN=1 test_match
 //   --gtest_filter=SolutionsRegression.*
@@ -42,12 +42,12 @@ std::string num(double v) {
 }
 
 void print_stats(std::ostream& o, const MatchStats& st) {
-  o << "  stats states=" << st.states_created << " expanded=" << st.states_expanded << " candidates=" << st.candidates
-    << " removed=";
+  o << "  stats states=" << st.states_created << " expanded=" << st.states_expanded
+    << " candidates=" << st.candidates << " removed=";
   for (int c = 0; c < kConditionCount; ++c) o << (c ? "," : "") << st.removed[static_cast<std::size_t>(c)];
-  o << " leaves=" << st.leaf_solutions << " subset_removed=" << st.subset_removed << " solutions=" << st.solutions
-    << " best_state=" << st.best_state << " stop=" << stop_name(st.stop) << " states_to_best=" << st.states_to_best
-    << " cost_ratio=" << num(st.cost_ratio) << "\n";
+  o << " leaves=" << st.leaf_solutions << " subset_removed=" << st.subset_removed
+    << " solutions=" << st.solutions << " best_state=" << st.best_state << " stop=" << stop_name(st.stop)
+    << " states_to_best=" << st.states_to_best << " cost_ratio=" << num(st.cost_ratio) << "\n";
 }
 
 template <class Sol>
@@ -64,7 +64,8 @@ void print_solution(std::ostream& o, const Sol& s) {
   o << "\n";
 }
 
-// The first kFull solutions in full, the others as one FNV-1a digest of their full text (keeps the file small).
+// The first kFull solutions in full, the others as one FNV-1a digest of their full text (keeps the file
+// small).
 template <class Sol>
 void print_solutions(std::ostream& o, std::span<const Sol> sols) {
   constexpr std::size_t kFull = 3;
@@ -78,7 +79,8 @@ void print_solutions(std::ostream& o, std::span<const Sol> sols) {
     print_solution(line, sols[k]);
     for (unsigned char ch : line.str()) h = (h ^ ch) * 0x100000001b3ULL;
   }
-  if (sols.size() > kFull) o << "  +" << sols.size() - kFull << " more, digest " << std::hex << h << std::dec << "\n";
+  if (sols.size() > kFull)
+    o << "  +" << sols.size() - kFull << " more, digest " << std::hex << h << std::dec << "\n";
 }
 
 const std::vector<Pfrg>& polyhedra_models() {
@@ -95,7 +97,9 @@ const std::vector<Pfrg>& polyhedra_models() {
   return models;
 }
 
-Pfrg data_graph(const char* name) { return fs::host::read_pfrg_json(fs::test::source_dir() / "tests/match/data" / name); }
+Pfrg data_graph(const char* name) {
+  return fs::host::read_pfrg_json(fs::test::source_dir() / "tests/match/data" / name);
+}
 
 std::string run_all() {
   std::ostringstream o;

@@ -60,9 +60,9 @@ inline Pfrg mesh_pfrg(const Mesh& m, double scale = 1.0) {
   return g;
 }
 
-// What a sensor looking along view_dir sees of the model rotated by R: visible faces ((R n) . -view > min_cos)
-// with rotated normals and the same ids, arcs among them, and a supernode (id 1000) bordering every visible
-// face that has an invisible neighbour.
+// What a sensor looking along view_dir sees of the model rotated by R: visible faces ((R n) . -view >
+// min_cos) with rotated normals and the same ids, arcs among them, and a supernode (id 1000) bordering every
+// visible face that has an invisible neighbour.
 inline Pfrg rigid_view(const Pfrg& model, const Mat3& R, const Vec3& view_dir, double min_cos = 0.05) {
   Pfrg v;
   v.name = model.name + "_view";
@@ -79,9 +79,12 @@ inline Pfrg rigid_view(const Pfrg& model, const Mat3& R, const Vec3& view_dir, d
   std::map<int, double> super;
   for (const auto& a : model.arcs) {
     const bool va = vis.count(a.a) > 0, vb = vis.count(a.b) > 0;
-    if (va && vb) v.arcs.push_back(a);
-    else if (va) super[a.a] += a.border;
-    else if (vb) super[a.b] += a.border;
+    if (va && vb)
+      v.arcs.push_back(a);
+    else if (va)
+      super[a.a] += a.border;
+    else if (vb)
+      super[a.b] += a.border;
   }
   if (!super.empty()) {
     PfrgNode sn;
@@ -172,8 +175,10 @@ inline int perturb(Pfrg& v, const Perturbation& p, std::mt19937& rng) {
     for (auto arc : v.arcs) {
       if (arc.a == split_id || arc.b == split_id) {
         const int nid = (k++ % 2 == 0) ? 2000 : 2001;
-        if (arc.a == split_id) arc.a = nid;
-        else arc.b = nid;
+        if (arc.a == split_id)
+          arc.a = nid;
+        else
+          arc.b = nid;
       }
       arcs.push_back(arc);
     }
@@ -205,7 +210,8 @@ inline Mesh truncated_pyramid(double b = 100, double t = 60, double h = 40) {
   Mesh m;
   m.name = "pyram2";
   const double B = b / 2, T = t / 2;
-  m.vertices = {{-B, -B, 0}, {B, -B, 0}, {B, B, 0}, {-B, B, 0}, {-T, -T, h}, {T, -T, h}, {T, T, h}, {-T, T, h}};
+  m.vertices = {{-B, -B, 0}, {B, -B, 0}, {B, B, 0}, {-B, B, 0},
+                {-T, -T, h}, {T, -T, h}, {T, T, h}, {-T, T, h}};
   m.faces = {{0, 3, 2, 1}, {4, 5, 6, 7}, {0, 1, 5, 4}, {1, 2, 6, 5}, {2, 3, 7, 6}, {3, 0, 4, 7}};
   return m;
 }

@@ -33,7 +33,8 @@ TEST(Ullmann, CubeTable68) {
   const std::vector<std::uint64_t> expected = {6, 24, 48, 48, 48, 48};
   const Pfrg ref = cube_graph();
   for (int k = 1; k <= 6; ++k) {
-    EXPECT_EQ(count_isomorphisms(cube_graph(k), ref, ExactMode::kInduced).count, expected[k - 1]) << "test nodes 1.." << k;
+    EXPECT_EQ(count_isomorphisms(cube_graph(k), ref, ExactMode::kInduced).count, expected[k - 1])
+        << "test nodes 1.." << k;
     EXPECT_EQ(count_isomorphisms(cube_graph(k), ref, ExactMode::kMonomorphism).count, expected[k - 1]) << k;
   }
 }

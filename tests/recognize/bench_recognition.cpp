@@ -4,10 +4,14 @@
 //
 //   bench_recognition [--scenes N] [--seed S] [--categories single,separated,occluded,empty] [--steps 500]
 //                     [--noise 0.05] [--threads 1] [--alloc-every 1] [--verbose] [--candidates] [--only I]
-//                     [--scene-stats] [--dump-graph] and tuning options that each set one RecognizeParams field
-//                     (--preset, --min-level, --solutions, --max-states, --area-ratio, --omega, --max-solutions,
-//                     --no-rigidity-pairs, --max-verified, --verify-per-face, --refine-per-face, --max-refined,
-//                     --rounds, --inlier-weight, --sample-mm, --seg-dist, --seg-noise-factor, --seg-merge-angle;
+//                     [--scene-stats] [--dump-graph] and tuning options that each set one RecognizeParams
+//                     field
+//                     (--preset, --min-level, --solutions, --max-states, --area-ratio, --omega,
+//                     --max-solutions,
+//                     --no-rigidity-pairs, --max-verified, --verify-per-face, --refine-per-face,
+//                     --max-refined,
+//                     --rounds, --inlier-weight, --sample-mm, --seg-dist, --seg-noise-factor,
+//                     --seg-merge-angle;
 //                     `--help` lists them with their meaning)
 //
 // --alloc-every K: the allocation count is taken in every K-th round of the categories (all categories).
@@ -25,11 +29,11 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
 #include "common/alloc_counter/alloc_counter.hpp"
 #include "common/error.hpp"
 #include "host/library/library.hpp"
 #include "host/library/model.hpp"
-#include <nlohmann/json.hpp>
 #include "host/pfrg/pfrg.hpp"
 #include "host/recognize/pose.hpp"
 #include "host/recognize/recognizer.hpp"
@@ -58,7 +62,7 @@ double quantile(std::vector<double> v, double q) {
 
 struct CategoryStats {
   int scenes = 0, objects = 0, found = 0, identity_ok = 0, reported = 0, extra = 0, scenes_with_fp = 0;
-  int truth_is_alternative = 0;   // confusions whose reported object lists the true model as an alternative
+  int truth_is_alternative = 0;  // confusions whose reported object lists the true model as an alternative
   int objects_with_alternatives = 0;
   std::vector<double> rot_err, trans_err, cpu, wall, allocs, seg_ms, match_ms, verify_ms;
 };
@@ -66,8 +70,8 @@ struct CategoryStats {
 struct Args {
   int scenes = 200;
   std::uint64_t seed = 1;
-  std::vector<SceneCategory> categories{SceneCategory::single, SceneCategory::separated, SceneCategory::occluded,
-                                        SceneCategory::empty};
+  std::vector<SceneCategory> categories{SceneCategory::single, SceneCategory::separated,
+                                        SceneCategory::occluded, SceneCategory::empty};
   std::uint32_t steps = 500;
   double noise = 0.05;
   int alloc_every = 1;
@@ -84,7 +88,8 @@ struct Args {
   }();
 };
 
-// value >= lo (CLI11 2.1's PositiveNumber / NonNegativeNumber name the whole range up to DBL_MAX in their message).
+// value >= lo (CLI11 2.1's PositiveNumber / NonNegativeNumber name the whole range up to DBL_MAX in their
+// message).
 CLI::Validator at_least(double lo, const std::string& text) {
   return CLI::Validator(
       [lo, text](std::string& v) -> std::string {
@@ -109,13 +114,15 @@ Args parse_args(CLI::App& app, int argc, char** argv) {
   app.add_option("--steps", a.steps, "scan steps (grid rows)")->check(CLI::Range(10u, 1u << 20));
   app.add_option("--noise", a.noise, "depth noise sigma, mm")->check(non_negative);
   app.add_option("--threads", p.threads, "recognizer threads (0 = all cores)")->check(non_negative);
-  app.add_option("--alloc-every", a.alloc_every,
-                 "count the allocations of a warm recognize() in every K-th round of the categories (0 = never)")
+  app.add_option(
+         "--alloc-every", a.alloc_every,
+         "count the allocations of a warm recognize() in every K-th round of the categories (0 = never)")
       ->check(non_negative);
   app.add_flag("--verbose", a.verbose, "per-object lines for misses and extras");
   app.add_flag("--candidates", a.candidates, "the hypotheses of each scene (implies --verbose)");
   app.add_option("--only", a.only, "run only scene I");
-  app.add_flag("--scene-stats", a.scene_stats, "one line per scene: graph parts, faces, search states, CPU and stage times");
+  app.add_flag("--scene-stats", a.scene_stats,
+               "one line per scene: graph parts, faces, search states, CPU and stage times");
   app.add_flag("--dump-graph", a.dump_graph, "the scene PFRG JSON (implies --candidates)");
   // Tuning: each writes one RecognizeParams field; left out, the recognizer's default stays.
   app.add_option("--preset", preset, "matching preset (match::preset)");
@@ -126,15 +133,18 @@ Args parse_args(CLI::App& app, int argc, char** argv) {
   app.add_option("--omega", p.rigidity_deg, "rigidity cone TH_omega, degrees (0 = the preset's)")
       ->check(non_negative);
   app.add_option("--max-solutions", p.max_solutions, "TH_solutions of one match")->check(positive);
-  app.add_flag("--no-rigidity-pairs{false}", p.rigidity_pairs, "switch the level-1 rigidity off (the thesis)");
+  app.add_flag("--no-rigidity-pairs{false}", p.rigidity_pairs,
+               "switch the level-1 rigidity off (the thesis)");
   app.add_option("--max-verified", p.max_verified, "hypotheses verified per round")->check(positive);
-  app.add_option("--verify-per-face", p.verify_per_face, "a scene face draws at most this many into verification")
+  app.add_option("--verify-per-face", p.verify_per_face,
+                 "a scene face draws at most this many into verification")
       ->check(positive);
   app.add_option("--refine-per-face", p.refine_per_face, "... and into refinement")->check(positive);
   app.add_option("--max-refined", p.max_refined, "hypotheses refined by ICP")->check(positive);
   app.add_option("--rounds", p.rounds, "rounds of matching + verification")->check(positive);
   app.add_option("--inlier-weight", p.inlier_weight, "RecognizeParams::inlier_weight")->check(non_negative);
-  app.add_option("--sample-mm", p.verify.sample_spacing_mm, "VerifyParams::sample_spacing_mm (0 = every sample_step-th cell)")
+  app.add_option("--sample-mm", p.verify.sample_spacing_mm,
+                 "VerifyParams::sample_spacing_mm (0 = every sample_step-th cell)")
       ->check(non_negative);
   app.add_option("--seg-dist", p.segment.dist_abs_mm, "segmentation dist_abs_mm")->check(non_negative);
   app.add_option("--seg-noise-factor", p.segment.dist_noise_factor, "segmentation dist_noise_factor")
@@ -155,7 +165,8 @@ Args parse_args(CLI::App& app, int argc, char** argv) {
 int run(const Args& args) {
   const auto t0 = std::chrono::steady_clock::now();
   const auto catalog = fs::sim::make_catalog(
-      fs::sim::read_catalog_meshes(fs::test::shared_data() / "polyhedra/polyhedra-viewer/off"), {.seed = args.seed});
+      fs::sim::read_catalog_meshes(fs::test::shared_data() / "polyhedra/polyhedra-viewer/off"),
+      {.seed = args.seed});
   fs::host::Library library;
   for (const auto& e : catalog) library.add(fs::host::build_model(e.mesh));
   std::printf("library: %zu models built in %.1f s\n", library.models.size(),
@@ -174,39 +185,46 @@ int run(const Args& args) {
     const SceneCategory cat = args.categories[static_cast<std::size_t>(i) % args.categories.size()];
     const std::uint64_t seed = args.seed + static_cast<std::uint64_t>(i);
     const auto rs = fs::sim::make_random_scene(catalog, {.category = cat, .steps = args.steps}, seed);
-    fs::sim::make_ground_truth_grid(rs.scene, {.depth_noise_mm = args.noise, .seed = seed}).export_to(cloud, false);
+    fs::sim::make_ground_truth_grid(rs.scene, {.depth_noise_mm = args.noise, .seed = seed})
+        .export_to(cloud, false);
     const fs::Plane table = rs.scene.calibration.table;
 
     const auto w0 = std::chrono::steady_clock::now();
     const double c0 = cpu_ms();
     const auto& r = recognizer.recognize(cloud, &table);
     const double cpu = cpu_ms() - c0;
-    const double wall = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - w0).count();
+    const double wall =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - w0).count();
     // Copy what we evaluate: the second recognize() overwrites the result.
     std::vector<fs::host::rec::Hypothesis> found_objects = r.objects;
     const std::string note = r.note;
     if (args.scene_stats)
-      std::printf("scene seed %llu %s: %d graph parts, %d faces, %lld search states, matching %.1f ms, %d hypotheses "
-                  "(%d single-face), cpu %.1f ms: segmentation + PFRG %.1f, verification %.1f, %d rounds\n",
-                  static_cast<unsigned long long>(seed), fs::sim::to_string(cat), r.stats.components,
-                  r.stats.scene_nodes, static_cast<long long>(r.stats.states), r.stats.match_ms, r.stats.hypotheses,
-                  r.stats.single_face, cpu, r.stats.segment_ms + r.stats.pfrg_ms, r.stats.verify_ms, r.stats.rounds);
+      std::printf(
+          "scene seed %llu %s: %d graph parts, %d faces, %lld search states, matching %.1f ms, %d hypotheses "
+          "(%d single-face), cpu %.1f ms: segmentation + PFRG %.1f, verification %.1f, %d rounds\n",
+          static_cast<unsigned long long>(seed), fs::sim::to_string(cat), r.stats.components,
+          r.stats.scene_nodes, static_cast<long long>(r.stats.states), r.stats.match_ms, r.stats.hypotheses,
+          r.stats.single_face, cpu, r.stats.segment_ms + r.stats.pfrg_ms, r.stats.verify_ms, r.stats.rounds);
     if (args.candidates) {
       std::printf("scene seed %llu: %d scene nodes, %d hypotheses\n", static_cast<unsigned long long>(seed),
                   r.stats.scene_nodes, r.stats.hypotheses);
       for (std::size_t oi = 0; oi < rs.scene.objects.size(); ++oi)
         if (rs.catalog_index[oi] >= 0)
-          std::printf("  truth %s\n", library.models[static_cast<std::size_t>(rs.catalog_index[oi])].name.c_str());
-      if (args.dump_graph) std::printf("scene PFRG %s\n", fs::host::to_json(recognizer.scene_graph()).dump().c_str());
+          std::printf("  truth %s\n",
+                      library.models[static_cast<std::size_t>(rs.catalog_index[oi])].name.c_str());
+      if (args.dump_graph)
+        std::printf("scene PFRG %s\n", fs::host::to_json(recognizer.scene_graph()).dump().c_str());
       for (const auto* h : recognizer.candidates())
-        std::printf("  cand %-44s lvl %d faces %zu pre %.3f conf %.3f expl %.2f sup %.1f low %.1f in %d viol %d occ %d rot-to-truth %.1f\n",
-                    library.models[static_cast<std::size_t>(h->model)].name.c_str(), h->level, h->matches.size(),
-                    h->prescore, h->verify.confidence, h->verify.explained, h->verify.support, h->verify.lowest_mm, h->verify.inliers, h->verify.violations,
-                    h->verify.occluded,
-                    h->model == rs.catalog_index[0]
-                        ? fs::host::rec::rotation_angle_deg_sym(rs.scene.objects[0].rotation, h->R,
-                                                                library.models[static_cast<std::size_t>(h->model)])
-                        : -1.0);
+        std::printf(
+            "  cand %-44s lvl %d faces %zu pre %.3f conf %.3f expl %.2f sup %.1f low %.1f in %d viol %d occ "
+            "%d rot-to-truth %.1f\n",
+            library.models[static_cast<std::size_t>(h->model)].name.c_str(), h->level, h->matches.size(),
+            h->prescore, h->verify.confidence, h->verify.explained, h->verify.support, h->verify.lowest_mm,
+            h->verify.inliers, h->verify.violations, h->verify.occluded,
+            h->model == rs.catalog_index[0]
+                ? fs::host::rec::rotation_angle_deg_sym(rs.scene.objects[0].rotation, h->R,
+                                                        library.models[static_cast<std::size_t>(h->model)])
+                : -1.0);
       for (std::size_t oi = 0; oi < rs.scene.objects.size(); ++oi) {
         if (rs.catalog_index[oi] < 0) continue;
         const auto& tm = library.models[static_cast<std::size_t>(rs.catalog_index[oi])];
@@ -225,7 +243,9 @@ int run(const Args& args) {
         for (const auto& a : recognizer.scene_graph().arcs) {
           bool near = false;
           for (const auto& n : recognizer.scene_graph().nodes)
-            if ((n.id == a.a || n.id == a.b) && !n.supernode && (n.centroid - c).norm() < tm.bounding_radius * 1.1) near = true;
+            if ((n.id == a.a || n.id == a.b) && !n.supernode &&
+                (n.centroid - c).norm() < tm.bounding_radius * 1.1)
+              near = true;
           if (near) std::printf(" %d-%d(%.0f)", a.a, a.b, a.border);
         }
         std::printf("\n");
@@ -234,10 +254,13 @@ int run(const Args& args) {
         for (std::size_t oi = 0; oi < rs.scene.objects.size(); ++oi)
           if (h->model == rs.catalog_index[oi]) {
             const auto& tm = library.models[static_cast<std::size_t>(h->model)];
-            std::printf("  truth-hyp %s lvl %d faces %zu pre %.3f cost %.4f rot-to-truth %.1f t-err %.1f hits %d in %d viol %d occ %d expl %.2f conf %.3f scene",
-                        tm.name.c_str(), h->level, h->matches.size(), h->prescore, h->cost,
-                        fs::host::rec::rotation_angle_deg_sym(rs.scene.objects[oi].rotation, h->R, tm),
-                        (h->t - rs.scene.objects[oi].translation).norm(), h->verify.hits, h->verify.inliers, h->verify.violations, h->verify.occluded, h->verify.explained, h->verify.confidence);
+            std::printf(
+                "  truth-hyp %s lvl %d faces %zu pre %.3f cost %.4f rot-to-truth %.1f t-err %.1f hits %d in "
+                "%d viol %d occ %d expl %.2f conf %.3f scene",
+                tm.name.c_str(), h->level, h->matches.size(), h->prescore, h->cost,
+                fs::host::rec::rotation_angle_deg_sym(rs.scene.objects[oi].rotation, h->R, tm),
+                (h->t - rs.scene.objects[oi].translation).norm(), h->verify.hits, h->verify.inliers,
+                h->verify.violations, h->verify.occluded, h->verify.explained, h->verify.confidence);
             for (const auto& m : h->matches) std::printf(" %d", m.scene);
             std::printf("\n");
           }
@@ -265,7 +288,8 @@ int run(const Args& args) {
       const auto& truth = library.models[static_cast<std::size_t>(rs.catalog_index[oi])];
       const fs::Vec3 centre_true = obj.rotation * truth.center + obj.translation;
       ++s.objects;
-      // Nearest reported object (by model centre) decides the identity; a hit needs the same model within 10 mm.
+      // Nearest reported object (by model centre) decides the identity; a hit needs the same model within 10
+      // mm.
       int nearest = -1, hit = -1, any = -1;
       double nearest_d = 20.0, hit_d = 10.0, any_d = 1e300;
       for (std::size_t j = 0; j < found_objects.size(); ++j) {
@@ -289,8 +313,9 @@ int run(const Args& args) {
         std::string got = "nothing";
         if (any >= 0) {
           const auto& h = found_objects[static_cast<std::size_t>(any)];
-          got = library.models[static_cast<std::size_t>(h.model)].name + " at " + std::to_string(any_d) + " mm, " +
-                std::to_string(fs::host::rec::rotation_angle_deg_sym(obj.rotation, h.R, truth)) + " deg";
+          got = library.models[static_cast<std::size_t>(h.model)].name + " at " + std::to_string(any_d) +
+                " mm, " + std::to_string(fs::host::rec::rotation_angle_deg_sym(obj.rotation, h.R, truth)) +
+                " deg";
         }
         if (nearest >= 0) {
           const auto& h = found_objects[static_cast<std::size_t>(nearest)];
@@ -323,27 +348,33 @@ int run(const Args& args) {
     std::fflush(stdout);
   }
 
-  std::printf("\n%d scenes, %u steps, depth noise %.2f mm, threads %d, seed %llu, %.0f s total\n\n", args.scenes,
-              args.steps, args.noise, args.params.threads, static_cast<unsigned long long>(args.seed),
+  std::printf("\n%d scenes, %u steps, depth noise %.2f mm, threads %d, seed %llu, %.0f s total\n\n",
+              args.scenes, args.steps, args.noise, args.params.threads,
+              static_cast<unsigned long long>(args.seed),
               std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
-  std::printf("| category | scenes | objects | found (model + centre < 10 mm) | top-1 identity | rot err median / p90 "
-              "(deg) | centre err median / p90 (mm) | extra objects | scenes with a false positive | CPU ms median "
-              "/ p90 | wall ms median / p90 | allocs of a warm recognize (median / max) |\n");
+  std::printf(
+      "| category | scenes | objects | found (model + centre < 10 mm) | top-1 identity | rot err median / "
+      "p90 "
+      "(deg) | centre err median / p90 (mm) | extra objects | scenes with a false positive | CPU ms median "
+      "/ p90 | wall ms median / p90 | allocs of a warm recognize (median / max) |\n");
   std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|\n");
   for (const auto& [cat, s] : stats) {
     auto pct = [](int a, int b) { return b > 0 ? 100.0 * a / b : std::nan(""); };
-    std::printf("| %s | %d | %d | %d (%.1f %%) | %.1f %% | %.2f / %.2f | %.2f / %.2f | %d | %d (%.1f %%) | %.0f / %.0f "
-                "| %.0f / %.0f | %.0f / %.0f |\n",
-                fs::sim::to_string(cat), s.scenes, s.objects, s.found, pct(s.found, s.objects),
-                pct(s.identity_ok, s.objects), quantile(s.rot_err, 0.5), quantile(s.rot_err, 0.9),
-                quantile(s.trans_err, 0.5), quantile(s.trans_err, 0.9), s.extra, s.scenes_with_fp,
-                pct(s.scenes_with_fp, s.scenes), quantile(s.cpu, 0.5), quantile(s.cpu, 0.9), quantile(s.wall, 0.5),
-                quantile(s.wall, 0.9), quantile(s.allocs, 0.5), quantile(s.allocs, 1.0));
+    std::printf(
+        "| %s | %d | %d | %d (%.1f %%) | %.1f %% | %.2f / %.2f | %.2f / %.2f | %d | %d (%.1f %%) | %.0f / "
+        "%.0f "
+        "| %.0f / %.0f | %.0f / %.0f |\n",
+        fs::sim::to_string(cat), s.scenes, s.objects, s.found, pct(s.found, s.objects),
+        pct(s.identity_ok, s.objects), quantile(s.rot_err, 0.5), quantile(s.rot_err, 0.9),
+        quantile(s.trans_err, 0.5), quantile(s.trans_err, 0.9), s.extra, s.scenes_with_fp,
+        pct(s.scenes_with_fp, s.scenes), quantile(s.cpu, 0.5), quantile(s.cpu, 0.9), quantile(s.wall, 0.5),
+        quantile(s.wall, 0.9), quantile(s.allocs, 0.5), quantile(s.allocs, 1.0));
   }
   std::printf("\nwall time per stage (median ms; stages run on --threads workers): \n");
   for (const auto& [cat, s] : stats)
     std::printf("  %-10s segmentation + PFRG %.1f, matching %.1f, hypotheses + verification %.1f\n",
-                fs::sim::to_string(cat), quantile(s.seg_ms, 0.5), quantile(s.match_ms, 0.5), quantile(s.verify_ms, 0.5));
+                fs::sim::to_string(cat), quantile(s.seg_ms, 0.5), quantile(s.match_ms, 0.5),
+                quantile(s.verify_ms, 0.5));
   if (!missed_models.empty()) {
     std::printf("\nmissed models (count):");
     for (const auto& [name, n] : missed_models) std::printf(" %s:%d", name.c_str(), n);
@@ -354,8 +385,9 @@ int run(const Args& args) {
     for (const auto& [name, n] : confused_with) std::printf(" %s:%d", name.c_str(), n);
     std::printf("\n");
   }
-  std::printf("alternatives (reported objects that list another model fitting as well; confusions whose true model "
-              "is listed):");
+  std::printf(
+      "alternatives (reported objects that list another model fitting as well; confusions whose true model "
+      "is listed):");
   for (const auto& [cat, s] : stats)
     std::printf(" %s %d of %d objects, %d confusions;", fs::sim::to_string(cat), s.objects_with_alternatives,
                 s.reported, s.truth_is_alternative);

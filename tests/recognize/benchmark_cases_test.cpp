@@ -1,18 +1,20 @@
-// Two scenes of the recognition benchmark (bench_recognition, catalog seed 1) that earlier versions got wrong,
-// each with the baseline that fails, so the fix is pinned:
-//  - seed 102 (separated, 250 steps): the triaugmented hexagonal prism's pyramid faces meet its squares at 5.26
+// Two scenes of the recognition benchmark (bench_recognition, catalog seed 1) that earlier versions got
+// wrong, each with the baseline that fails, so the fix is pinned:
+//  - seed 102 (separated, 250 steps): the triaugmented hexagonal prism's pyramid faces meet its squares
+//  at 5.26
 //    degrees; at the earlier 0.6 mm segmentation tolerance they merged and the triaugmented triangular prism
 //    took the object;
-//  - seed 89 (single, 500 steps): a hexagonal prism fits the prism part of the parabiaugmented hexagonal prism
+//  - seed 89 (single, 500 steps): a hexagonal prism fits the prism part of the parabiaugmented hexagonal
+//  prism
 //    with the same confidence; the hypothesis explaining more points (inlier_weight) must go first.
 #include <gtest/gtest.h>
 
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
 #include "host/library/library.hpp"
 #include "host/library/model.hpp"
-#include <nlohmann/json.hpp>
 
 #include "host/recognize/recognizer.hpp"
 #include "hw-sim/scene/ground_truth_grid.hpp"
@@ -33,7 +35,8 @@ const Bench& bench() {
   static const Bench b = [] {
     Bench x;
     x.catalog = fs::sim::make_catalog(
-        fs::sim::read_catalog_meshes(fs::test::shared_data() / "polyhedra/polyhedra-viewer/off"), {.seed = 1});
+        fs::sim::read_catalog_meshes(fs::test::shared_data() / "polyhedra/polyhedra-viewer/off"),
+        {.seed = 1});
     for (const auto& e : x.catalog) x.library.add(fs::host::build_model(e.mesh));
     return x;
   }();
@@ -62,45 +65,50 @@ std::string recognized_at(fs::sim::SceneCategory category, std::uint32_t steps, 
 
 std::size_t index_of(const fs::sim::RandomScene& rs, const std::string& name) {
   for (std::size_t i = 0; i < rs.catalog_index.size(); ++i)
-    if (rs.catalog_index[i] >= 0 && bench().library.models[static_cast<std::size_t>(rs.catalog_index[i])].name == name)
+    if (rs.catalog_index[i] >= 0 &&
+        bench().library.models[static_cast<std::size_t>(rs.catalog_index[i])].name == name)
       return i;
   return rs.catalog_index.size();
 }
 
 TEST(RecognizeBenchmarkCases, FiveDegreeCreasesStayTwoFaces) {
-  const auto rs = fs::sim::make_random_scene(bench().catalog, {.category = fs::sim::SceneCategory::separated,
-                                                               .steps = 250}, 102);
+  const auto rs = fs::sim::make_random_scene(
+      bench().catalog, {.category = fs::sim::SceneCategory::separated, .steps = 250}, 102);
   const std::size_t i = index_of(rs, "triaugmented-hexagonal-prism");
   ASSERT_LT(i, rs.catalog_index.size()) << "the benchmark scene changed";
   RecognizeParams params;
   params.threads = 2;
-  EXPECT_EQ(recognized_at(fs::sim::SceneCategory::separated, 250, 102, i, params), "triaugmented-hexagonal-prism");
+  EXPECT_EQ(recognized_at(fs::sim::SceneCategory::separated, 250, 102, i, params),
+            "triaugmented-hexagonal-prism");
   params.segment.dist_abs_mm = 0.6;
-  EXPECT_EQ(recognized_at(fs::sim::SceneCategory::separated, 250, 102, i, params), "triaugmented-triangular-prism");
+  EXPECT_EQ(recognized_at(fs::sim::SceneCategory::separated, 250, 102, i, params),
+            "triaugmented-triangular-prism");
 }
 
 TEST(RecognizeBenchmarkCases, TheHypothesisExplainingMorePointsWinsATie) {
-  const auto rs = fs::sim::make_random_scene(bench().catalog, {.category = fs::sim::SceneCategory::single,
-                                                               .steps = 500}, 89);
+  const auto rs = fs::sim::make_random_scene(bench().catalog,
+                                             {.category = fs::sim::SceneCategory::single, .steps = 500}, 89);
   ASSERT_EQ(index_of(rs, "parabiaugmented-hexagonal-prism"), 0u) << "the benchmark scene changed";
   RecognizeParams params;
   params.threads = 2;
-  EXPECT_EQ(recognized_at(fs::sim::SceneCategory::single, 500, 89, 0, params), "parabiaugmented-hexagonal-prism");
+  EXPECT_EQ(recognized_at(fs::sim::SceneCategory::single, 500, 89, 0, params),
+            "parabiaugmented-hexagonal-prism");
   // With every 2nd row and column verified (the sampling of the version that failed) the two hypotheses tie
   // (confidence 0.998 both, 2367 vs 1889 inliers); the order without inlier_weight put the bare prism first.
   params.verify.sample_spacing_mm = 0.0;
-  EXPECT_EQ(recognized_at(fs::sim::SceneCategory::single, 500, 89, 0, params), "parabiaugmented-hexagonal-prism");
+  EXPECT_EQ(recognized_at(fs::sim::SceneCategory::single, 500, 89, 0, params),
+            "parabiaugmented-hexagonal-prism");
   params.inlier_weight = 0.0;
   EXPECT_EQ(recognized_at(fs::sim::SceneCategory::single, 500, 89, 0, params), "hexagonal-prism");
 }
 
-// Seed 166 (separated, 500 steps): the metabiaugmented truncated dodecahedron shows only what the augmented one
-// has too (same confidence 1.000, same 3036 inliers): whichever is reported must list the other as an
+// Seed 166 (separated, 500 steps): the metabiaugmented truncated dodecahedron shows only what the augmented
+// one has too (same confidence 1.000, same 3036 inliers): whichever is reported must list the other as an
 // alternative, and the JSON carries it.
 TEST(RecognizeBenchmarkCases, LookAlikesAreListedAsAlternatives) {
   const Bench& b = bench();
-  const auto rs = fs::sim::make_random_scene(b.catalog, {.category = fs::sim::SceneCategory::separated, .steps = 500},
-                                             166);
+  const auto rs = fs::sim::make_random_scene(
+      b.catalog, {.category = fs::sim::SceneCategory::separated, .steps = 500}, 166);
   const std::size_t i = index_of(rs, "metabiaugmented-truncated-dodecahedron");
   ASSERT_LT(i, rs.catalog_index.size()) << "the benchmark scene changed";
   fs::host::OrganizedCloud cloud;
@@ -123,7 +131,8 @@ TEST(RecognizeBenchmarkCases, LookAlikesAreListedAsAlternatives) {
     ASSERT_TRUE(j["objects"][k].contains("alternatives")) << j["objects"][k].dump();
     bool listed = false;
     for (const auto& a : j["objects"][k]["alternatives"]) listed = listed || a["model"] == other;
-    EXPECT_TRUE(listed) << m.name << " does not list " << other << ": " << j["objects"][k]["alternatives"].dump();
+    EXPECT_TRUE(listed) << m.name << " does not list " << other << ": "
+                        << j["objects"][k]["alternatives"].dump();
   }
   EXPECT_TRUE(seen);
   // Objects without a look-alike in view list none: the scene's other objects.

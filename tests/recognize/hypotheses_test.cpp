@@ -41,7 +41,7 @@ CubeScene make_cube_scene(double area_scale) {
   CubeScene c;
   c.library.add(cube_model());
   const auto& m = c.library.models[0];
-  c.viewpoint = m.center + Vec3(300, 250, 300);   // oblique: three faces well in view
+  c.viewpoint = m.center + Vec3(300, 250, 300);  // oblique: three faces well in view
   for (std::size_t f = 0; f < m.faces.size(); ++f) {
     const auto& mf = m.faces[f];
     if ((c.viewpoint - mf.centroid).dot(mf.normal) <= 0) continue;
@@ -55,7 +55,8 @@ CubeScene make_cube_scene(double area_scale) {
     c.scene.nodes.push_back(n);
   }
   c.index.assign(m.faces.size() + 1, -1);
-  for (std::size_t i = 0; i < c.scene.nodes.size(); ++i) c.index[static_cast<std::size_t>(c.scene.nodes[i].id)] = static_cast<int>(i);
+  for (std::size_t i = 0; i < c.scene.nodes.size(); ++i)
+    c.index[static_cast<std::size_t>(c.scene.nodes[i].id)] = static_cast<int>(i);
   return c;
 }
 
@@ -153,17 +154,20 @@ TEST(Report, AxisAngleTextHidesTheAxisOfRotationsBelowDisplayPrecision) {
 
 namespace {
 
-// Single-face hypotheses: a pentagonal pyramid lying on one of its triangles shows only its tilted base. The true
-// pose must be among the hypotheses exactly (rotation up to the model's symmetry, model centre within 1e-6 mm),
-// every hypothesis must put some face of its model on the table and its matched face on the scene face's plane,
-// and a horizontal face (pose about the vertical open) or a face larger than every model face gives none.
+// Single-face hypotheses: a pentagonal pyramid lying on one of its triangles shows only its tilted base. The
+// true pose must be among the hypotheses exactly (rotation up to the model's symmetry, model centre within
+// 1e-6 mm), every hypothesis must put some face of its model on the table and its matched face on the scene
+// face's plane, and a horizontal face (pose about the vertical open) or a face larger than every model face
+// gives none.
 TEST(SingleFaceHypotheses, RecoverTheRestingPoseFromOneFaceAndTheTable) {
   fs::host::Library lib;
   lib.add(fs::host::build_model(
-      fs::read_mesh(fs::test::shared_data() / "polyhedra/polyhedra-viewer/off/pentagonal-pyramid.off"), {.scale = 40.0}));
+      fs::read_mesh(fs::test::shared_data() / "polyhedra/polyhedra-viewer/off/pentagonal-pyramid.off"),
+      {.scale = 40.0}));
   lib.add(cube_model());
   const fs::host::Model& m = lib.models[0];
-  // Rest on face g (a triangle): R maps its normal to -z; then yaw 30 deg and place it on the table at (-50, 20).
+  // Rest on face g (a triangle): R maps its normal to -z; then yaw 30 deg and place it on the table at (-50,
+  // 20).
   std::size_t g = 0, base = 0;
   for (std::size_t f = 0; f < m.faces.size(); ++f) {
     if (m.faces[f].loops[0].size() == 3 && g == 0) g = f;
@@ -171,9 +175,9 @@ TEST(SingleFaceHypotheses, RecoverTheRestingPoseFromOneFaceAndTheTable) {
   }
   const Mat3 Rtilt = Eigen::Quaterniond::FromTwoVectors(m.faces[g].normal, Vec3(0, 0, -1)).toRotationMatrix();
   const Mat3 R = Eigen::AngleAxisd(30.0 * M_PI / 180.0, Vec3::UnitZ()).toRotationMatrix() * Rtilt;
-  fs::Plane table;   // z = 0, normal up
+  fs::Plane table;  // z = 0, normal up
   Vec3 t(-50, 20, 0);
-  t.z() = -(R * m.faces[g].centroid).z();   // face g on z = 0
+  t.z() = -(R * m.faces[g].centroid).z();  // face g on z = 0
   PfrgNode face;
   face.id = 5;
   face.normal = R * m.faces[base].normal;
@@ -181,7 +185,7 @@ TEST(SingleFaceHypotheses, RecoverTheRestingPoseFromOneFaceAndTheTable) {
   face.centroid = R * m.faces[base].centroid + t;
   face.area = m.faces[base].area;
   face.has_plane = true;
-  ASSERT_GT(face.normal.z(), 0.2);   // tilted toward the sensor, not horizontal
+  ASSERT_GT(face.normal.z(), 0.2);  // tilted toward the sensor, not horizontal
 
   std::vector<Hypothesis> out(64);
   for (auto& h : out) h.matches.reserve(4);
@@ -199,7 +203,7 @@ TEST(SingleFaceHypotheses, RecoverTheRestingPoseFromOneFaceAndTheTable) {
     double lowest = 1e9;
     for (const auto& f : hm.faces)
       for (const Vec3& v : f.loops[0]) lowest = std::min(lowest, (h.R * v + h.t).z());
-    EXPECT_LT(std::abs(lowest), 0.7) << hm.name;   // some face rests on the table (within the angle tolerance)
+    EXPECT_LT(std::abs(lowest), 0.7) << hm.name;  // some face rests on the table (within the angle tolerance)
     if (h.model == 0 && fs::host::rec::rotation_angle_deg_sym(R, h.R, m) < 1e-6 &&
         ((R * m.center + t) - (h.R * m.center + h.t)).norm() < 1e-6)
       found = true;
@@ -213,17 +217,18 @@ TEST(SingleFaceHypotheses, RecoverTheRestingPoseFromOneFaceAndTheTable) {
   huge.area = 1e7;
   EXPECT_EQ(fs::host::rec::single_face_hypotheses(lib, huge, table, {}, out), 0);
   // The output span bounds what is written.
-  EXPECT_EQ(fs::host::rec::single_face_hypotheses(lib, face, table, {}, std::span<Hypothesis>(out.data(), 1)), 1);
+  EXPECT_EQ(fs::host::rec::single_face_hypotheses(lib, face, table, {}, std::span<Hypothesis>(out.data(), 1)),
+            1);
 }
 
 }  // namespace
 
 namespace {
 
-// Top-face hypotheses: a box standing on its base, turned 25 deg about the vertical, seen from above so that only
-// its top is a region. The turn comes from the top's outline (its convex hull), the height must fit: the true
-// pose is among the hypotheses (up to the box's symmetry, centre within 1e-6 mm); a box of another height gives
-// none; the hull helper returns the rectangle's 4 corners from a dense sampling of it.
+// Top-face hypotheses: a box standing on its base, turned 25 deg about the vertical, seen from above so that
+// only its top is a region. The turn comes from the top's outline (its convex hull), the height must fit: the
+// true pose is among the hypotheses (up to the box's symmetry, centre within 1e-6 mm); a box of another
+// height gives none; the hull helper returns the rectangle's 4 corners from a dense sampling of it.
 TEST(TopFaceHypotheses, TurnFromTheOutlineAndHeightFromTheTable) {
   fs::host::Library lib;
   lib.add(fs::host::build_model(fs::read_mesh(fs::test::source_dir() / "hw-sim/scenes/meshes/box.off")));
@@ -231,7 +236,7 @@ TEST(TopFaceHypotheses, TurnFromTheOutlineAndHeightFromTheTable) {
   std::size_t top = 0;
   for (std::size_t f = 0; f < m.faces.size(); ++f)
     if (m.faces[f].normal.z() > m.faces[top].normal.z()) top = f;
-  ASSERT_GT(m.faces[top].normal.z(), 0.999);   // the mesh stands on z = min, top face up
+  ASSERT_GT(m.faces[top].normal.z(), 0.999);  // the mesh stands on z = min, top face up
   double zmin = 1e9;
   for (const auto& f : m.faces)
     for (const Vec3& v : f.loops[0]) zmin = std::min(zmin, v.z());
@@ -272,7 +277,7 @@ TEST(TopFaceHypotheses, TurnFromTheOutlineAndHeightFromTheTable) {
   }
   EXPECT_TRUE(found);
   PfrgNode higher = face;
-  higher.offset += 10.0;   // 10 mm higher than the box is tall: no model fits
+  higher.offset += 10.0;  // 10 mm higher than the box is tall: no model fits
   higher.centroid.z() += 10.0;
   EXPECT_EQ(fs::host::rec::top_face_hypotheses(lib, higher, table, pts, u, v, {}, out), 0);
 }

@@ -58,7 +58,8 @@ TEST(RandomScene, LeaningPrismIsUnstableOnItsBase) {
   // A parallelepiped whose top is shifted 30 mm over a 10 mm base: the centroid (x = 20) is outside the base.
   fs::Mesh m;
   m.name = "leaning";
-  m.vertices = {{0, 0, 0}, {10, 0, 0}, {10, 10, 0}, {0, 10, 0}, {30, 0, 10}, {40, 0, 10}, {40, 10, 10}, {30, 10, 10}};
+  m.vertices = {{0, 0, 0},   {10, 0, 0},  {10, 10, 0},  {0, 10, 0},
+                {30, 0, 10}, {40, 0, 10}, {40, 10, 10}, {30, 10, 10}};
   m.faces = {{0, 3, 2, 1}, {4, 5, 6, 7}, {0, 1, 5, 4}, {1, 2, 6, 5}, {2, 3, 7, 6}, {3, 0, 4, 7}};
   const Vec3 c = fs::sim::volume_centroid(m);
   EXPECT_NEAR(c.x(), 20.0, 1e-9);
@@ -80,7 +81,9 @@ TEST(RandomScene, PolygonDistance) {
 void check_scene(const fs::sim::RandomScene& rs, const fs::sim::RandomSceneOptions& o) {
   const auto& objs = rs.scene.objects;
   ASSERT_EQ(objs.size(), rs.catalog_index.size());
-  if (o.category == SceneCategory::single) { EXPECT_EQ(objs.size(), 1u); }
+  if (o.category == SceneCategory::single) {
+    EXPECT_EQ(objs.size(), 1u);
+  }
   if (o.category == SceneCategory::separated || o.category == SceneCategory::occluded) {
     EXPECT_GE(static_cast<int>(objs.size()), o.min_objects);
     EXPECT_LE(static_cast<int>(objs.size()), o.max_objects);
@@ -120,15 +123,22 @@ void check_scene(const fs::sim::RandomScene& rs, const fs::sim::RandomSceneOptio
       closest = std::min(closest, d);
       EXPECT_FALSE(vertex_inside(objs[i], objs[j], 1e-6)) << objs[i].name << " in " << objs[j].name;
       EXPECT_FALSE(vertex_inside(objs[j], objs[i], 1e-6)) << objs[j].name << " in " << objs[i].name;
-      if (o.category == SceneCategory::separated) { EXPECT_GE(d, o.separation_mm - 1e-9); }
-      if (o.category == SceneCategory::occluded) { EXPECT_GE(d, o.touch_gap_min_mm - 1e-6); }
+      if (o.category == SceneCategory::separated) {
+        EXPECT_GE(d, o.separation_mm - 1e-9);
+      }
+      if (o.category == SceneCategory::occluded) {
+        EXPECT_GE(d, o.touch_gap_min_mm - 1e-6);
+      }
     }
   // Occluded scenes: every object was placed touching a neighbour, so the closest pair is within the gap.
-  if (o.category == SceneCategory::occluded && objs.size() >= 2) { EXPECT_LE(closest, o.touch_gap_max_mm + 1e-3); }
+  if (o.category == SceneCategory::occluded && objs.size() >= 2) {
+    EXPECT_LE(closest, o.touch_gap_max_mm + 1e-3);
+  }
 }
 
 TEST(RandomScene, EveryCategoryGivesValidScenes) {
-  for (auto cat : {SceneCategory::single, SceneCategory::separated, SceneCategory::occluded, SceneCategory::empty})
+  for (auto cat :
+       {SceneCategory::single, SceneCategory::separated, SceneCategory::occluded, SceneCategory::empty})
     for (std::uint64_t seed = 1; seed <= 25; ++seed) {
       const fs::sim::RandomSceneOptions o{.category = cat, .steps = 100};
       SCOPED_TRACE(std::string(fs::sim::to_string(cat)) + " seed " + std::to_string(seed));
@@ -166,9 +176,8 @@ TEST(RandomScene, BadArgumentsAreErrors) {
   EXPECT_THROW(fs::sim::parse_scene_category("crowded"), fs::Error);
   EXPECT_THROW(fs::sim::read_catalog_meshes(fs::test::source_dir() / "no-such-dir"), fs::Error);
   EXPECT_THROW(fs::sim::make_random_scene({}, {.category = SceneCategory::single}, 1), fs::Error);
-  EXPECT_THROW(fs::sim::make_random_scene(catalog(), {.category = SceneCategory::separated, .min_objects = 3,
-                                                      .max_objects = 2},
-                                          1),
+  EXPECT_THROW(fs::sim::make_random_scene(
+                   catalog(), {.category = SceneCategory::separated, .min_objects = 3, .max_objects = 2}, 1),
                fs::Error);
 }
 

@@ -21,8 +21,8 @@ namespace {
 using fs::host::rec::Recognizer;
 
 const fs::host::Library& library() {
-  static const fs::host::Library lib = fs::host::load_or_build_library(
-      {(fs::test::source_dir() / "hw-sim/scenes/meshes").string()});
+  static const fs::host::Library lib =
+      fs::host::load_or_build_library({(fs::test::source_dir() / "hw-sim/scenes/meshes").string()});
   return lib;
 }
 
@@ -61,7 +61,8 @@ void expect_scene_recognized(const std::string& name, const std::vector<std::str
   }
   std::vector<bool> used(r.objects.size(), false);
   for (const auto& obj : s.scene.objects) {
-    if (!required.empty() && std::find(required.begin(), required.end(), obj.name) == required.end()) continue;
+    if (!required.empty() && std::find(required.begin(), required.end(), obj.name) == required.end())
+      continue;
     bool found = false;
     for (std::size_t i = 0; i < r.objects.size(); ++i) {
       const auto& h = r.objects[i];
@@ -84,18 +85,18 @@ void expect_scene_recognized(const std::string& name, const std::vector<std::str
   if (::testing::Test::HasFailure()) {
     std::cerr << "scene graph: " << fs::host::to_json(rec.scene_graph()).dump() << "\n";
     for (const auto* h : rec.candidates())
-      std::cerr << library().models[static_cast<std::size_t>(h->model)].name << " cost " << h->cost << " conf "
-                << h->verify.confidence << " inl " << h->verify.inliers << " viol " << h->verify.violations
-                << " occ " << h->verify.occluded << " matches " << h->matches.size() << " support " << h->verify.support << " lowest "
-                << h->verify.lowest_mm << " prescore " << h->prescore << " t " << h->t.transpose()
-                << "\n";
+      std::cerr << library().models[static_cast<std::size_t>(h->model)].name << " cost " << h->cost
+                << " conf " << h->verify.confidence << " inl " << h->verify.inliers << " viol "
+                << h->verify.violations << " occ " << h->verify.occluded << " matches " << h->matches.size()
+                << " support " << h->verify.support << " lowest " << h->verify.lowest_mm << " prescore "
+                << h->prescore << " t " << h->t.transpose() << "\n";
     for (const auto* h : rec.all_hypotheses())
       for (const auto& obj : s.scene.objects)
         if (library().models[static_cast<std::size_t>(h->model)].name == obj.name)
           std::cerr << "  hypothesis " << obj.name << " level " << h->level << " prescore " << h->prescore
                     << " coarse/fine conf " << h->verify.confidence << " cost " << h->cost << " rot err "
-                    << fs::host::rec::rotation_angle_deg_sym(obj.rotation, h->R,
-                                                             library().models[static_cast<std::size_t>(h->model)])
+                    << fs::host::rec::rotation_angle_deg_sym(
+                           obj.rotation, h->R, library().models[static_cast<std::size_t>(h->model)])
                     << " t " << h->t.transpose() << "\n";
     std::cerr << fs::host::rec::to_json(r, library()).dump() << "\n";
   }
@@ -104,8 +105,8 @@ void expect_scene_recognized(const std::string& name, const std::vector<std::str
 TEST(RecognizeScenes, Cube) { expect_scene_recognized("cube"); }
 TEST(RecognizeScenes, Pyramid) { expect_scene_recognized("pyramid"); }
 TEST(RecognizeScenes, CubePyramidSeparate) { expect_scene_recognized("cube-pyramid-separate"); }
-// The occluding cube shows only two faces (fewer than TH_minlevel = 3) and touches the pyramid, so it is in the
-// pyramid's graph part: it is found in the second round, on the faces the pyramid does not explain, with
+// The occluding cube shows only two faces (fewer than TH_minlevel = 3) and touches the pyramid, so it is in
+// the pyramid's graph part: it is found in the second round, on the faces the pyramid does not explain, with
 // TH_minlevel 2. In the demo scene the wedge leaning on the cube shows little more than its slope next to the
 // cube's two faces: both come from the later rounds.
 TEST(RecognizeScenes, CubeOccludesPyramid) { expect_scene_recognized("cube-occludes-pyramid"); }
@@ -157,8 +158,8 @@ TEST(RecognizeScenes, WarmRecognizeAllocatesNothing) {
   EXPECT_GE(rd.stats.rounds, 2);
 }
 
-// A scene whose graph has faces but nothing the library matches (a thin plate: its top and at most a 1.5 mm rim)
-// after a scene with objects: the result must be empty, not the previous scan's objects.
+// A scene whose graph has faces but nothing the library matches (a thin plate: its top and at most a 1.5 mm
+// rim) after a scene with objects: the result must be empty, not the previous scan's objects.
 TEST(RecognizeScenes, SceneWithoutAMatchablePartReportsNothingAfterAFullScene) {
   SceneRun s = scan("cube-pyramid-separate");
   fs::host::rec::RecognizeParams params;
@@ -172,13 +173,15 @@ TEST(RecognizeScenes, SceneWithoutAMatchablePartReportsNothingAfterAFullScene) {
   fs::Mesh plate;
   plate.name = "plate";
   const double a = 30, b = 20, h = 1.5;
-  plate.vertices = {{-a, -b, 0}, {a, -b, 0}, {a, b, 0}, {-a, b, 0}, {-a, -b, h}, {a, -b, h}, {a, b, h}, {-a, b, h}};
+  plate.vertices = {{-a, -b, 0}, {a, -b, 0}, {a, b, 0}, {-a, b, 0},
+                    {-a, -b, h}, {a, -b, h}, {a, b, h}, {-a, b, h}};
   plate.faces = {{0, 3, 2, 1}, {4, 5, 6, 7}, {0, 1, 5, 4}, {1, 2, 6, 5}, {2, 3, 7, 6}, {3, 0, 4, 7}};
   fs::sim::add_object(plate_scene, plate, fs::Mat3::Identity(), fs::Vec3(-60, 0, 0));
   const fs::host::OrganizedCloud cloud = grid_of(plate_scene, 5);
   const auto& r = rec.recognize(cloud, &table);
   EXPECT_GT(r.stats.scene_nodes, 0);
-  EXPECT_LE(r.stats.components, 1);   // the top and a 1.5 mm rim (resolved at the laser's 0.3 mm tolerance) may be one
+  EXPECT_LE(r.stats.components,
+            1);  // the top and a 1.5 mm rim (resolved at the laser's 0.3 mm tolerance) may be one
   EXPECT_TRUE(r.objects.empty()) << fs::host::rec::to_json(r, library()).dump();
   EXPECT_EQ(r.stats.hypotheses, 0);
 }

@@ -25,8 +25,8 @@ fs::Mesh extrude_xz(const std::vector<std::pair<double, double>>& poly, double h
   for (const auto& [x, z] : poly) m.vertices.emplace_back(x, h, z);
   std::vector<std::uint32_t> front, back;
   for (std::uint32_t i = 0; i < n; ++i) {
-    front.push_back(i);               // y = -h, normal -y: counter-clockwise seen from -y
-    back.push_back(2 * n - 1 - i);    // y = +h, normal +y: reversed
+    front.push_back(i);             // y = -h, normal -y: counter-clockwise seen from -y
+    back.push_back(2 * n - 1 - i);  // y = +h, normal +y: reversed
   }
   m.faces.push_back(front);
   m.faces.push_back(back);
@@ -53,15 +53,17 @@ TEST(ModelGeometry, ConvexCubeRayEntersThroughTheFaceItHits) {
     EXPECT_LT(f.normal.dot(dir), 0.0);
     EXPECT_NEAR(f.normal.dot(origin + s * dir), f.offset, 1e-9);
     // No other face plane is crossed earlier inside the solid: the hit point lies on the surface.
-    for (const fs::host::ModelFace& o : cube.faces) EXPECT_LE(o.normal.dot(origin + s * dir), o.offset + 1e-9);
+    for (const fs::host::ModelFace& o : cube.faces)
+      EXPECT_LE(o.normal.dot(origin + s * dir), o.offset + 1e-9);
   }
   double s = 0.0;
-  EXPECT_EQ(g.cast(cube.center + Vec3(0, 0, 300), Vec3(1, 0, 0), s), -1);   // passes above
+  EXPECT_EQ(g.cast(cube.center + Vec3(0, 0, 300), Vec3(1, 0, 0), s), -1);  // passes above
 }
 
 TEST(ModelGeometry, NonConvexUShapeGivesTheNearestOfTwoFrontFaces) {
   // Two prongs (x in [0, 10] and [40, 50], up to z = 30) on a base (z in [0, 10]).
-  const fs::Mesh u = extrude_xz({{0, 0}, {50, 0}, {50, 30}, {40, 30}, {40, 10}, {10, 10}, {10, 30}, {0, 30}}, 10);
+  const fs::Mesh u =
+      extrude_xz({{0, 0}, {50, 0}, {50, 30}, {40, 30}, {40, 10}, {10, 10}, {10, 30}, {0, 30}}, 10);
   const fs::host::Model model = fs::host::build_model(u);
   const fs::host::rec::ModelGeometry g(model);
   EXPECT_FALSE(g.convex());
@@ -79,8 +81,8 @@ TEST(ModelGeometry, NonConvexUShapeGivesTheNearestOfTwoFrontFaces) {
   double s = 0.0;
   ASSERT_GE(g.cast(Vec3(25, 0, 100), Vec3(0, 0, -1), s), 0);
   EXPECT_NEAR(s, 90.0, 1e-9);
-  // The U-shaped end faces are non-convex polygons: a ray along -y through the gap misses them (and the solid),
-  // one through a prong or the base hits the end face at y = +10.
+  // The U-shaped end faces are non-convex polygons: a ray along -y through the gap misses them (and the
+  // solid), one through a prong or the base hits the end face at y = +10.
   EXPECT_EQ(g.cast(Vec3(25, 100, 20), Vec3(0, -1, 0), s), -1);
   for (const Vec3& at : {Vec3(5, 100, 20), Vec3(45, 100, 25), Vec3(25, 100, 5)}) {
     ASSERT_GE(g.cast(at, Vec3(0, -1, 0), s), 0) << at.transpose();
@@ -109,7 +111,8 @@ TEST(SampleSet, StepsFollowTheGridSpacingInMillimetres) {
   fs::host::OrganizedCloud cloud;
   cloud.reset(200, 400);
   for (std::uint32_t r = 0; r < cloud.height; ++r)
-    for (std::uint32_t c = 0; c < cloud.width; ++c) cloud.at(r, c) = Eigen::Vector3f(0.5f * c, 0.25f * r, 0.0f);
+    for (std::uint32_t c = 0; c < cloud.width; ++c)
+      cloud.at(r, c) = Eigen::Vector3f(0.5f * c, 0.25f * r, 0.0f);
   cloud.viewpoint = Vec3(50, 50, 500);
   const Eigen::Vector2d g = fs::host::rec::grid_spacing_mm(cloud);
   EXPECT_NEAR(g.x(), 0.5, 1e-5);
@@ -121,15 +124,15 @@ TEST(SampleSet, StepsFollowTheGridSpacingInMillimetres) {
   EXPECT_EQ(fine.row, 6u);
   set.build(cloud, fine);
   EXPECT_EQ(set.points().size(), std::size_t((200 + 2) / 3) * std::size_t((400 + 5) / 6));
-  const auto every2 = sample_steps(g, 2, 0.0);   // off: every 2nd row and column
+  const auto every2 = sample_steps(g, 2, 0.0);  // off: every 2nd row and column
   EXPECT_EQ(every2.col, 2u);
   EXPECT_EQ(every2.row, 2u);
   set.build(cloud, every2);
   EXPECT_EQ(set.points().size(), std::size_t(100 * 200));
-  const auto dense = sample_steps(g, 4, 0.5);    // never denser than sample_step
+  const auto dense = sample_steps(g, 4, 0.5);  // never denser than sample_step
   EXPECT_EQ(dense.col, 4u);
   EXPECT_EQ(dense.row, 4u);
-  cloud.organized = false;                        // no grid neighbourhood: sample_step only
+  cloud.organized = false;  // no grid neighbourhood: sample_step only
   EXPECT_EQ(fs::host::rec::grid_spacing_mm(cloud), Eigen::Vector2d::Zero());
   EXPECT_EQ(sample_steps(fs::host::rec::grid_spacing_mm(cloud), 2, 1.5).col, 2u);
 }

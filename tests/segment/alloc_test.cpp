@@ -37,7 +37,7 @@ TEST(SegmentAlloc, NoAllocationPerScanAfterWarmUp) {
   sc.objects.push_back(fs::test::make_box({45, -20, 20}, {20, 15, 20}, -15));
   fs::test::SyntheticGrid a, b;
   fs::test::render(sc, a, 0.05, 1);
-  sc.objects[1] = fs::test::make_box({40, 30, 15}, {15, 25, 15}, 40);   // a different second scan
+  sc.objects[1] = fs::test::make_box({40, 30, 15}, {15, 25, 15}, 40);  // a different second scan
   fs::test::render(sc, b, 0.05, 2);
 
   SegmentLimits lim;
@@ -45,17 +45,17 @@ TEST(SegmentAlloc, NoAllocationPerScanAfterWarmUp) {
   lim.max_regions = 2048;
   lim.max_borders = 8192;
   SegmentPipeline p(lim);
-  p.run(a.cloud);   // warm-up
+  p.run(a.cloud);  // warm-up
 
   fs::AllocCounter counter;
   p.run(b.cloud);
   p.run(a.cloud);
   EXPECT_EQ(counter.allocations(), 0u);
-  EXPECT_GE(p.g.nodes.size(), 7u);   // the work was done: SN + table + >= 5 faces
+  EXPECT_GE(p.g.nodes.size(), 7u);  // the work was done: SN + table + >= 5 faces
 }
 
-// The realistic case: full-size bench-scanner scans (500 galvo steps x 1024 rows) of the hw-sim scenes, with the
-// segmenter / builder set up the way the recognizer does it (one per process, limits from the grid size).
+// The realistic case: full-size bench-scanner scans (500 galvo steps x 1024 rows) of the hw-sim scenes, with
+// the segmenter / builder set up the way the recognizer does it (one per process, limits from the grid size).
 // Warm-up on the simplest scene; then the 4-object demo scene (more regions, borders, runs, relabelled cells)
 // runs without a single heap allocation, twice (the second time over the first one's leftovers).
 TEST(SegmentAlloc, NoAllocationPerHwsimScanAfterWarmUp) {
@@ -97,7 +97,8 @@ TEST(SegmentLimits, RegionBudgetExhaustionIsFlaggedNotFatal) {
   c.reset(120, 60);
   c.viewpoint = fs::Vec3(60, 30, 400);
   for (std::uint32_t r = 0; r < 60; ++r)
-    for (std::uint32_t k = 0; k < 120; ++k) c.at(r, k) = Eigen::Vector3f(float(k), float(r), float((k / 10) * 8));
+    for (std::uint32_t k = 0; k < 120; ++k)
+      c.at(r, k) = Eigen::Vector3f(float(k), float(r), float((k / 10) * 8));
   SegmentLimits lim;
   lim.max_cells = c.points.size();
   lim.max_regions = 4;

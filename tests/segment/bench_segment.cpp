@@ -13,7 +13,7 @@ fs::test::SyntheticGrid& scene_grid() {
     fs::test::SyntheticScene sc;
     sc.width = 500;
     sc.height = 1024;
-    sc.focal = 1600;   // ~0.3 mm per cell at the table, like the bench-top scanner
+    sc.focal = 1600;  // ~0.3 mm per cell at the table, like the bench-top scanner
     sc.table_half = 200;
     sc.objects.push_back(fs::test::make_pyramid({-40, -60, 0}, 35, 45, 15));
     sc.objects.push_back(fs::test::make_box({30, 50, 25}, {25, 25, 25}, 30));

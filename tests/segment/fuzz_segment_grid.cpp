@@ -1,5 +1,5 @@
-// Fuzz target: arbitrary organized grids (sizes, coordinates incl. NaN / inf / huge values, viewpoint) through
-// segmentation and scene-PFRG building. Must never crash, hang or trip the sanitizers.
+// Fuzz target: arbitrary organized grids (sizes, coordinates incl. NaN / inf / huge values, viewpoint)
+// through segmentation and scene-PFRG building. Must never crash, hang or trip the sanitizers.
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
@@ -11,8 +11,8 @@
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   if (size < 3) return 0;
   const std::uint32_t w = 1 + data[0] % 48, h = 1 + data[1] % 48;
-  fs::host::seg::SegmentParams params = (data[2] & 1) ? fs::host::seg::SegmentParams::kinect()
-                                                      : fs::host::seg::SegmentParams::laser();
+  fs::host::seg::SegmentParams params =
+      (data[2] & 1) ? fs::host::seg::SegmentParams::kinect() : fs::host::seg::SegmentParams::laser();
   params.min_region_cells = 4;
   params.min_grow_cells = 3;
   params.min_region_area_mm2 = 0.0;

@@ -27,8 +27,9 @@ void run_cli(std::vector<std::string> args) {
 }
 
 stdfs::path temp_dir(const char* name) {
-  const stdfs::path d = stdfs::temp_directory_path() / (std::string("fs_segment_") + name + "_" +
-                                                       std::to_string(::testing::UnitTest::GetInstance()->random_seed()));
+  const stdfs::path d =
+      stdfs::temp_directory_path() / (std::string("fs_segment_") + name + "_" +
+                                      std::to_string(::testing::UnitTest::GetInstance()->random_seed()));
   stdfs::remove_all(d);
   stdfs::create_directories(d);
   return d;
@@ -44,16 +45,19 @@ TEST(GraphCli, SyntheticPcdToPfrgJsonAndPictures) {
   run_cli({"graph", (dir / "pyr.pcd").string(), "-o", (dir / "graph.json").string(), "--pictures",
            (dir / "pics").string(), "--preset", "laser", "-q"});
   const fs::host::Pfrg pf = fs::host::read_pfrg_json(dir / "graph.json");
-  ASSERT_EQ(pf.nodes.size(), 6u);   // SN + table + 4 faces
+  ASSERT_EQ(pf.nodes.size(), 6u);  // SN + table + 4 faces
   int sn = 0;
   for (const auto& n : pf.nodes) {
-    if (n.supernode) { ++sn; continue; }
+    if (n.supernode) {
+      ++sn;
+      continue;
+    }
     EXPECT_GT(n.area, 1000.0);
     EXPECT_NEAR(n.normal.norm(), 1.0, 1e-6);
-    EXPECT_GT(n.normal.z(), 0.5);   // toward the camera above
+    EXPECT_GT(n.normal.z(), 0.5);  // toward the camera above
   }
   EXPECT_EQ(sn, 1);
-  EXPECT_EQ(pf.arcs.size(), 9u);   // 8 between faces + table to supernode
+  EXPECT_EQ(pf.arcs.size(), 9u);  // 8 between faces + table to supernode
   for (const char* f : {"segmentation.png", "pfrg.svg", "enm.svg"}) {
     EXPECT_TRUE(stdfs::exists(dir / "pics" / f)) << f;
     EXPECT_GT(stdfs::file_size(dir / "pics" / f), 200u) << f;
@@ -70,8 +74,9 @@ TEST(GraphCli, MissingInputAndBadPresetAreErrors) {
   fs::host::OrganizedCloud c;
   c.reset(4, 4);
   fs::host::write_cloud((dir / "c.pcd").string(), c);
-  EXPECT_THROW(run_cli({"graph", (dir / "c.pcd").string(), "-o", (dir / "g.json").string(), "--preset", "foo"}),
-               fs::Error);
+  EXPECT_THROW(
+      run_cli({"graph", (dir / "c.pcd").string(), "-o", (dir / "g.json").string(), "--preset", "foo"}),
+      fs::Error);
   stdfs::remove_all(dir);
 }
 

@@ -34,8 +34,8 @@ TEST(GridKernels, SoaRowMarksNonFiniteAndHugeCoordinatesAsNoData) {
   const std::vector<float> S = {1, 2, 3, kNan, 0, 0, 0, inf, 0, 0, 0, 2e7f, 4, 5, 6};
   std::vector<float> X(5), Y(5), Z(5), J2(5), DI(5);
   std::vector<std::uint8_t> valid(5);
-  soa_row(S.data(), 5, {0, 0, 100}, 2.0f, 0.0f, 0.5f, 1e-4f, X.data(), Y.data(), Z.data(), J2.data(), DI.data(),
-          valid.data());
+  soa_row(S.data(), 5, {0, 0, 100}, 2.0f, 0.0f, 0.5f, 1e-4f, X.data(), Y.data(), Z.data(), J2.data(),
+          DI.data(), valid.data());
   EXPECT_EQ(valid, (std::vector<std::uint8_t>{1, 0, 0, 0, 1}));
   EXPECT_FLOAT_EQ(X[0], 1.f);
   EXPECT_FLOAT_EQ(Z[4], 6.f);
@@ -50,7 +50,8 @@ TEST(GridKernels, SoaRowMarksNonFiniteAndHugeCoordinatesAsNoData) {
 TEST(GridKernels, NormalsOfATiltedPlaneTowardTheViewpointWithAreaAndTangentLengths) {
   Grid g(12, 7, 0.5f, -0.25f, 10.f, 3.f);
   const int r = 3;
-  std::vector<float> NX(g.X.size()), NY(g.X.size()), NZ(g.X.size()), AR(g.X.size()), LU(g.X.size()), LV(g.X.size());
+  std::vector<float> NX(g.X.size()), NY(g.X.size()), NZ(g.X.size()), AR(g.X.size()), LU(g.X.size()),
+      LV(g.X.size());
   const std::size_t b = g.at(r, 0), W = std::size_t(g.w);
   normals_row_fast(g.X.data() + b, g.Y.data() + b, g.Z.data() + b, g.J2.data() + b, 2, g.w - 2, 2, 2 * W,
                    {5, 3, 500}, NX.data() + b, NY.data() + b, NZ.data() + b, AR.data() + b, LU.data() + b,
@@ -60,8 +61,8 @@ TEST(GridKernels, NormalsOfATiltedPlaneTowardTheViewpointWithAreaAndTangentLengt
     const std::size_t i = b + std::size_t(k);
     EXPECT_NEAR(NX[i], -0.5f / len, 1e-5f) << k;
     EXPECT_NEAR(NY[i], 0.25f / len, 1e-5f) << k;
-    EXPECT_NEAR(NZ[i], 1.f / len, 1e-5f) << k;   // +z: toward the viewpoint above
-    EXPECT_NEAR(AR[i], len, 1e-5f);               // |(1,0,a) x (0,1,b)| per unit cell
+    EXPECT_NEAR(NZ[i], 1.f / len, 1e-5f) << k;  // +z: toward the viewpoint above
+    EXPECT_NEAR(AR[i], len, 1e-5f);             // |(1,0,a) x (0,1,b)| per unit cell
     EXPECT_NEAR(LU[i], 1.25f, 1e-5f);
     EXPECT_NEAR(LV[i], 1.0625f, 1e-5f);
   }
@@ -76,9 +77,10 @@ TEST(GridKernels, FastPathRefusesMissingNeighboursAndDepthJumps) {
   Grid g(12, 7, 0.f, 0.f, 0.f, 1.f);
   const int r = 3;
   const std::size_t b = g.at(r, 0), W = std::size_t(g.w);
-  g.X[g.at(r, 7)] = kNan;                 // cell 5 (left of 7 at +-2) and 9 see a missing neighbour
-  g.Z[g.at(r - 2, 3)] = 5.f;              // cell 3: its upper neighbour at span 2 is beyond the jump threshold
-  std::vector<float> NX(g.X.size()), NY(g.X.size()), NZ(g.X.size()), AR(g.X.size()), LU(g.X.size()), LV(g.X.size());
+  g.X[g.at(r, 7)] = kNan;     // cell 5 (left of 7 at +-2) and 9 see a missing neighbour
+  g.Z[g.at(r - 2, 3)] = 5.f;  // cell 3: its upper neighbour at span 2 is beyond the jump threshold
+  std::vector<float> NX(g.X.size()), NY(g.X.size()), NZ(g.X.size()), AR(g.X.size()), LU(g.X.size()),
+      LV(g.X.size());
   normals_row_fast(g.X.data() + b, g.Y.data() + b, g.Z.data() + b, g.J2.data() + b, 2, g.w - 2, 2, 2 * W,
                    {5, 3, 100}, NX.data() + b, NY.data() + b, NZ.data() + b, AR.data() + b, LU.data() + b,
                    LV.data() + b);
@@ -95,36 +97,38 @@ TEST(GridKernels, ContinuityKeepsGrazingStepsAndSeparatesJumpsAlongTheRay) {
   const Viewpoint vp{0, 0, 0};
   const float jmax2 = 25.f * 25.f, cos2 = std::pow(std::cos(6.f * 3.14159265f / 180.f), 2.f);
   EXPECT_TRUE(continuous(X.data(), Y.data(), Z.data(), J2.data(), 0, 0, vp, jmax2, cos2));
-  EXPECT_TRUE(continuous(X.data(), Y.data(), Z.data(), J2.data(), 0, 1, vp, jmax2, cos2));    // 8 mm across the ray
-  EXPECT_FALSE(continuous(X.data(), Y.data(), Z.data(), J2.data(), 0, 2, vp, jmax2, cos2));   // 10 mm along the ray
-  EXPECT_FALSE(continuous(X.data(), Y.data(), Z.data(), J2.data(), 0, 3, vp, jmax2, cos2));   // no data
+  EXPECT_TRUE(
+      continuous(X.data(), Y.data(), Z.data(), J2.data(), 0, 1, vp, jmax2, cos2));  // 8 mm across the ray
+  EXPECT_FALSE(
+      continuous(X.data(), Y.data(), Z.data(), J2.data(), 0, 2, vp, jmax2, cos2));  // 10 mm along the ray
+  EXPECT_FALSE(continuous(X.data(), Y.data(), Z.data(), J2.data(), 0, 3, vp, jmax2, cos2));  // no data
   EXPECT_FALSE(continuous(X.data(), Y.data(), Z.data(), J2.data(), 3, 0, vp, jmax2, cos2));
-  Y[1] = 30.f;   // beyond jump_max even across the ray
+  Y[1] = 30.f;  // beyond jump_max even across the ray
   EXPECT_FALSE(continuous(X.data(), Y.data(), Z.data(), J2.data(), 0, 1, vp, jmax2, cos2));
 }
 
 TEST(GridKernels, SeedsNeedAgreeingNormalsAndContinuousNeighbours) {
   Grid g(6, 3, 0.f, 0.f, 0.f, 1.f);
-  const std::size_t n = g.X.size(), W = std::size_t(g.w), b = W;   // row 1
+  const std::size_t n = g.X.size(), W = std::size_t(g.w), b = W;  // row 1
   std::vector<float> NX(n, 0.f), NY(n, 0.f), NZ(n, 1.f);
   std::vector<std::uint8_t> CT(n, 0);
-  NX[g.at(0, 4)] = 0.5f;                       // cell (1,4): its upper neighbour's normal is 27 deg off
+  NX[g.at(0, 4)] = 0.5f;  // cell (1,4): its upper neighbour's normal is 27 deg off
   NZ[g.at(0, 4)] = std::sqrt(0.75f);
-  g.Z[g.at(1, 2)] = 50.f;                      // cell (1,2) is cut off by a jump (along the ray: viewpoint above)
-  cont_seeds_row_fast(g.X.data() + b, g.Y.data() + b, g.Z.data() + b, g.J2.data() + b, NX.data() + b, NY.data() + b,
-                      NZ.data() + b, 1, g.w - 1, W, {2.5f, 1.f, 500.f}, 25.f * 25.f, 0.99f, std::cos(0.1f),
-                      CT.data() + b);
+  g.Z[g.at(1, 2)] = 50.f;  // cell (1,2) is cut off by a jump (along the ray: viewpoint above)
+  cont_seeds_row_fast(g.X.data() + b, g.Y.data() + b, g.Z.data() + b, g.J2.data() + b, NX.data() + b,
+                      NY.data() + b, NZ.data() + b, 1, g.w - 1, W, {2.5f, 1.f, 500.f}, 25.f * 25.f, 0.99f,
+                      std::cos(0.1f), CT.data() + b);
   const std::uint8_t all = kContL | kContR | kContU | kContD;
-  EXPECT_EQ(CT[b + 1], std::uint8_t(kContL | kContU | kContD));   // not toward (1,2)
+  EXPECT_EQ(CT[b + 1], std::uint8_t(kContL | kContU | kContD));  // not toward (1,2)
   EXPECT_EQ(CT[b + 2], 0);
   EXPECT_EQ(CT[b + 3], std::uint8_t(kContR | kContU | kContD));
-  EXPECT_EQ(CT[b + 4], std::uint8_t(all));                        // continuous, but the normals disagree
-  EXPECT_EQ(CT[b + 0], 0);                                        // outside [c0, c1): untouched
+  EXPECT_EQ(CT[b + 4], std::uint8_t(all));  // continuous, but the normals disagree
+  EXPECT_EQ(CT[b + 0], 0);                  // outside [c0, c1): untouched
   Grid flat(6, 3, 0.f, 0.f, 0.f, 1.f);
   std::vector<float> nz(n, 1.f), nx(n, 0.f);
-  cont_seeds_row_fast(flat.X.data() + b, flat.Y.data() + b, flat.Z.data() + b, flat.J2.data() + b, nx.data() + b,
-                      nx.data() + b, nz.data() + b, 1, flat.w - 1, W, {2.5f, 1.f, 500.f}, 25.f * 25.f, 0.99f,
-                      std::cos(0.1f), CT.data() + b);
+  cont_seeds_row_fast(flat.X.data() + b, flat.Y.data() + b, flat.Z.data() + b, flat.J2.data() + b,
+                      nx.data() + b, nx.data() + b, nz.data() + b, 1, flat.w - 1, W, {2.5f, 1.f, 500.f},
+                      25.f * 25.f, 0.99f, std::cos(0.1f), CT.data() + b);
   for (int k = 1; k < flat.w - 1; ++k) EXPECT_EQ(CT[b + std::size_t(k)], std::uint8_t(all | kContSeed)) << k;
 }
 

@@ -22,13 +22,13 @@ struct HwsimEval {
   fs::host::Pfrg graph;
   fs::host::seg::PreprocessStats stats;
   fs::host::seg::HooverResult hoover;
-  std::map<std::int32_t, double> face_area;       // gt label -> visible area (mm^2)
-  std::map<std::int32_t, double> object_area;     // object -> visible area
-  std::set<std::int32_t> significant;             // gt labels above min_share of their object
+  std::map<std::int32_t, double> face_area;    // gt label -> visible area (mm^2)
+  std::map<std::int32_t, double> object_area;  // object -> visible area
+  std::set<std::int32_t> significant;          // gt labels above min_share of their object
   int significant_correct = 0;
-  double max_normal_error_deg = 0.0;              // over the significant faces detected correctly
-  std::set<std::pair<int, int>> expected_arcs;    // PFRG node ids (via the correct detections), no supernode
-  std::set<std::pair<int, int>> actual_arcs;      // PFRG arcs between known nodes
+  double max_normal_error_deg = 0.0;            // over the significant faces detected correctly
+  std::set<std::pair<int, int>> expected_arcs;  // PFRG node ids (via the correct detections), no supernode
+  std::set<std::pair<int, int>> actual_arcs;    // PFRG arcs between known nodes
   std::vector<std::string> problems;
 };
 
@@ -60,12 +60,12 @@ inline HwsimEval evaluate_hwsim_scene(const std::filesystem::path& scene_file, d
       ev.object_area[c.object] += a;
     }
   }
-  ev.hoover = fs::host::seg::hoover_compare(ev.cloud.labels, ev.seg, 0.8,
-                                            [&](std::int32_t l) -> std::optional<Vec3> {
-                                              auto it = normal.find(l);
-                                              if (it == normal.end()) return std::nullopt;
-                                              return it->second;
-                                            });
+  ev.hoover =
+      fs::host::seg::hoover_compare(ev.cloud.labels, ev.seg, 0.8, [&](std::int32_t l) -> std::optional<Vec3> {
+        auto it = normal.find(l);
+        if (it == normal.end()) return std::nullopt;
+        return it->second;
+      });
   for (const auto& [l, a] : ev.face_area) {
     const std::int32_t obj = l < 0 ? -1 : l / 1000;
     if (a > min_share * ev.object_area[obj]) ev.significant.insert(l);
@@ -73,7 +73,8 @@ inline HwsimEval evaluate_hwsim_scene(const std::filesystem::path& scene_file, d
   for (auto l : ev.significant) {
     auto it = ev.hoover.gt_correct_region.find(l);
     if (it == ev.hoover.gt_correct_region.end()) {
-      ev.problems.push_back("face " + std::to_string(l) + " (" + std::to_string(int(ev.face_area[l])) + " mm^2) is " +
+      ev.problems.push_back("face " + std::to_string(l) + " (" + std::to_string(int(ev.face_area[l])) +
+                            " mm^2) is " +
                             to_string(ev.hoover.gt_class.count(l) ? ev.hoover.gt_class.at(l)
                                                                   : fs::host::seg::HooverClass::Missed));
       continue;

@@ -27,26 +27,26 @@ void expect_faces_and_graph(const fs::test::HwsimEval& ev, std::size_t visible_f
 
 TEST(HwsimSegment, TruncatedPyramid) {
   const auto ev = eval("pyramid");
-  expect_faces_and_graph(ev, 5);   // table + top + the 3 sides the laser reaches
+  expect_faces_and_graph(ev, 5);  // table + top + the 3 sides the laser reaches
 }
 
 TEST(HwsimSegment, Cube) {
   const auto ev = eval("cube");
-  expect_faces_and_graph(ev, 4);   // table + top + 2 sides
+  expect_faces_and_graph(ev, 4);  // table + top + 2 sides
 }
 
 TEST(HwsimSegment, CubeOccludesPyramid) {
   const auto ev = eval("cube-occludes-pyramid");
-  expect_faces_and_graph(ev, 7);   // table + 3 cube faces + 3 pyramid faces
+  expect_faces_and_graph(ev, 7);  // table + 3 cube faces + 3 pyramid faces
 }
 
 // The demo scene: a wedge leaning on a cube, a truncated pyramid next to a hexagonal prism. The faces seen at
-// a grazing angle (cube front 1002, wedge front 2000, prism side 4003: ~2.6 mm^2 per cell) used to take strips
-// of the neighbouring table / top cells that lie within the distance tolerance of both planes near the crease
-// (Hoover: "missed", 11/14); the boundary relabelling gives those cells to the nearer plane.
+// a grazing angle (cube front 1002, wedge front 2000, prism side 4003: ~2.6 mm^2 per cell) used to take
+// strips of the neighbouring table / top cells that lie within the distance tolerance of both planes near the
+// crease (Hoover: "missed", 11/14); the boundary relabelling gives those cells to the nearer plane.
 TEST(HwsimSegment, DemoSceneAllFacesIncludingGrazingOnes) {
   const auto ev = eval("default");
-  expect_faces_and_graph(ev, 14);   // table + 13 object faces
+  expect_faces_and_graph(ev, 14);  // table + 13 object faces
   for (std::int32_t face : {1002, 2000, 4003}) EXPECT_TRUE(ev.hoover.gt_correct_region.count(face)) << face;
 }
 

@@ -25,7 +25,7 @@ TEST_P(MosdSegment, RegionsStayWithinOneObject) {
   for (std::size_t i = 0; i < obj.size(); ++i) obj[i] = seg::mosd_object(cloud.labels[i]);
   const auto span = seg::object_span(obj, s);
   EXPECT_GE(span.pure_fraction(), 0.95) << span.pure_regions << "/" << span.regions << " regions pure";
-  EXPECT_GE(span.regions, 5);   // table + at least two faces of each of two boxes
+  EXPECT_GE(span.regions, 5);  // table + at least two faces of each of two boxes
   seg::ScenePfrgBuilder builder;
   Pfrg g;
   builder.build(s, g);
@@ -38,6 +38,7 @@ TEST_P(MosdSegment, RegionsStayWithinOneObject) {
 }
 
 // Two boxes (test0, with the table), three boxes (test11), stacked boxes (test16, test21: the worst one).
-INSTANTIATE_TEST_SUITE_P(Scenes, MosdSegment, ::testing::Values("test0.pcd", "test11.pcd", "test16.pcd", "test21.pcd"));
+INSTANTIATE_TEST_SUITE_P(Scenes, MosdSegment,
+                         ::testing::Values("test0.pcd", "test11.pcd", "test16.pcd", "test21.pcd"));
 
 }  // namespace

@@ -1,6 +1,6 @@
 // The segmenter's depth-noise estimate and the distance tolerance it can set (segment_params.hpp:
-// dist_noise_factor, off in the presets), and what the laser tolerance is for: two faces meeting at a 5.3 degree crease (an
-// augmented hexagonal prism's pyramid on its square) stay two regions.
+// dist_noise_factor, off in the presets), and what the laser tolerance is for: two faces meeting at a 5.3
+// degree crease (an augmented hexagonal prism's pyramid on its square) stay two regions.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -47,7 +47,8 @@ TEST(NoiseEstimate, FollowsTheScansDepthNoise) {
     // The noise is along the viewing ray and the camera looks down at the table and the cube's top: the
     // component across the rows' tangents is nearly all of it.
     EXPECT_NEAR(seg.noise_mm, sigma, 0.2 * sigma) << "sigma " << sigma;
-    std::printf("depth noise %.3f mm: estimated %.4f mm, tolerance %.3f mm\n", sigma, seg.noise_mm, seg.dist_mm);
+    std::printf("depth noise %.3f mm: estimated %.4f mm, tolerance %.3f mm\n", sigma, seg.noise_mm,
+                seg.dist_mm);
     EXPECT_DOUBLE_EQ(seg.dist_mm, std::max(0.3, 6.0 * seg.noise_mm));
   }
   const Segmentation exact = segment(scene, 0.0, following, cloud);
@@ -57,7 +58,8 @@ TEST(NoiseEstimate, FollowsTheScansDepthNoise) {
   const Segmentation fixed = segment(scene, 0.4, SegmentParams::laser(), cloud);
   EXPECT_DOUBLE_EQ(fixed.dist_mm, 0.3);
   EXPECT_NEAR(fixed.noise_mm, 0.4, 0.08);
-  EXPECT_DOUBLE_EQ(segment(scene, 0.4, SegmentParams::kinect(), cloud).dist_mm, SegmentParams::kinect().dist_abs_mm);
+  EXPECT_DOUBLE_EQ(segment(scene, 0.4, SegmentParams::kinect(), cloud).dist_mm,
+                   SegmentParams::kinect().dist_abs_mm);
 }
 
 // A 60 x 40 mm block whose top is two faces meeting along y at 5.26 degrees (each tilted 2.63 degrees).
@@ -65,16 +67,16 @@ fs::Mesh creased_block() {
   const double a = 30, b = 20, h = 20, rise = a * std::tan(2.63 * M_PI / 180.0);
   fs::Mesh m;
   m.name = "creased";
-  m.vertices = {{-a, -b, 0}, {a, -b, 0}, {a, b, 0}, {-a, b, 0},                // 0-3 bottom
-                {-a, -b, h}, {a, -b, h}, {a, b, h}, {-a, b, h},                // 4-7 top corners
-                {0, -b, h + rise}, {0, b, h + rise}};                          // 8-9 ridge
-  m.faces = {{0, 3, 2, 1},                 // bottom
-             {4, 8, 9, 7},                 // left roof
-             {8, 5, 6, 9},                 // right roof
-             {0, 1, 5, 8, 4},              // front (y = -b)
-             {2, 3, 7, 9, 6},              // back (y = +b)
-             {1, 2, 6, 5},                 // right (x = +a)
-             {3, 0, 4, 7}};                // left (x = -a)
+  m.vertices = {{-a, -b, 0},       {a, -b, 0},      {a, b, 0}, {-a, b, 0},  // 0-3 bottom
+                {-a, -b, h},       {a, -b, h},      {a, b, h}, {-a, b, h},  // 4-7 top corners
+                {0, -b, h + rise}, {0, b, h + rise}};                       // 8-9 ridge
+  m.faces = {{0, 3, 2, 1},                                                  // bottom
+             {4, 8, 9, 7},                                                  // left roof
+             {8, 5, 6, 9},                                                  // right roof
+             {0, 1, 5, 8, 4},                                               // front (y = -b)
+             {2, 3, 7, 9, 6},                                               // back (y = +b)
+             {1, 2, 6, 5},                                                  // right (x = +a)
+             {3, 0, 4, 7}};                                                 // left (x = -a)
   return m;
 }
 

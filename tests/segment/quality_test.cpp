@@ -28,12 +28,30 @@ TEST(Hoover, ClassifiesCorrectOverUnderMissedNoise) {
   // MS:  0 0 0 0 0 0 0 0 0 0 | 1 1 1 1 1 2 2 2 2 2 | 3 3 3 3 3 3 3 3 3 3   3 3 3 3 3 3 3 3 3 3 | - - - -
   // plus a machine region 4 on unlabelled cells (noise).
   std::vector<std::int32_t> gt, ms;
-  for (int i = 0; i < 10; ++i) { gt.push_back(10); ms.push_back(0); }
-  for (int i = 0; i < 10; ++i) { gt.push_back(11); ms.push_back(i < 5 ? 1 : 2); }
-  for (int i = 0; i < 10; ++i) { gt.push_back(12); ms.push_back(3); }
-  for (int i = 0; i < 10; ++i) { gt.push_back(13); ms.push_back(3); }
-  for (int i = 0; i < 4; ++i) { gt.push_back(14); ms.push_back(kNil); }
-  for (int i = 0; i < 6; ++i) { gt.push_back(-1); ms.push_back(4); }
+  for (int i = 0; i < 10; ++i) {
+    gt.push_back(10);
+    ms.push_back(0);
+  }
+  for (int i = 0; i < 10; ++i) {
+    gt.push_back(11);
+    ms.push_back(i < 5 ? 1 : 2);
+  }
+  for (int i = 0; i < 10; ++i) {
+    gt.push_back(12);
+    ms.push_back(3);
+  }
+  for (int i = 0; i < 10; ++i) {
+    gt.push_back(13);
+    ms.push_back(3);
+  }
+  for (int i = 0; i < 4; ++i) {
+    gt.push_back(14);
+    ms.push_back(kNil);
+  }
+  for (int i = 0; i < 6; ++i) {
+    gt.push_back(-1);
+    ms.push_back(4);
+  }
   const Segmentation s = machine(ms, 5);
   const auto r = hoover_compare(gt, s, 0.8, [](std::int32_t) -> std::optional<fs::Vec3> {
     return fs::Vec3(0, std::sin(0.01), std::cos(0.01));

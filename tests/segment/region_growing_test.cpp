@@ -13,14 +13,15 @@ namespace {
 using namespace fs::host;
 using namespace fs::host::seg;
 
-// Plane z = 0.1 x + 0.05 y sampled at 1 mm, viewpoint above; NaN walls at every 12th column, open alternately at
-// the bottom and at the top (a serpentine corridor 11 cells wide, 10 bends).
+// Plane z = 0.1 x + 0.05 y sampled at 1 mm, viewpoint above; NaN walls at every 12th column, open alternately
+// at the bottom and at the top (a serpentine corridor 11 cells wide, 10 bends).
 OrganizedCloud serpentine(std::uint32_t w, std::uint32_t h, bool close_last_bend) {
   OrganizedCloud c;
   c.reset(w, h);
   c.viewpoint = fs::Vec3(w / 2.0, h / 2.0, 400.0);
   for (std::uint32_t r = 0; r < h; ++r)
-    for (std::uint32_t k = 0; k < w; ++k) c.at(r, k) = Eigen::Vector3f(float(k), float(r), 0.1f * k + 0.05f * r);
+    for (std::uint32_t k = 0; k < w; ++k)
+      c.at(r, k) = Eigen::Vector3f(float(k), float(r), 0.1f * k + 0.05f * r);
   const float nan = std::numeric_limits<float>::quiet_NaN();
   int wall = 0;
   for (std::uint32_t k = 12; k + 1 < w; k += 12, ++wall) {
@@ -64,7 +65,7 @@ TEST(RegionGrowing, FollowsASerpentineCorridorAsOneRegion) {
 }
 
 TEST(RegionGrowing, WallsOfMissingDataAreNotCrossed) {
-  const OrganizedCloud c = serpentine(133, 90, true);   // the last corridor is closed off
+  const OrganizedCloud c = serpentine(133, 90, true);  // the last corridor is closed off
   Segmenter seg;
   Segmentation s;
   seg.segment(c, s);
@@ -83,7 +84,8 @@ TEST(RegionGrowing, DepthStepAlongTheRaySplitsCoplanarLookingHalves) {
   c.reset(80, 60);
   c.viewpoint = fs::Vec3(40, 30, 400);
   for (std::uint32_t r = 0; r < 60; ++r)
-    for (std::uint32_t k = 0; k < 80; ++k) c.at(r, k) = Eigen::Vector3f(float(k), float(r), k < 40 ? 0.f : 20.f);
+    for (std::uint32_t k = 0; k < 80; ++k)
+      c.at(r, k) = Eigen::Vector3f(float(k), float(r), k < 40 ? 0.f : 20.f);
   Segmenter seg;
   Segmentation s;
   seg.segment(c, s);

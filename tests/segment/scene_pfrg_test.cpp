@@ -50,7 +50,7 @@ TEST(ScenePfrg, SupernodeCollectsNilAndImageBoundaryAndMergesParallelArcs) {
   EXPECT_DOUBLE_EQ(g.nodes[1].area, 100);
   ASSERT_EQ(g.arcs.size(), 3u);
   ASSERT_NE(arc(g, 0, 1), nullptr);
-  EXPECT_DOUBLE_EQ(arc(g, 0, 1)->border, 10.0);   // NIL 4 + image boundary 6 merged into one arc
+  EXPECT_DOUBLE_EQ(arc(g, 0, 1)->border, 10.0);  // NIL 4 + image boundary 6 merged into one arc
   EXPECT_DOUBLE_EQ(arc(g, 1, 2)->border, 10.0);
   EXPECT_DOUBLE_EQ(arc(g, 0, 2)->border, 3.0);
 }
@@ -67,7 +67,7 @@ TEST(ScenePfrg, BorderRegionCompressedOntoExistingBorder) {
   ASSERT_EQ(g.nodes.size(), 3u);
   ASSERT_NE(arc(g, 1, 2), nullptr);
   EXPECT_DOUBLE_EQ(arc(g, 1, 2)->border, 5.0 + 31.0);
-  EXPECT_EQ(arc(g, 0, 1), nullptr);   // the border region's NIL contact does not create arcs
+  EXPECT_EQ(arc(g, 0, 1), nullptr);  // the border region's NIL contact does not create arcs
 }
 
 TEST(ScenePfrg, BorderRegionWithoutExistingBorderIsNotBridged) {
@@ -80,20 +80,20 @@ TEST(ScenePfrg, BorderRegionWithoutExistingBorderIsNotBridged) {
   ScenePfrgBuilder().build(s, g, &st);
   EXPECT_EQ(st.border_regions_eliminated, 0);
   EXPECT_EQ(arc(g, 1, 2), nullptr);
-  EXPECT_EQ(st.null_nodes_dropped, 1);   // does not touch the unknown area: dropped with its arcs
+  EXPECT_EQ(st.null_nodes_dropped, 1);  // does not touch the unknown area: dropped with its arcs
   EXPECT_DOUBLE_EQ(arc(g, 0, 1)->border, 7.0);
 }
 
 TEST(ScenePfrg, BorderRegionWithThreeKnownNeighboursStaysANullNode) {
   Segmentation s;
-  s.regions = {known_region(0, 100, {0, 0, 1}), known_region(1, 80, {1, 0, 1}), known_region(2, 70, {0, 1, 1}),
-               unknown_region(3)};
+  s.regions = {known_region(0, 100, {0, 0, 1}), known_region(1, 80, {1, 0, 1}),
+               known_region(2, 70, {0, 1, 1}), unknown_region(3)};
   s.borders = {border(0, 1, 5), border(0, 3, 10), border(1, 3, 10), border(2, 3, 10), border(3, kNil, 2)};
   Pfrg g;
   PreprocessStats st;
   ScenePfrgBuilder().build(s, g, &st);
   EXPECT_EQ(st.border_regions_eliminated, 0);
-  EXPECT_EQ(st.null_nodes_to_supernode, 1);   // touches NIL: part of the unknown area
+  EXPECT_EQ(st.null_nodes_to_supernode, 1);  // touches NIL: part of the unknown area
   EXPECT_DOUBLE_EQ(arc(g, 1, 2)->border, 5.0);
   ASSERT_NE(arc(g, 0, 3), nullptr);
   EXPECT_DOUBLE_EQ(arc(g, 0, 3)->border, 10.0);

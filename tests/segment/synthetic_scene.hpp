@@ -15,7 +15,7 @@
 namespace fs::test {
 
 struct ConvexObject {
-  std::vector<fs::Plane> planes;   // outward normals; the solid is { x : n.x <= d for all planes }
+  std::vector<fs::Plane> planes;  // outward normals; the solid is { x : n.x <= d for all planes }
 };
 
 inline ConvexObject make_box(const fs::Vec3& centre, const fs::Vec3& half, double yaw_deg) {
@@ -56,17 +56,17 @@ inline ConvexObject make_pyramid(const fs::Vec3& base_centre, double b, double h
 }
 
 struct SyntheticScene {
-  std::vector<ConvexObject> objects;   // object k has id k + 1; the table is object 0 (plane z = 0)
+  std::vector<ConvexObject> objects;  // object k has id k + 1; the table is object 0 (plane z = 0)
   fs::Vec3 camera{0, 0, 500};
-  double focal = 400;                  // pixels
+  double focal = 400;  // pixels
   std::uint32_t width = 240, height = 200;
-  double table_half = 140;             // table extent (|x|, |y| <= table_half), NaN beyond
+  double table_half = 140;  // table extent (|x|, |y| <= table_half), NaN beyond
 };
 
 struct SyntheticGrid {
   fs::host::OrganizedCloud cloud;
-  std::vector<std::int32_t> face;      // object * 100 + face index (table = 0), -1 = no data
-  std::vector<std::int32_t> object;    // 0 = table, k = object k, -1 = no data
+  std::vector<std::int32_t> face;    // object * 100 + face index (table = 0), -1 = no data
+  std::vector<std::int32_t> object;  // 0 = table, k = object k, -1 = no data
   std::vector<fs::Vec3> true_points;
 };
 
@@ -82,8 +82,9 @@ inline void render(const SyntheticScene& sc, SyntheticGrid& g, double noise_mm =
   std::normal_distribution<double> gauss(0.0, noise_mm);
   for (std::uint32_t r = 0; r < sc.height; ++r) {
     for (std::uint32_t c = 0; c < sc.width; ++c) {
-      const fs::Vec3 dir = fs::Vec3((c - 0.5 * (sc.width - 1)) / sc.focal, (r - 0.5 * (sc.height - 1)) / sc.focal, -1)
-                               .normalized();
+      const fs::Vec3 dir =
+          fs::Vec3((c - 0.5 * (sc.width - 1)) / sc.focal, (r - 0.5 * (sc.height - 1)) / sc.focal, -1)
+              .normalized();
       double best = std::numeric_limits<double>::infinity();
       int bobj = -1, bface = -1;
       if (dir.z() < 0) {
@@ -108,7 +109,10 @@ inline void render(const SyntheticScene& sc, SyntheticGrid& g, double noise_mm =
           }
           const double t = num / dn;
           if (dn < 0) {
-            if (t > t0) { t0 = t; entry = int(f); }
+            if (t > t0) {
+              t0 = t;
+              entry = int(f);
+            }
           } else {
             t1 = std::min(t1, t);
           }

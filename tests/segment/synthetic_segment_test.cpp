@@ -70,7 +70,7 @@ TEST(SyntheticSegment, PyramidFacesDetectedWithAccurateNormals) {
   fs::test::SyntheticScene sc;
   sc.objects.push_back(fs::test::make_pyramid({10, -5, 0}, 45, 55, 20));
   const Result r = run(sc, 0.05);
-  EXPECT_EQ(r.hoover.gt_regions, 5);   // table + 4 slanted faces
+  EXPECT_EQ(r.hoover.gt_regions, 5);  // table + 4 slanted faces
   EXPECT_EQ(r.hoover.correct, 5) << "over " << r.hoover.over << " under " << r.hoover.under << " missed "
                                  << r.hoover.missed << " noise " << r.hoover.noise;
   EXPECT_LT(r.hoover.max_angle_error_deg, 1.0);

@@ -1,6 +1,6 @@
-// libgpiod 2.x check, run inside the VM: GpiodLines built from gpiod_lines_v2.cpp (the v2 API backend) against
-// libgpiod 2.1 from bookworm-backports (fetched by run_vm.sh into the build directory), on the gpio-sim chip.
-// Prints "GPIOD2 PASS" or the first failure; exit status 0 only on success.
+// libgpiod 2.x check, run inside the VM: GpiodLines built from gpiod_lines_v2.cpp (the v2 API backend)
+// against libgpiod 2.1 from bookworm-backports (fetched by run_vm.sh into the build directory), on the
+// gpio-sim chip. Prints "GPIOD2 PASS" or the first failure; exit status 0 only on success.
 #include <time.h>
 
 #include <cstdio>
@@ -19,12 +19,12 @@ std::string slurp(const std::string& p) {
   return s;
 }
 int failures = 0;
-#define CHECK(c)                                             \
-  do {                                                       \
-    if (!(c)) {                                              \
+#define CHECK(c)                                               \
+  do {                                                         \
+    if (!(c)) {                                                \
       std::printf("GPIOD2 FAIL %s (line %d)\n", #c, __LINE__); \
-      ++failures;                                            \
-    }                                                        \
+      ++failures;                                              \
+    }                                                          \
   } while (0)
 
 }  // namespace
@@ -32,9 +32,12 @@ int failures = 0;
 int main() {
   using namespace fs::fw;
   const std::string cfg = "/sys/kernel/config/gpio-sim/facetscan";
-  const std::string sys = "/sys/devices/platform/" + slurp(cfg + "/dev_name") + "/" + slurp(cfg + "/bank0/chip_name");
+  const std::string sys =
+      "/sys/devices/platform/" + slurp(cfg + "/dev_name") + "/" + slurp(cfg + "/bank0/chip_name");
   auto value = [&](int i) { return std::stoi(slurp(sys + "/sim_gpio" + std::to_string(i) + "/value")); };
-  auto pull = [&](int i, const char* v) { std::ofstream(sys + "/sim_gpio" + std::to_string(i) + "/pull") << v; };
+  auto pull = [&](int i, const char* v) {
+    std::ofstream(sys + "/sim_gpio" + std::to_string(i) + "/pull") << v;
+  };
   try {
     CHECK(GpiodLines::api_version() == 2);
     GpioSpec spec;

@@ -1,6 +1,7 @@
-// Runs INSIDE the test VM (tests/vm/run_vm.sh), as root, against real kernel drivers: the CiA 402 master drives
-// the hw-sim twin over vcan0, GpiodLines (+ the stepper galvo) on a gpio-sim chip read back through sysfs,
-// V4l2Camera on v4l2loopback (frames written by this process) and on vivid. Outside the VM every test skips.
+// Runs INSIDE the test VM (tests/vm/run_vm.sh), as root, against real kernel drivers: the CiA 402 master
+// drives the hw-sim twin over vcan0, GpiodLines (+ the stepper galvo) on a gpio-sim chip read back through
+// sysfs, V4l2Camera on v4l2loopback (frames written by this process) and on vivid. Outside the VM every test
+// skips.
 #include <gtest/gtest.h>
 #include <linux/can/error.h>
 #include <linux/videodev2.h>
@@ -16,13 +17,13 @@
 
 #include "common/error.hpp"
 #include "common/messages.hpp"
-#include "firmware/loop/monotonic_clock.hpp"
 #include "firmware/backends/can_galvo.hpp"
 #include "firmware/backends/factory.hpp"
 #include "firmware/backends/gpiod_lines.hpp"
 #include "firmware/backends/v4l2_camera.hpp"
 #include "firmware/extract/stripe_extractor.hpp"
 #include "firmware/galvo_stepper.hpp"
+#include "firmware/loop/monotonic_clock.hpp"
 #include "hw-sim/can/cia402_twin.hpp"
 #include "vm_rig.hpp"
 
@@ -55,7 +56,8 @@ void put(const stdfs::path& p, const std::string& v) {
 // ---------------------------------------------------------------- CAN on vcan0
 struct VcanRig {
   VcanRig(const fw::Cia402Config& cfg)
-      : twin_port(fw::CanPort::open_raw("vcan0", twin_filters())), twin(twin_port.fd(), clock),
+      : twin_port(fw::CanPort::open_raw("vcan0", twin_filters())),
+        twin(twin_port.fd(), clock),
         galvo(fw::CanGalvo::open("vcan0", cfg)) {}
   static std::vector<can_filter> twin_filters() {
     constexpr canid_t m = CAN_SFF_MASK | CAN_EFF_FLAG | CAN_RTR_FLAG;
@@ -91,8 +93,8 @@ TEST(VmCan, MasterDrivesTheTwinOverVcan0) {
   VcanRig rig(cfg);
   const Nanos t0 = rig.clock.now();
   rig.galvo->enable(t0);
-  ASSERT_TRUE(rig.run_until([](const fw::GalvoStatus& s) { return s.enabled || s.fault != fw::GalvoFault::None; },
-                            5000 * kMs));
+  ASSERT_TRUE(rig.run_until(
+      [](const fw::GalvoStatus& s) { return s.enabled || s.fault != fw::GalvoFault::None; }, 5000 * kMs));
   ASSERT_TRUE(rig.status.enabled) << fw::to_string(rig.status.fault);
   std::printf("VMRESULT can_enable_ms %.1f\n", double(rig.clock.now() - t0) / 1e6);
   EXPECT_EQ(rig.twin.state(), fw::cia402::DriveState::OperationEnabled);
@@ -118,15 +120,17 @@ TEST(VmCan, HeartbeatLossOnVcan0IsDetectedWithinThreeProducerPeriods) {
   VcanRig rig(cfg);
   rig.galvo->enable(rig.clock.now());
   ASSERT_TRUE(rig.run_until([](const fw::GalvoStatus& s) { return s.enabled; }, 5000 * kMs));
-  ASSERT_FALSE(rig.run_until([](const fw::GalvoStatus& s) { return s.fault != fw::GalvoFault::None; }, 500 * kMs));
+  ASSERT_FALSE(
+      rig.run_until([](const fw::GalvoStatus& s) { return s.fault != fw::GalvoFault::None; }, 500 * kMs));
   rig.twin.set_heartbeat_loss(true);
   const Nanos last = rig.twin.last_heartbeat_sent();
-  ASSERT_TRUE(rig.run_until([](const fw::GalvoStatus& s) { return s.fault != fw::GalvoFault::None; }, 2000 * kMs));
+  ASSERT_TRUE(
+      rig.run_until([](const fw::GalvoStatus& s) { return s.fault != fw::GalvoFault::None; }, 2000 * kMs));
   EXPECT_EQ(rig.status.fault, fw::GalvoFault::CommLost);
   const double ms = double(rig.clock.now() - last) / 1e6;
   std::printf("VMRESULT can_heartbeat_loss_detect_ms %.1f (producer 100 ms)\n", ms);
-  // Detected after the consumer timeout, not at the next state poll; generous upper bound: the VM runs under TCG
-  // on a shared host, where scheduling spikes of hundreds of ms happen (the value is printed above).
+  // Detected after the consumer timeout, not at the next state poll; generous upper bound: the VM runs under
+  // TCG on a shared host, where scheduling spikes of hundreds of ms happen (the value is printed above).
   EXPECT_LT(ms, 1500.0);
   rig.twin.set_heartbeat_loss(false);
   rig.galvo->reset_fault(rig.clock.now());
@@ -142,7 +146,8 @@ TEST(VmCan, ErrorFramesOnVcan0ReachTheMasterThroughItsErrorFilter) {
   rig.galvo->enable(rig.clock.now());
   ASSERT_TRUE(rig.run_until([](const fw::GalvoStatus& s) { return s.enabled; }, 5000 * kMs));
   rig.twin.inject_bus_off(300 * kMs);  // an error frame written on vcan0, then silence, then "restarted"
-  ASSERT_TRUE(rig.run_until([](const fw::GalvoStatus& s) { return s.fault != fw::GalvoFault::None; }, 1000 * kMs));
+  ASSERT_TRUE(
+      rig.run_until([](const fw::GalvoStatus& s) { return s.fault != fw::GalvoFault::None; }, 1000 * kMs));
   EXPECT_EQ(rig.status.fault, fw::GalvoFault::BusOff);
   rig.galvo->reset_fault(rig.clock.now());
   ASSERT_TRUE(rig.run_until([](const fw::GalvoStatus& s) { return s.enabled; }, 5000 * kMs));
@@ -239,7 +244,7 @@ TEST(VmGpio, StepPulsesAreSeenOnGpioSimAndHomeEdgesAreTimestamped) {
   ASSERT_TRUE(got);
   EXPECT_TRUE(e.rising);
   EXPECT_GE(e.timestamp, before);
-  EXPECT_LE(e.timestamp, after + 1000 * kMs);   // kernel timestamp of the edge; generous for a loaded TCG VM
+  EXPECT_LE(e.timestamp, after + 1000 * kMs);  // kernel timestamp of the edge; generous for a loaded TCG VM
   EXPECT_TRUE(b.lines->read_home(clock.now()));
   put(chip.line(3) / "pull", "pull-down");
   got = false;
@@ -294,9 +299,12 @@ TEST(VmGpio, LinesByNameAndChipByPath) {
 // ---------------------------------------------------------------- V4L2
 constexpr std::uint32_t kW = 640, kH = 480;
 
-double truth_col(std::uint32_t k, std::uint32_t y) { return 40.0 + 13.37 * k + 0.25 * y + 0.1 * std::sin(0.05 * y); }
+double truth_col(std::uint32_t k, std::uint32_t y) {
+  return 40.0 + 13.37 * k + 0.25 * y + 0.1 * std::sin(0.05 * y);
+}
 
-// Gaussian stripe (sigma 1.6 px, amplitude 170 over 12) whose centre follows truth_col; frame number in row 0.
+// Gaussian stripe (sigma 1.6 px, amplitude 170 over 12) whose centre follows truth_col; frame number in row
+// 0.
 void render(std::vector<std::uint8_t>& img, std::uint32_t k, bool yuyv) {
   const std::uint32_t bpp = yuyv ? 2 : 1;
   img.assign(std::size_t(kW) * kH * bpp, 0);
@@ -327,7 +335,8 @@ void loopback_capture(std::uint32_t fourcc, const char* fmt_name) {
   const LoopbackOutput out(kW, kH, fourcc, img);
   ASSERT_GE(out.fd(), 0) << fmt_name << ": " << out.error();
 
-  fw::V4l2Camera cam(fw::parse_v4l2_spec(std::string("v4l2:/dev/video10:fmt=") + fmt_name + ",width=640,height=480"));
+  fw::V4l2Camera cam(
+      fw::parse_v4l2_spec(std::string("v4l2:/dev/video10:fmt=") + fmt_name + ",width=640,height=480"));
   EXPECT_EQ(cam.width(), kW);
   EXPECT_GE(cam.buffer_count(), 4u);
   std::printf("VMRESULT v4l2loopback %s driver=%s buffers=%u notes='%s'\n", fmt_name, cam.driver().c_str(),
@@ -376,9 +385,10 @@ void loopback_capture(std::uint32_t fourcc, const char* fmt_name) {
   stop = true;
   writer.join();
   cam.stop();
-  std::printf("VMRESULT v4l2loopback %s frames=%u rows=%u max_centre_error_px=%.4f dropped=%u non_monotonic=%llu\n",
-              fmt_name, got, checked_rows, max_err, cam.frames_dropped(),
-              static_cast<unsigned long long>(cam.stats().non_monotonic));
+  std::printf(
+      "VMRESULT v4l2loopback %s frames=%u rows=%u max_centre_error_px=%.4f dropped=%u non_monotonic=%llu\n",
+      fmt_name, got, checked_rows, max_err, cam.frames_dropped(),
+      static_cast<unsigned long long>(cam.stats().non_monotonic));
   EXPECT_GE(got, kFrames / 2);
   EXPECT_EQ(last_k, kFrames);
   EXPECT_GT(checked_rows, 0u);
@@ -398,9 +408,11 @@ TEST(VmV4l2, LoopbackYuyvLumaStripesGiveTheGroundTruthCentres) {
 TEST(VmV4l2, VividCaptureStreamsWithMonotonicTimestamps) {
   REQUIRE_VM();
   for (const char* fmt : {"GREY", "Y16"}) {
-    fw::V4l2Camera cam(fw::parse_v4l2_spec(std::string("v4l2:/dev/video0:fmt=") + fmt + ",width=320,height=240,fps=25"));
-    std::printf("VMRESULT vivid %s driver=%s %ux%u stride=%u buffers=%u notes='%s'\n", fmt, cam.driver().c_str(),
-                cam.width(), cam.height(), cam.stride(), cam.buffer_count(), cam.notes().c_str());
+    fw::V4l2Camera cam(
+        fw::parse_v4l2_spec(std::string("v4l2:/dev/video0:fmt=") + fmt + ",width=320,height=240,fps=25"));
+    std::printf("VMRESULT vivid %s driver=%s %ux%u stride=%u buffers=%u notes='%s'\n", fmt,
+                cam.driver().c_str(), cam.width(), cam.height(), cam.stride(), cam.buffer_count(),
+                cam.notes().c_str());
     cam.start(fw::monotonic_now());
     std::uint32_t last_seq = 0;
     Nanos last_ts = 0;
@@ -419,8 +431,8 @@ TEST(VmV4l2, VividCaptureStreamsWithMonotonicTimestamps) {
       cam.release(fv);
     }
     EXPECT_EQ(cam.stats().non_monotonic, 0u);
-    std::printf("VMRESULT vivid %s frames=%d dropped=%u sequence_restarts=%llu\n", fmt, frames, cam.frames_dropped(),
-                static_cast<unsigned long long>(cam.stats().sequence_restarts));
+    std::printf("VMRESULT vivid %s frames=%d dropped=%u sequence_restarts=%llu\n", fmt, frames,
+                cam.frames_dropped(), static_cast<unsigned long long>(cam.stats().sequence_restarts));
     cam.stop();
   }
 }

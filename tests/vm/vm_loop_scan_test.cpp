@@ -1,13 +1,15 @@
-// Runs INSIDE the test VM: the whole firmware (the facetscan-fw binary, its controller loop) scans a scene with
+// Runs INSIDE the test VM: the whole firmware (the facetscan-fw binary, its controller loop) scans a scene
+// with
 // --galvo can:vcan0 --camera v4l2:/dev/video10 --laser gpio:facetscan-sim:line=5, i.e. through the real
 // SocketCAN, V4L2 (v4l2loopback) and GPIO (gpio-sim) drivers.
-// "Hardware" (threads of this test): the CiA 402 drive twin on vcan0, and a camera that renders the demo scene
-// (hw-sim StripeRenderer, noise-free, 640x512) for the twin's position — with the stripe only while the laser
-// line on gpio-sim reads 1 (sysfs), and only frames whose laser state and position did not change during the
-// render are written — into v4l2loopback. Before the scan, `facetscan-fw --check` must find every device.
-// The recorded .fscan must hold one stripe per step whose centres match the renderer's ground truth there.
-#include <gtest/gtest.h>
+// "Hardware" (threads of this test): the CiA 402 drive twin on vcan0, and a camera that renders the demo
+// scene (hw-sim StripeRenderer, noise-free, 640x512) for the twin's position — with the stripe only while the
+// laser line on gpio-sim reads 1 (sysfs), and only frames whose laser state and position did not change
+// during the render are written — into v4l2loopback. Before the scan, `facetscan-fw --check` must find every
+// device. The recorded .fscan must hold one stripe per step whose centres match the renderer's ground truth
+// there.
 #include <fcntl.h>
+#include <gtest/gtest.h>
 #include <signal.h>
 #include <spawn.h>
 #include <sys/wait.h>
@@ -46,7 +48,8 @@ std::string slurp_trim(const stdfs::path& p) {
   return s;
 }
 
-// Runs argv, stdout+stderr to `log`; kills it after `timeout_s`. Returns the exit status (-1 killed / failed).
+// Runs argv, stdout+stderr to `log`; kills it after `timeout_s`. Returns the exit status (-1 killed /
+// failed).
 int run(const std::vector<std::string>& args, const std::string& log, int timeout_s) {
   std::vector<char*> argv;
   for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
@@ -86,7 +89,8 @@ TEST(VmLoopScan, FirmwareBinaryScansThroughCanV4l2AndGpioSim) {
   ro.noise_scale = 0.0;
   constexpr int kLaserLine = 5;
   constexpr std::uint32_t kSteps = 5;
-  const std::int32_t first = scene.calibration.first_step + static_cast<std::int32_t>(scene.calibration.step_count) / 2 - 2;
+  const std::int32_t first =
+      scene.calibration.first_step + static_cast<std::int32_t>(scene.calibration.step_count) / 2 - 2;
 
   const stdfs::path gcfg = "/sys/kernel/config/gpio-sim/facetscan";
   const stdfs::path laser_value = stdfs::path("/sys/devices/platform") / slurp_trim(gcfg / "dev_name") /
@@ -123,19 +127,21 @@ TEST(VmLoopScan, FirmwareBinaryScansThroughCanV4l2AndGpioSim) {
 
   // --- the firmware: the facetscan-fw binary ---
   const std::string fw_bin = FACETSCAN_FW_BIN;
-  // Heartbeat 1 s (tolerance 2 s): on one emulated vCPU the frame extraction takes ~100 ms of CPU per frame and
-  // the drive twin's thread can be starved for 250 ms, past the default 100 ms producer time's 200 ms limit.
+  // Heartbeat 1 s (tolerance 2 s): on one emulated vCPU the frame extraction takes ~100 ms of CPU per frame
+  // and the drive twin's thread can be starved for 250 ms, past the default 100 ms producer time's 200 ms
+  // limit.
   const std::string galvo = "can:vcan0:node=1,hb=1000,sdo_ms=200,state_ms=5000";
-  const std::string cam = "v4l2:/dev/video10:fmt=GREY,width=" + std::to_string(W) + ",height=" + std::to_string(H);
+  const std::string cam =
+      "v4l2:/dev/video10:fmt=GREY,width=" + std::to_string(W) + ",height=" + std::to_string(H);
   const std::string laser = "gpio:facetscan-sim:line=" + std::to_string(kLaserLine);
-  const int check_rc = run({fw_bin, "--check", "--galvo", galvo, "--camera", cam, "--laser", laser},
-                           "/tmp/fw_check.log", 60);
+  const int check_rc =
+      run({fw_bin, "--check", "--galvo", galvo, "--camera", cam, "--laser", laser}, "/tmp/fw_check.log", 60);
   std::printf("VMRESULT fw --check rc=%d\n%s", check_rc, slurp_trim("/tmp/fw_check.log").c_str());
   std::printf("\n");
   EXPECT_EQ(check_rc, 0);
   // and a missing device is reported
-  const int miss_rc = run({fw_bin, "--check", "--galvo", "can:vcan9", "--camera", "v4l2:/dev/video99", "--laser",
-                           "gpio:facetscan-sim:line=99"},
+  const int miss_rc = run({fw_bin, "--check", "--galvo", "can:vcan9", "--camera", "v4l2:/dev/video99",
+                           "--laser", "gpio:facetscan-sim:line=99"},
                           "/tmp/fw_check_miss.log", 60);
   const std::string miss = slurp_trim("/tmp/fw_check_miss.log");
   std::printf("VMRESULT fw --check (missing devices) rc=%d\n%s\n", miss_rc, miss.c_str());
@@ -152,12 +158,12 @@ TEST(VmLoopScan, FirmwareBinaryScansThroughCanV4l2AndGpioSim) {
               "move_timeout_ms": 30000, "heartbeat_ms": 500}})";
   }
   const Nanos t0 = clock.now();
-  const int rc = run({fw_bin, "--config", "/tmp/fw_vm.json", "--galvo", galvo, "--camera", cam, "--laser", laser,
-                      "--record", "/tmp/vm_loop.fscan"},
+  const int rc = run({fw_bin, "--config", "/tmp/fw_vm.json", "--galvo", galvo, "--camera", cam, "--laser",
+                      laser, "--record", "/tmp/vm_loop.fscan"},
                      "/tmp/fw_scan.log", 240);
   const double scan_s = double(clock.now() - t0) / 1e9;
-  std::printf("VMRESULT fw scan rc=%d time_s=%.1f frames_written=%d discarded=%d\n%s\n", rc, scan_s, written.load(),
-              discarded.load(), slurp_trim("/tmp/fw_scan.log").c_str());
+  std::printf("VMRESULT fw scan rc=%d time_s=%.1f frames_written=%d discarded=%d\n%s\n", rc, scan_s,
+              written.load(), discarded.load(), slurp_trim("/tmp/fw_scan.log").c_str());
   ASSERT_EQ(rc, 0);
   EXPECT_FALSE(laser_on()) << "the laser line must be off after the scan";
 
@@ -183,7 +189,8 @@ TEST(VmLoopScan, FirmwareBinaryScansThroughCanV4l2AndGpioSim) {
     truth_r.render_step(first + static_cast<double>(h.step_index), 1, fb);
     const auto truth = truth_r.truth();
     std::vector<int> got(H, -1);
-    for (std::size_t i = 0; i < msg.stripe.points.size(); ++i) got[msg.stripe.points[i].row] = static_cast<int>(i);
+    for (std::size_t i = 0; i < msg.stripe.points.size(); ++i)
+      got[msg.stripe.points[i].row] = static_cast<int>(i);
     std::size_t rows = 0;
     for (std::uint32_t y = 0; y < H; ++y) {
       const auto& t = truth[y];
@@ -196,8 +203,8 @@ TEST(VmLoopScan, FirmwareBinaryScansThroughCanV4l2AndGpioSim) {
       errors.push_back(std::abs(double(msg.stripe.points[got[y]].col) - t.column));
     }
     object_rows += rows;
-    std::printf("VMRESULT loop stripe step %u: points=%zu object_rows=%zu measured_position=%.2f\n", h.step_index,
-                msg.stripe.points.size(), rows, h.measured_position);
+    std::printf("VMRESULT loop stripe step %u: points=%zu object_rows=%zu measured_position=%.2f\n",
+                h.step_index, msg.stripe.points.size(), rows, h.measured_position);
     EXPECT_GT(rows, H / 8) << "step " << h.step_index;
   }
   EXPECT_TRUE(ended);
@@ -206,8 +213,10 @@ TEST(VmLoopScan, FirmwareBinaryScansThroughCanV4l2AndGpioSim) {
   std::sort(errors.begin(), errors.end());
   const double median = errors.empty() ? 1e9 : errors[errors.size() / 2];
   const double p95 = errors.empty() ? 1e9 : errors[errors.size() * 95 / 100];
-  std::printf("VMRESULT loop scan steps=%zu object_rows=%zu missed=%zu centre_error_px median=%.4f p95=%.4f "
-              "time_s=%.1f\n", steps.size(), object_rows, missed, median, p95, scan_s);
+  std::printf(
+      "VMRESULT loop scan steps=%zu object_rows=%zu missed=%zu centre_error_px median=%.4f p95=%.4f "
+      "time_s=%.1f\n",
+      steps.size(), object_rows, missed, median, p95, scan_s);
   EXPECT_LE(missed, object_rows / 50);
   EXPECT_LT(median, 0.1);
   EXPECT_LT(p95, 0.5);

@@ -1,7 +1,8 @@
 #pragma once
-// The simulated scanner hardware of the two VM scans (vm_scene_scan_test.cpp, vm_loop_scan_test.cpp) behind the
-// real kernel drivers: the CiA 402 drive twin answering on vcan0, polled every 1 ms on a thread of its own, and
-// the output side of v4l2loopback's /dev/video10, into which each test's camera thread writes rendered frames.
+// The simulated scanner hardware of the two VM scans (vm_scene_scan_test.cpp, vm_loop_scan_test.cpp) behind
+// the real kernel drivers: the CiA 402 drive twin answering on vcan0, polled every 1 ms on a thread of its
+// own, and the output side of v4l2loopback's /dev/video10, into which each test's camera thread writes
+// rendered frames.
 #include <fcntl.h>
 #include <linux/can.h>
 #include <linux/videodev2.h>
@@ -24,8 +25,8 @@
 namespace fs::vmtest {
 
 // The drive twin (node 1) on vcan0 from start_position, polled at 1 kHz until it is destroyed (a late wake-up
-// longer than 100 ms restarts the schedule instead of polling in a burst). position(): where the twin's mirror
-// is now. Destroy it after every thread that reads position().
+// longer than 100 ms restarts the schedule instead of polling in a burst). position(): where the twin's
+// mirror is now. Destroy it after every thread that reads position().
 class VcanDriveTwin {
  public:
   VcanDriveTwin(fw::MonotonicClock& clock, double start_position)
@@ -68,7 +69,8 @@ class VcanDriveTwin {
 class LoopbackOutput {
  public:
   LoopbackOutput(std::uint32_t width, std::uint32_t height)
-      : LoopbackOutput(width, height, V4L2_PIX_FMT_GREY, std::vector<std::uint8_t>(std::size_t(width) * height, 0)) {}
+      : LoopbackOutput(width, height, V4L2_PIX_FMT_GREY,
+                       std::vector<std::uint8_t>(std::size_t(width) * height, 0)) {}
   LoopbackOutput(std::uint32_t width, std::uint32_t height, std::uint32_t fourcc,
                  std::span<const std::uint8_t> first_frame)
       : fd_(::open("/dev/video10", O_RDWR)) {

@@ -1,9 +1,9 @@
 // Runs INSIDE the test VM: a small scan of the hw-sim demo scene through the real backends and real drivers.
 // "Hardware" threads: the CiA 402 drive twin on vcan0 (1 kHz) and a camera thread that renders the scene
-// (hw-sim StripeRenderer, noise-free) for the twin's current position and writes the frames into v4l2loopback.
-// "Firmware" (this thread): CanGalvo on vcan0 moves to each step, V4l2Camera captures from the loopback, the
-// firmware's stripe extractor finds the centres; the captured frame must equal the render of that step byte for
-// byte and the extracted centres must match the renderer's ground truth.
+// (hw-sim StripeRenderer, noise-free) for the twin's current position and writes the frames into
+// v4l2loopback. "Firmware" (this thread): CanGalvo on vcan0 moves to each step, V4l2Camera captures from the
+// loopback, the firmware's stripe extractor finds the centres; the captured frame must equal the render of
+// that step byte for byte and the extracted centres must match the renderer's ground truth.
 #include <gtest/gtest.h>
 #include <time.h>
 #include <unistd.h>
@@ -16,11 +16,11 @@
 #include <vector>
 
 #include "common/messages.hpp"
-#include "firmware/loop/monotonic_clock.hpp"
 #include "firmware/backends/can_galvo.hpp"
 #include "firmware/backends/gpiod_lines.hpp"
 #include "firmware/backends/v4l2_camera.hpp"
 #include "firmware/extract/stripe_extractor.hpp"
+#include "firmware/loop/monotonic_clock.hpp"
 #include "hw-sim/scene/scene.hpp"
 #include "hw-sim/scene/stripe_renderer.hpp"
 #include "support/test_paths.hpp"
@@ -64,7 +64,8 @@ TEST(VmScan, DemoSceneThroughCanGalvoAndV4l2Loopback) {
 
   // --- the firmware side ---
   fw::Cia402Config cfg;
-  cfg.heartbeat_ms = 1000;  // rendering + extraction on TCG's one vCPU can starve the twin's thread for >200 ms
+  cfg.heartbeat_ms =
+      1000;  // rendering + extraction on TCG's one vCPU can starve the twin's thread for >200 ms
   cfg.sdo_timeout = 100 * kMs;
   cfg.state_timeout = 2000 * kMs;
   auto galvo = fw::CanGalvo::open("vcan0", cfg);
@@ -99,11 +100,12 @@ TEST(VmScan, DemoSceneThroughCanGalvoAndV4l2Loopback) {
   const Nanos t_scan = clock.now();
   for (std::int32_t k : {s0 + n / 4, s0 + n / 2 - 7, s0 + n / 2 + 20, s0 + 3 * n / 4}) {
     galvo->move_to(k, clock.now());
-    ASSERT_TRUE(poll_until([](const fw::GalvoStatus& s) { return s.in_position; }, 5000 * kMs)) << "step " << k;
+    ASSERT_TRUE(poll_until([](const fw::GalvoStatus& s) { return s.in_position; }, 5000 * kMs))
+        << "step " << k;
     // wait for two frames rendered at k, then take the newest frame the driver has
     const int c0 = written_count;
-    ASSERT_TRUE(poll_until([&](const fw::GalvoStatus&) { return written_pos == k && written_count >= c0 + 2; },
-                           20000 * kMs));
+    ASSERT_TRUE(poll_until(
+        [&](const fw::GalvoStatus&) { return written_pos == k && written_count >= c0 + 2; }, 20000 * kMs));
     fw::FrameView fv{}, last{};
     bool have = false;
     while (cam.grab(clock.now() + (have ? 50 : 3000) * kMs, fv) == fw::GrabResult::Ok) {
@@ -134,8 +136,10 @@ TEST(VmScan, DemoSceneThroughCanGalvoAndV4l2Loopback) {
   std::sort(errors.begin(), errors.end());
   const double median = errors.empty() ? 1e9 : errors[errors.size() / 2];
   const double p95 = errors.empty() ? 1e9 : errors[errors.size() * 95 / 100];
-  std::printf("VMRESULT scan steps=%d exact_frames=%d object_rows=%zu centre_error_px median=%.4f p95=%.4f time_s=%.1f\n",
-              steps_done, exact, errors.size(), median, p95, scan_s);
+  std::printf(
+      "VMRESULT scan steps=%d exact_frames=%d object_rows=%zu centre_error_px median=%.4f p95=%.4f "
+      "time_s=%.1f\n",
+      steps_done, exact, errors.size(), median, p95, scan_s);
   EXPECT_EQ(steps_done, 4);
   EXPECT_EQ(exact, 4);
   EXPECT_FALSE(errors.empty());
