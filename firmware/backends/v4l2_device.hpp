@@ -1,6 +1,6 @@
 #pragma once
 // The system calls the V4L2 camera makes, behind a small interface so that tests can put an fd-level fake
-// driver underneath (tests/backends/fake_v4l2.hpp). system_v4l2_io() is the real kernel.
+// driver underneath (tests/firmware/backends/fake_v4l2.hpp). system_v4l2_io() is the real kernel.
 #include <sys/types.h>
 
 #include <cstddef>

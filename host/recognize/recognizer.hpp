@@ -5,7 +5,7 @@
 // best compatible set (ch. 9.4) -> objects.
 //
 // Memory: a Recognizer sizes its buffers at construction (largest grid, region budget, state budget) and
-// reuses them; a warm recognize() performs no heap allocation (see tests/recognize).
+// reuses them; a warm recognize() performs no heap allocation (see tests/host/recognize).
 #include <array>
 #include <cstdint>
 #include <memory>

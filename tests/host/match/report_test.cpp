@@ -1,4 +1,4 @@
-// Text (fig. 7.21 style) and JSON reports of a match, on the example files of tests/match/data.
+// Text (fig. 7.21 style) and JSON reports of a match, on the example files of tests/host/match/data.
 #include <gtest/gtest.h>
 
 #include <nlohmann/json.hpp>
@@ -14,7 +14,7 @@ namespace {
 using namespace fs::host::match;
 
 TEST(Report, CornerExampleTextAndJson) {
-  const auto dir = fs::test::source_dir() / "tests/match/data";
+  const auto dir = fs::test::source_dir() / "tests/host/match/data";
   const fs::host::Pfrg scene = fs::host::read_pfrg_json(dir / "corner_scene.json");
   const fs::host::Pfrg ref = fs::host::read_pfrg_json(dir / "cube_ref.json");
   EXPECT_EQ(scene.name, "corner");
@@ -50,7 +50,7 @@ TEST(Report, CornerExampleTextAndJson) {
 }
 
 TEST(Report, NewMatchConditionPreventsDuplicateStates) {
-  const auto dir = fs::test::source_dir() / "tests/match/data";
+  const auto dir = fs::test::source_dir() / "tests/host/match/data";
   const fs::host::Pfrg scene = fs::host::read_pfrg_json(dir / "corner_scene.json");
   const fs::host::Pfrg ref = fs::host::read_pfrg_json(dir / "cube_ref.json");
   InexactMatcher m;

@@ -2,7 +2,7 @@
 // top-k selection of the reported solutions) must not change any result. For a set of scene / reference pairs
 // and presets the full solution lists (rank, state number, path, matches, arc counts, dissimilarities,
 // rotation, cost, flags) and the search statistics (states, expansions, candidates, removals per condition,
-// stop) are printed with round-trip precision and compared with tests/match/data/solutions_golden.txt, which
+// stop) are printed with round-trip precision and compared with tests/host/match/data/solutions_golden.txt, which
 // was written by the matcher before those changes.
 //
 // Regenerate (only when a result change is intended): FS_MATCH_WRITE_GOLDEN=1 test_match
@@ -98,7 +98,7 @@ const std::vector<Pfrg>& polyhedra_models() {
 }
 
 Pfrg data_graph(const char* name) {
-  return fs::host::read_pfrg_json(fs::test::source_dir() / "tests/match/data" / name);
+  return fs::host::read_pfrg_json(fs::test::source_dir() / "tests/host/match/data" / name);
 }
 
 std::string run_all() {
@@ -141,7 +141,7 @@ std::string run_all() {
   // Scene graphs of hw-sim scans (facetscan demo -> facetscan graph) against a few references, preset t9.3
   // (the recognizer's), through the parallel matcher.
   for (const char* name : {"hwsim_default_scene.json", "hwsim_occlusion_scene.json"}) {
-    if (!std::filesystem::exists(fs::test::source_dir() / "tests/match/data" / name)) continue;
+    if (!std::filesystem::exists(fs::test::source_dir() / "tests/host/match/data" / name)) continue;
     const Pfrg scene = data_graph(name);
     std::vector<Pfrg> refs;
     for (std::size_t j = 0; j < models.size(); j += 10) refs.push_back(models[j]);
@@ -159,7 +159,7 @@ std::string run_all() {
 }
 
 TEST(SolutionsRegression, IdenticalToGolden) {
-  const auto golden = fs::test::source_dir() / "tests/match/data/solutions_golden.txt";
+  const auto golden = fs::test::source_dir() / "tests/host/match/data/solutions_golden.txt";
   const std::string now = run_all();
   if (std::getenv("FS_MATCH_WRITE_GOLDEN")) {
     std::ofstream(golden, std::ios::binary) << now;

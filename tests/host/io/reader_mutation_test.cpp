@@ -63,7 +63,7 @@ void mutate_and_read(const std::filesystem::path& dir, Reader read, std::size_t&
 TEST(ReaderMutation, PcdSeedsParseAndMutationsFailCleanly) {
   std::size_t parsed = 0;
   mutate_and_read(
-      fs::test::source_dir() / "tests/io/corpus/pcd_reader",
+      fs::test::source_dir() / "tests/host/io/corpus/pcd_reader",
       [](std::span<const std::byte> b, OrganizedCloud& c, const CloudReadOptions& o) {
         read_pcd(b, "m.pcd", c, o);
       },
@@ -74,7 +74,7 @@ TEST(ReaderMutation, PcdSeedsParseAndMutationsFailCleanly) {
 TEST(ReaderMutation, PlySeedsParseAndMutationsFailCleanly) {
   std::size_t parsed = 0;
   mutate_and_read(
-      fs::test::source_dir() / "tests/io/corpus/ply_reader",
+      fs::test::source_dir() / "tests/host/io/corpus/ply_reader",
       [](std::span<const std::byte> b, OrganizedCloud& c, const CloudReadOptions& o) {
         read_ply(b, "m.ply", c, o);
       },
