@@ -10,7 +10,7 @@
 //     7     1  reserved        0
 //     8     4  payload length  <= FrameDecoder::Limits::max_payload (checked before the payload is read)
 //    12     4  sequence        per-stream counter, +1 per frame (wraps)
-//    16     N  payload         the message, field by field (see encode_payload / docs/readme/common.md)
+//    16     N  payload         the message, field by field (see encode_payload / docs/formats.md)
 //  16+N     4  CRC-32C         over header and payload (bytes 0 .. 16+N-1)
 //
 // Encoding writes into caller buffers; decoding is incremental (feed bytes in any chunking, pop whole

@@ -17,7 +17,8 @@
 //     corner, or an outlier row is never moved by rows of another face.
 // With hw-sim's default speckle, independent per pixel, the rows' errors are independent and the gain is the
 // full ~sqrt(2h + 1) at most; a real laser's speckle is correlated over neighbouring pixels and rows, so the
-// gain on hardware is smaller (hw-sim's RenderOptions::speckle_grain_px: 2.3x at grain 0, 1.5x at 1 px). No
+// gain on hardware is smaller (hw-sim's RenderOptions::speckle_grain_px; tests/firmware/
+// extract_along_stripe_test.cpp measures the gain at several grains). No
 // allocation (fixed-size state on the stack); in place.
 #include <cstdint>
 #include <span>

@@ -429,7 +429,7 @@ __attribute__((target("avx2"))) void batch_fit_avx2(GaussMlBatch& b, const Senso
   batch_fit_lanes<8, 1>(b, noise);
 }
 // The same 8 lanes (256-bit vectors) with AVX-512VL's 32 vector registers: the AVX2 build spills its
-// accumulators and constants to the stack; this one does not (measured 1.6x faster, BM_GaussMlBatch).
+// accumulators and constants to the stack; this one does not (bench_extract --benchmark_filter=GaussMlBatch).
 __attribute__((target("avx512f,avx512vl,avx512dq,avx512bw"))) void batch_fit_avx512(
     GaussMlBatch& b, const SensorNoise& noise) {
   batch_fit_lanes<8, 1>(b, noise);

@@ -5,8 +5,8 @@
 // The profile y(x) = A exp(-(x - u)^2 / (2 s^2)) is observed with independent per-pixel noise of variance
 //   var(S) = read^2 + 1/12 + shot^2 S + speckle^2 S^2        (S = signal above background, 8-bit DN)
 // (read noise, quantization, shot noise, multiplicative laser speckle). Speckle dominates on the stripe, so
-// the information about u sits in the flanks as much as at the top; weighting by intensity (the earlier
-// GaussFit) throws most of it away. Two steps, both closed form:
+// the information about u sits in the flanks as much as at the top; weighting by intensity (GaussFit)
+// throws most of it away. Two steps, both closed form:
 //   1. unweighted least squares of ln y = a + b x + c x^2 over the contiguous samples above 10 % of the
 //      contrast (this is already the ML fit when speckle alone is present);
 //   2. one Gauss-Newton step of the weighted least squares in the intensity domain, weights 1 / var(S(x))
@@ -15,10 +15,11 @@
 // Speed: gauss_ml_centre (one row): the per-sample work (log, exp, weights, the moment sums) is branch-free
 // float arithmetic over chunks of kChunk samples with one accumulator per lane, which the compiler vectorizes
 // (SSE2/AVX2/NEON); the 3x3 solves are in double. gauss_ml_centre_batch (below, what extraction uses) fits 8
-// rows at once with the rows in the SIMD lanes: 65 ns per row portable (SSE2), 38 AVX2, 26 AVX-512VL, against
-// ~200 ns for the one-row fit (bench_extract BM_GaussMlBatch).
-// On the scene renderer's stripes this reaches the Cramer-Rao bound within 3 % (tests/firmware/
-// extract_scene_test.cpp prints both). Samples at full scale are censored (left out of both steps).
+// rows at once with the rows in the SIMD lanes, in a portable (SSE2), an AVX2 and an AVX-512VL build, each
+// cheaper per row than the one-row fit (bench_extract --benchmark_filter=GaussMlBatch).
+// On the scene renderer's stripes this comes close to the Cramer-Rao bound (tests/firmware/
+// extract_scene_test.cpp prints both and checks the efficiency). Samples at full scale are censored (left out
+// of both steps).
 #include <cstdint>
 
 namespace fs::fw::detail {

@@ -5,10 +5,10 @@
 // both min_contrast and nothing else in the row comes close (a second local maximum outside the peak's
 // support above background + ambiguous_ratio * (peak - background) makes the row Ambiguous). A run of
 // saturated pixels at the peak (>= saturation_run) makes the row Saturated. Rejected rows are flagged and
-// produce no point. The sub-pixel centre is computed by the selected SubpixelMethod (measured in
-// tests/firmware/extract_test.cpp and extract_scene_test.cpp: the maximum-likelihood Gaussian fit (GaussMl,
-// gauss_ml.hpp) is the most accurate on the scene renderer's speckled stripes, within a few % of the
-// Cramer-Rao bound, with no outliers, so it is the default).
+// produce no point. The sub-pixel centre is computed by the selected SubpixelMethod. The default is the
+// maximum-likelihood Gaussian fit (GaussMl, gauss_ml.hpp), the most accurate on the scene renderer's speckled
+// stripes (tests/firmware/extract_test.cpp and extract_scene_test.cpp compare the methods with each other and
+// with the Cramer-Rao bound).
 //
 // Speed: one vectorized pass per row (row_scan.hpp: lane maxima per 64-sample block + the row sum), then
 // scalar work only around the peak. extract_frame takes the rows in blocks of 8: each stage of the per-row
@@ -55,8 +55,9 @@ struct ExtractParams {
   std::uint32_t cog_half_window = 5;  // centre-of-gravity window: peak +- this many pixels
   std::uint32_t max_half_width = 24;  // support of the peak searched at most this far each side
   // Sensor noise model for GaussMl's weights, in 8-bit DN (the bench camera's, = the hw-sim camera twin's):
-  // per-pixel variance = read_noise^2 + 1/12 + shot_noise^2 * S + (speckle * S)^2 for a signal S. A model off
-  // by 2x costs ~8 % accuracy (measured), so a rough characterization of the sensor is enough.
+  // per-pixel variance = read_noise^2 + 1/12 + shot_noise^2 * S + (speckle * S)^2 for a signal S. The weights
+  // depend on the model only mildly, so a rough characterization of the sensor is enough
+  // (tests/firmware/extract_test.cpp compares the default model with one matched to the rows' noise).
   double read_noise = 1.5;
   double shot_noise = 0.35;
   double speckle = 0.12;
@@ -67,9 +68,8 @@ struct ExtractParams {
   // Software prefetch: while a row is passed, the row this many rows below it is requested from memory (every
   // cache line of it), so that a frame a camera wrote to memory arrives in the cache before the pass reaches
   // it (the hardware prefetchers follow only the pass itself, which is idle while the rows' centres are
-  // fitted). 0 = off. bench_extract BM_StreamVsMemcpy: a frame from memory 8-16 % faster at 16 rows (two
-  // blocks of rows ahead; 8 hid too little of the latency), BM_ExtractVsMemcpy: a frame already in the caches
-  // ~4-5 % slower.
+  // fitted). 0 = off. 16 rows = two blocks of rows ahead. bench_extract --benchmark_filter=StreamVsMemcpy
+  // measures a frame from memory, --benchmark_filter=ExtractVsMemcpy a frame already in the caches.
   std::uint32_t prefetch_rows = 16;
 };
 

@@ -5,8 +5,8 @@
 #include <fmt/format.h>
 
 #include "common/error.hpp"
+#include "common/formats/tokenizer.hpp"
 #include "host/io/calibration_json.hpp"
-#include "host/io/header_lines.hpp"
 #include "host/io/scan_assembler.hpp"
 
 namespace fs::host {
@@ -44,7 +44,7 @@ CalibrationResult run_calibrate(const CalibrateArgs& args, std::ostream& log) {
     const std::string& t = args.targets[i];
     const auto at = t.rfind('@');
     double h = 0;
-    if (at == std::string::npos || !io_detail::parse_double(std::string_view(t).substr(at + 1), h) ||
+    if (at == std::string::npos || !formats::parse_double(std::string_view(t).substr(at + 1), h) ||
         !std::isfinite(h))
       throw Error("calibrate: target '" + t + "' must be SCAN.fscan@HEIGHT_MM");
     const std::string path = t.substr(0, at);

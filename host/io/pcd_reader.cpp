@@ -8,14 +8,14 @@
 #include <string_view>
 
 #include "common/error.hpp"
+#include "common/formats/tokenizer.hpp"
 #include "host/io/cloud_readers.hpp"
-#include "host/io/header_lines.hpp"
 #include "host/io/scalar_field.hpp"
 
 namespace fs::host {
 namespace {
 
-using io_detail::HeaderLines;
+using HeaderLines = formats::TextLines;
 using io_detail::ScalarKind;
 using io_detail::ScalarType;
 
@@ -190,7 +190,7 @@ void read_ascii(std::span<const std::byte> data, const std::string& name, const 
                             "point " + std::to_string(n) + ": " + std::to_string(t.size()) +
                                 " values, expected " + std::to_string(values_per_point));
     for (std::size_t k = 0; k < t.size(); ++k) {
-      if (!io_detail::parse_double(t[k], vals[k]))
+      if (!formats::parse_double(t[k], vals[k]))
         throw error_at_offset(
             name, at,
             "point " + std::to_string(n) + ": '" + std::string(t[k].substr(0, 32)) + "' is not a number");

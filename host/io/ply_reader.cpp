@@ -1,129 +1,114 @@
 // PLY reader for point clouds: ascii and binary (little/big endian), vertex x y z (+ label), the grid from
 // "obj_info num_cols/num_rows" (PCL), "obj_info width/height" or a PCL-style range_grid element; the sensor
 // position from "comment facetscan_viewpoint tx ty tz qw qx qy qz" (our writer) or a PCL "camera" element
-// (view_px view_py view_pz).
+// (view_px view_py view_pz). The PLY grammar and the body decoding are common/formats/ply.hpp's.
 #include <algorithm>
-#include <bit>
 #include <cmath>
 #include <limits>
 #include <string_view>
 
 #include "common/error.hpp"
+#include "common/formats/ply.hpp"
 #include "host/io/cloud_readers.hpp"
-#include "host/io/header_lines.hpp"
-#include "host/io/scalar_field.hpp"
 
 namespace fs::host {
 namespace {
 
-using io_detail::HeaderLines;
-using io_detail::ScalarKind;
-using io_detail::ScalarType;
+using formats::PlyBody;
+using formats::PlyElement;
+using formats::PlyIssue;
+using formats::PlyType;
+using formats::TextLines;
 
 constexpr std::size_t kMaxElements = 64;
 constexpr std::size_t kMaxProperties = 256;
 
-struct PlyProperty {
-  std::string name;
-  ScalarType type;
-  bool is_list = false;
-  ScalarType count_type;
-};
-
-struct PlyElement {
-  std::string name;
-  std::uint64_t count = 0;
-  std::vector<PlyProperty> props;
-};
-
-enum class PlyFormat { Ascii, BinaryLE, BinaryBE };
-
-bool parse_type(std::string_view s, ScalarType& t) {
-  struct Entry {
-    std::string_view a, b;
-    ScalarKind k;
-    std::uint8_t size;
-  };
-  static constexpr Entry table[] = {
-      {"char", "int8", ScalarKind::Int, 1},       {"uchar", "uint8", ScalarKind::UInt, 1},
-      {"short", "int16", ScalarKind::Int, 2},     {"ushort", "uint16", ScalarKind::UInt, 2},
-      {"int", "int32", ScalarKind::Int, 4},       {"uint", "uint32", ScalarKind::UInt, 4},
-      {"float", "float32", ScalarKind::Float, 4}, {"double", "float64", ScalarKind::Float, 8}};
-  for (const auto& e : table) {
-    if (s == e.a || s == e.b) {
-      t = ScalarType{e.k, e.size};
-      return true;
-    }
+[[noreturn]] void header_error(const std::string& name, std::size_t size, PlyIssue issue, const TextLines& in,
+                               std::string_view tok) {
+  switch (issue) {
+    case PlyIssue::NoMagic:
+      throw error_at_offset(name, 0, "not a PLY file (missing 'ply' magic line)");
+    case PlyIssue::FormatLine:
+      in.fail("format line needs '<ascii|binary_little_endian|binary_big_endian> 1.0'");
+    case PlyIssue::UnknownFormat:
+      in.fail("unknown PLY format '" + std::string(tok) + "'");
+    case PlyIssue::UnsupportedVersion:
+      in.fail("unsupported PLY version '" + std::string(tok) + "'");
+    case PlyIssue::ElementLine:
+      in.fail("element line needs a name and a count");
+    case PlyIssue::TooManyElements:
+      in.fail("more than " + std::to_string(kMaxElements) + " elements");
+    case PlyIssue::BadElementCount:
+      // Every instance takes at least one byte, so a count beyond the file size is certainly wrong.
+      in.as_u64(2, size);
+      break;
+    case PlyIssue::TooManyProperties:
+      in.fail("more than " + std::to_string(kMaxProperties) + " properties");
+    case PlyIssue::PropertyBeforeElement:
+      in.fail("property before any element");
+    case PlyIssue::BadListCountType:
+      in.fail("list count type '" + std::string(tok) + "' must be an integer type");
+    case PlyIssue::UnknownPropertyType:
+      in.fail("unknown property type '" + std::string(tok) + "'");
+    case PlyIssue::PropertyLine:
+      in.fail("property line needs '<type> <name>' or 'list <count type> <type> <name>'");
+    case PlyIssue::UnknownKeyword:
+      in.fail("unknown header keyword '" + std::string(tok.substr(0, 40)) + "'");
+    case PlyIssue::NoEndHeader:
+      throw error_at_offset(name, in.offset(), "header ends without end_header (truncated?)");
+    case PlyIssue::NoFormat:
+      throw error_at_offset(name, 0, "no format line in the header");
   }
-  return false;
+  in.fail("bad PLY header");
 }
 
-// Sequential access to the body: binary scalars or ascii tokens, with bounds checks and byte offsets.
+// The shared body reader with this reader's errors (byte offsets, the element named).
 class Body {
  public:
-  Body(std::span<const std::byte> data, std::size_t pos, PlyFormat fmt, const std::string& file)
-      : data_(data),
-        pos_(pos),
-        fmt_(fmt),
-        file_(file),
-        swap_((fmt == PlyFormat::BinaryBE) == (std::endian::native == std::endian::little)) {}
+  Body(std::string_view bytes, const formats::PlyHeader& h, const std::string& file)
+      : body_(bytes, h, formats::TextStyle::Header), file_(file) {}
 
-  double scalar(ScalarType t) {
-    if (fmt_ == PlyFormat::Ascii) return ascii_value();
-    if (data_.size() - pos_ < t.size)
-      throw error_at_offset(file_, pos_, "truncated data (element " + where_ + ")");
-    const double v = io_detail::load_scalar(data_.data() + pos_, t, swap_);
-    pos_ += t.size;
-    return v;
-  }
-  std::int64_t integer(ScalarType t) {
-    if (fmt_ == PlyFormat::Ascii) {
-      const double v = ascii_value();
+  double scalar(PlyType t) { return value(t); }
+  std::int64_t integer(PlyType t) {
+    const double v = value(t);
+    if (!body_.binary()) {
       if (!(std::abs(v) < 9e15)) throw error_at_offset(file_, token_at_, "integer value out of range");
       return static_cast<std::int64_t>(v);
     }
-    if (data_.size() - pos_ < t.size)
-      throw error_at_offset(file_, pos_, "truncated data (element " + where_ + ")");
-    const std::int64_t v = io_detail::load_integer(data_.data() + pos_, t, swap_);
-    pos_ += t.size;
-    return v;
+    // Integer scalars read exactly; floats are truncated.
+    if (!(v == v) || v > 9.2e18 || v < -9.2e18) return 0;
+    return static_cast<std::int64_t>(v);
   }
-  std::size_t pos() const { return pos_; }
-  std::size_t remaining() const { return data_.size() - pos_; }
+  std::size_t pos() const { return body_.offset(); }
+  std::size_t remaining() const { return body_.remaining(); }
   void set_where(std::string w) { where_ = std::move(w); }
+  // At the last ascii value read (byte 0 in binary bodies).
   [[noreturn]] void fail_here(const std::string& what) const {
     throw error_at_offset(file_, token_at_, what);
   }
 
  private:
-  double ascii_value() {
-    const char* base = reinterpret_cast<const char*>(data_.data());
-    while (pos_ < data_.size() &&
-           (base[pos_] == ' ' || base[pos_] == '\t' || base[pos_] == '\n' || base[pos_] == '\r'))
-      ++pos_;
-    if (pos_ >= data_.size())
-      throw error_at_offset(file_, pos_, "truncated ascii data (element " + where_ + ")");
-    std::size_t end = pos_;
-    while (end < data_.size() && base[end] != ' ' && base[end] != '\t' && base[end] != '\n' &&
-           base[end] != '\r') {
-      if (end - pos_ > 64) throw error_at_offset(file_, pos_, "ascii value longer than 64 characters");
-      ++end;
-    }
-    token_at_ = pos_;
+  double value(PlyType t) {
     double v = 0;
-    const std::string_view tok(base + pos_, end - pos_);
-    if (!io_detail::parse_double(tok, v))
-      throw error_at_offset(file_, pos_,
-                            "'" + std::string(tok) + "' is not a number (element " + where_ + ")");
-    pos_ = end;
+    const PlyBody::Status s = body_.read(t, v);
+    if (body_.binary()) {
+      if (s != PlyBody::Status::Ok)
+        throw error_at_offset(file_, body_.offset(), "truncated data (element " + where_ + ")");
+      return v;
+    }
+    if (s == PlyBody::Status::End)
+      throw error_at_offset(file_, body_.offset(), "truncated ascii data (element " + where_ + ")");
+    if (body_.token().size() > 65)
+      throw error_at_offset(file_, body_.token_offset(), "ascii value longer than 64 characters");
+    token_at_ = body_.token_offset();
+    if (s == PlyBody::Status::BadNumber)
+      throw error_at_offset(file_, body_.token_offset(),
+                            "'" + std::string(body_.token()) + "' is not a number (element " + where_ + ")");
     return v;
   }
 
-  std::span<const std::byte> data_;
-  std::size_t pos_;
-  PlyFormat fmt_;
+  PlyBody body_;
   const std::string& file_;
-  bool swap_;
   std::size_t token_at_ = 0;
   std::string where_;
 };
@@ -132,87 +117,46 @@ class Body {
 
 void read_ply(std::span<const std::byte> data, const std::string& name, OrganizedCloud& out,
               const CloudReadOptions& options) {
-  HeaderLines in(data, name);
-  if (!in.next() || in.line() != "ply")
-    throw error_at_offset(name, 0, "not a PLY file (missing 'ply' magic line)");
-  PlyFormat fmt = PlyFormat::Ascii;
-  bool have_format = false, have_end = false;
-  std::vector<PlyElement> elements;
+  const std::string_view bytes(reinterpret_cast<const char*>(data.data()), data.size());
   std::uint64_t grid_w = 0, grid_h = 0;
   double viewpoint[7] = {0, 0, 0, 1, 0, 0, 0};
   bool have_viewpoint = false;
-  while (in.next()) {
+  formats::PlyHeaderRules rules;
+  rules.style = formats::TextStyle::Header;
+  rules.require_version_1_0 = true;
+  rules.max_count = data.size();
+  rules.max_elements = kMaxElements;
+  rules.max_properties = kMaxProperties;
+  rules.on_info = [&](const TextLines& in) {
     const auto& t = in.tokens();
-    if (t.empty()) continue;
-    const std::string_view key = t[0];
-    if (key == "comment") {
+    if (t[0] == "comment") {
       // Other comments are free text; ours carries the sensor pose as PCD's VIEWPOINT does.
       if (t.size() >= 2 && t[1] == "facetscan_viewpoint") {
         if (t.size() != 9) in.fail("facetscan_viewpoint needs 7 values (tx ty tz qw qx qy qz)");
         for (int i = 0; i < 7; ++i) {
           const std::string_view tok = t[static_cast<std::size_t>(i) + 2];
-          if (!io_detail::parse_double(tok, viewpoint[i]) || !std::isfinite(viewpoint[i]))
+          if (!formats::parse_double(tok, viewpoint[i]) || !std::isfinite(viewpoint[i]))
             in.fail("facetscan_viewpoint: '" + std::string(tok.substr(0, 40)) + "' is not a finite number");
         }
         have_viewpoint = true;
       }
-      continue;
-    } else if (key == "obj_info") {
-      // PCL writes "obj_info num_cols 640" / "obj_info num_rows 480"; also accept width/height.
-      if (t.size() >= 3 && (t[1] == "num_cols" || t[1] == "width")) grid_w = in.as_u64(2, options.max_points);
-      if (t.size() >= 3 && (t[1] == "num_rows" || t[1] == "height"))
-        grid_h = in.as_u64(2, options.max_points);
-    } else if (key == "format") {
-      if (t.size() != 3) in.fail("format line needs '<ascii|binary_little_endian|binary_big_endian> 1.0'");
-      if (t[1] == "ascii")
-        fmt = PlyFormat::Ascii;
-      else if (t[1] == "binary_little_endian")
-        fmt = PlyFormat::BinaryLE;
-      else if (t[1] == "binary_big_endian")
-        fmt = PlyFormat::BinaryBE;
-      else
-        in.fail("unknown PLY format '" + std::string(t[1]) + "'");
-      if (t[2] != "1.0") in.fail("unsupported PLY version '" + std::string(t[2]) + "'");
-      have_format = true;
-    } else if (key == "element") {
-      if (t.size() != 3) in.fail("element line needs a name and a count");
-      if (elements.size() >= kMaxElements) in.fail("more than " + std::to_string(kMaxElements) + " elements");
-      // Every instance takes at least one byte, so a count beyond the file size is certainly wrong.
-      elements.push_back(PlyElement{std::string(t[1]), in.as_u64(2, data.size()), {}});
-    } else if (key == "property") {
-      if (elements.empty()) in.fail("property before any element");
-      auto& props = elements.back().props;
-      if (props.size() >= kMaxProperties)
-        in.fail("more than " + std::to_string(kMaxProperties) + " properties");
-      PlyProperty p;
-      if (t.size() == 5 && t[1] == "list") {
-        p.is_list = true;
-        if (!parse_type(t[2], p.count_type) || p.count_type.kind == ScalarKind::Float)
-          in.fail("list count type '" + std::string(t[2]) + "' must be an integer type");
-        if (!parse_type(t[3], p.type)) in.fail("unknown property type '" + std::string(t[3]) + "'");
-        p.name = std::string(t[4]);
-      } else if (t.size() == 3) {
-        if (!parse_type(t[1], p.type)) in.fail("unknown property type '" + std::string(t[1]) + "'");
-        p.name = std::string(t[2]);
-      } else {
-        in.fail("property line needs '<type> <name>' or 'list <count type> <type> <name>'");
-      }
-      props.push_back(std::move(p));
-    } else if (key == "end_header") {
-      have_end = true;
-      break;
-    } else {
-      in.fail("unknown header keyword '" + std::string(key.substr(0, 40)) + "'");
+      return;
     }
-  }
-  if (!have_end) throw error_at_offset(name, in.offset(), "header ends without end_header (truncated?)");
-  if (!have_format) throw error_at_offset(name, 0, "no format line in the header");
+    // obj_info: PCL writes "obj_info num_cols 640" / "obj_info num_rows 480"; also accept width/height.
+    if (t.size() >= 3 && (t[1] == "num_cols" || t[1] == "width")) grid_w = in.as_u64(2, options.max_points);
+    if (t.size() >= 3 && (t[1] == "num_rows" || t[1] == "height")) grid_h = in.as_u64(2, options.max_points);
+  };
+  rules.fail = [&](PlyIssue issue, const TextLines& in, std::string_view tok) {
+    header_error(name, data.size(), issue, in, tok);
+  };
+  const formats::PlyHeader header = formats::parse_ply_header(bytes, name, rules);
+  const std::vector<PlyElement>& elements = header.elements;
 
   const PlyElement* vertex = nullptr;
   int ix = -1, iy = -1, iz = -1, ilabel = -1;
   for (const auto& e : elements) {
     if (e.name != "vertex") continue;
-    if (vertex) throw error_at_offset(name, in.offset(), "more than one vertex element");
+    if (vertex) throw error_at_offset(name, header.end_offset, "more than one vertex element");
     vertex = &e;
     for (std::size_t i = 0; i < e.props.size(); ++i) {
       const auto& p = e.props[i];
@@ -224,14 +168,15 @@ void read_ply(std::span<const std::byte> data, const std::string& name, Organize
         iy = idx;
       else if (p.name == "z")
         iz = idx;
-      else if (p.name == "label" && p.type.kind != ScalarKind::Float)
+      else if (p.name == "label" && formats::ply_is_integer(p.type))
         ilabel = idx;
     }
   }
-  if (!vertex) throw error_at_offset(name, in.offset(), "no vertex element");
-  if (ix < 0 || iy < 0 || iz < 0) throw error_at_offset(name, in.offset(), "vertex element lacks x, y or z");
+  if (!vertex) throw error_at_offset(name, header.end_offset, "no vertex element");
+  if (ix < 0 || iy < 0 || iz < 0)
+    throw error_at_offset(name, header.end_offset, "vertex element lacks x, y or z");
   if (vertex->count > options.max_points)
-    throw error_at_offset(name, in.offset(),
+    throw error_at_offset(name, header.end_offset,
                           std::to_string(vertex->count) + " vertices exceed the limit of " +
                               std::to_string(options.max_points));
   const bool want_labels = options.load_labels && ilabel >= 0;
@@ -259,7 +204,7 @@ void read_ply(std::span<const std::byte> data, const std::string& name, Organize
   std::vector<std::int64_t> grid;  // range_grid cell -> vertex index or -1
   bool have_grid = false;
   const float nan = std::numeric_limits<float>::quiet_NaN();
-  Body body(data, in.offset(), fmt, name);
+  Body body(bytes, header, name);
   std::vector<double> vals;
   for (const auto& e : elements) {
     const bool is_vertex = &e == vertex;

@@ -1,7 +1,8 @@
 // Laser calibration on hw-sim renders: how the result depends on the number of flat-target heights and on the
 // renderer's noise. Flat targets and the cube check scene are rendered with the perturbed ("true") geometry
-// (tests/host/io/synth_scan.hpp perturbed_truth), the calibration starts from the nominal one. Prints a markdown
-// table. Not a timing benchmark: run it once, `bench_calibration [steps]` (default 100 steps over the sweep).
+// (tests/host/io/synth_scan.hpp perturbed_truth), the calibration starts from the nominal one. Prints a
+// markdown table. Not a timing benchmark: run it once, `bench_calibration [steps]` (default 100 steps over
+// the sweep).
 #include <cstdio>
 #include <cstdlib>
 #include <map>

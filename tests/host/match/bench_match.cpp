@@ -243,13 +243,14 @@ void BM_LibraryAllViews(benchmark::State& state) {
   state.counters["own_ref_first_%"] = 100.0 * top1 / scenes;
 }
 
-// One hw-sim scan's scene PFRG (tests/host/match/data/hwsim_*.json, written by `facetscan graph` from `facetscan
-// demo` recordings) against the 120 polyhedra with the recognizer's matching parameters: preset t9.3, all
-// solutions, a 20000-state budget (host/recognize RecognizeParams::max_states), one thread.
+// One hw-sim scan's scene PFRG (tests/host/match/data/hwsim_*.json, written by `facetscan graph` from
+// `facetscan demo` recordings) against the 120 polyhedra with the recognizer's matching parameters: preset
+// t9.3, all solutions, a 20000-state budget (host/recognize RecognizeParams::max_states), one thread.
 void BM_RecognizerLibrary(benchmark::State& state) {
   static const char* kScenes[] = {"hwsim_default_scene.json", "hwsim_occlusion_scene.json"};
   const auto idx = static_cast<std::size_t>(state.range(0));
-  const Pfrg scene = fs::host::read_pfrg_json(fs::test::source_dir() / "tests/host/match/data" / kScenes[idx]);
+  const Pfrg scene =
+      fs::host::read_pfrg_json(fs::test::source_dir() / "tests/host/match/data" / kScenes[idx]);
   const auto n = static_cast<std::size_t>(state.range(1));
   std::vector<Pfrg> refs;
   for (std::size_t i = 0; i < n; ++i) refs.push_back(polyhedra()[i % polyhedra().size()].model);

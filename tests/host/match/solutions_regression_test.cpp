@@ -2,8 +2,8 @@
 // top-k selection of the reported solutions) must not change any result. For a set of scene / reference pairs
 // and presets the full solution lists (rank, state number, path, matches, arc counts, dissimilarities,
 // rotation, cost, flags) and the search statistics (states, expansions, candidates, removals per condition,
-// stop) are printed with round-trip precision and compared with tests/host/match/data/solutions_golden.txt, which
-// was written by the matcher before those changes.
+// stop) are printed with round-trip precision and compared with tests/host/match/data/solutions_golden.txt,
+// which was written by the matcher before those changes.
 //
 // Regenerate (only when a result change is intended): FS_MATCH_WRITE_GOLDEN=1 test_match
 //   --gtest_filter=SolutionsRegression.*

@@ -1,4 +1,4 @@
-// segment_report: the quality numbers of docs/readme/segment.md.
+// segment_report: the quality numbers of docs/performance.md.
 //   segment_report hwsim [NOISE_MM]         Hoover classes / normal errors / PFRG check on the hw-sim scenes
 //   segment_report mosd [FILES...]           object-span purity on mOSD (default: all 24 test scenes)
 //   segment_report faces SCENE [NOISE_MM]   per ground-truth face of an hw-sim scene: the regions covering it
