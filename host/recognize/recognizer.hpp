@@ -39,16 +39,16 @@ struct RecognizeParams {
   // search of a symmetric model otherwise spends its budget on symmetry-equivalent solutions and their
   // sub-matches, and the solutions kept are then picked from thousands of incomplete states. Stopping at the
   // first solution (which keeps the open states of level >= TH_minlevel as incomplete solutions, ch. 7.7.3)
-  // was measured the most accurate and 3-5x faster on the 200-scene benchmark (README, "Recognition
-  // benchmark"). Overrides the match parameters' TH_solutions; 0 = keep theirs.
+  // is the most accurate setting and faster than a search to exhaustion (measured by bench_recognition).
+  // Overrides the match parameters' TH_solutions; 0 = keep theirs.
   std::int64_t max_solutions = 1;
   // Rigidity from level-1 parents (match::MatchParams::rigidity_pairs): the angle between two matched normals
   // is the same in the scene and the reference. Overrides the match parameters' switch when set.
   bool rigidity_pairs = true;
   // TH_omega of the rigidity condition for a laser scan's normals (segmentation normals err by < 1 deg at the
-  // bench scanner's noise; t9.3's 20 deg dates from 1990s range data). Measured on the 200-scene benchmark:
-  // same recall at 4x the depth noise, 2-3x less matching time than 20 deg. Overrides the match parameters'
-  // th_omega_deg; <= 0 = keep theirs.
+  // bench scanner's noise; t9.3's 20 deg dates from 1990s range data). Against 20 deg: the same recall, also
+  // at higher depth noise, with less matching time (measured by bench_recognition). Overrides the match
+  // parameters' th_omega_deg; <= 0 = keep theirs.
   double rigidity_deg = 5.0;
   // The table (support plane) is absorbed into the supernode before matching.
   bool remove_table = true;
@@ -185,7 +185,7 @@ class Recognizer {
   // Cell -> object index (into objects) or -1, for colouring.
   void object_labels(const OrganizedCloud& cloud, std::vector<std::int32_t>& labels) const;
 
-  struct Impl;  // opaque (recognizer.cpp)
+  struct Impl;  // opaque (recognizer_impl.hpp)
 
  private:
   const Library& library_;

@@ -1,5 +1,5 @@
 #pragma once
-// Per-row kernels of the segmenter's normal pass (host/segment/segmenter.cpp), on a structure-of-arrays copy
+// Per-row kernels of the segmenter's normal pass (host/segment/normals.cpp), on a structure-of-arrays copy
 // of the organized grid. Branch-free loops written for the auto-vectorizer (compiled with -fno-math-errno
 // -fno-trapping-math); NaN coordinates mean "no data" and make every comparison involving them false.
 // Internal to host/segment.

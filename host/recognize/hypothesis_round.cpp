@@ -1,0 +1,114 @@
+// Recognizer step 3 (thesis ch. 8.1.3, 9.4.1): hypotheses from the kept solutions (pose from the rotation fit
+// and the matched planes, expansion, compatible merge) and, beyond the thesis, the single-face hypotheses of
+// faces that border no other face.
+#include <algorithm>
+
+#include "host/recognize/recognizer_impl.hpp"
+
+namespace fs::host::rec {
+
+using detail::Clock;
+using detail::ModelSlots;
+using detail::ms_since;
+using detail::SolutionSlot;
+
+void Recognizer::Impl::make_hypotheses(Recognizer& rz, const HypothesisContext& hc, const Pfrg& graph,
+                                       Scan& scan, RecognizeStats& stats) {
+  hyp_t0 = Clock::now();
+  solutions_to_hypotheses(rz.library_.models.size(), stats);
+  for (std::size_t i = 0; i < nhyp; ++i) {
+    Hypothesis& h = hyps[i];
+    update_translation(hc, h, pairs);
+    // Expansion takes only faces no accepted object holds.
+    stats.expanded_faces += expand(hc, h, pairs, &node_used);
+  }
+  alive.assign(nhyp, 1);
+  stats.merged += merge_compatible(hc, std::span<Hypothesis>(hyps.data(), nhyp), alive, pairs);
+  lone_face_hypotheses(rz, graph, stats);
+  scan.hypotheses_total += static_cast<int>(nhyp);
+  stats.hypotheses = scan.hypotheses_total;
+  if (nhyp == 0) stats.verify_ms += ms_since(hyp_t0);
+}
+
+// hyps[0 .. nhyp) = the kept solutions of every model (the models' solution slots emptied).
+void Recognizer::Impl::solutions_to_hypotheses(std::size_t models, RecognizeStats& stats) {
+  nhyp = 0;
+  for (std::size_t mi = 0; mi < models; ++mi) {
+    ModelSlots& ms = per_model[mi];
+    stats.states += ms.states;
+    for (int k = 0; k < ms.count; ++k) {
+      const SolutionSlot& s = ms.slots[static_cast<std::size_t>(k)];
+      Hypothesis& h = hyps[nhyp++];
+      h.model = static_cast<int>(mi);
+      h.rank = s.rank;
+      h.path.assign(s.path.begin(), s.path.end());
+      h.matches.clear();
+      for (const auto& m : s.matches) h.matches.push_back(FaceMatch{m.scene, m.ref, false});
+      h.level = s.level;
+      h.R = s.rotation;
+      h.cost = s.cost;
+      h.rotfit_error = s.rotfit;
+      h.degenerate = s.degenerate;
+      h.merged = false;
+      h.instance = 0;
+      h.verify = VerifyResult{};
+      h.inlier_cells.clear();
+    }
+    ms.count = 0;
+    ms.states = 0;
+  }
+}
+
+// Faces that border no (unexplained) face: single-face hypotheses (model face on it, another on the
+// table).
+void Recognizer::Impl::lone_face_hypotheses(Recognizer& rz, const Pfrg& graph, RecognizeStats& stats) {
+  const RecognizeParams& params = rz.params_;
+  if (!(params.single_face_min_area_mm2 > 0 && have_table)) return;
+  SingleFaceParams sp;
+  if (params.match_area_ratio > 0) {
+    sp.area.area_ratio = params.match_area_ratio;
+    sp.area.area_slack_mm2 = params.match_area_slack_mm2;
+  }
+  for (int idx : lone_faces) {
+    const PfrgNode& face = graph.nodes[static_cast<std::size_t>(idx)];
+    if (face.area < params.single_face_min_area_mm2 || lone_tried[static_cast<std::size_t>(face.id)])
+      continue;
+    const std::size_t room =
+        std::min(hyps.size() - nhyp, static_cast<std::size_t>(std::max(params.single_face_max, 0)));
+    if (room == 0) break;  // the pool is full this round: the face is tried again in the next one
+    int n = 0;
+    if (!parallel_to_table(face, table, sp.min_tilt_deg)) {
+      n = single_face_hypotheses(rz.library_, face, table, sp,
+                                 std::span<Hypothesis>(hyps.data() + nhyp, room));
+    } else {
+      // Parallel to the table: the turn about the vertical comes from the face's outline (fine samples).
+      const Vec3 u = face.normal.unitOrthogonal();
+      const Vec3 v = face.normal.cross(u);
+      outline(face, rz.seg_.labels, u, v);
+      TopFaceParams tp;
+      tp.area = sp.area;
+      n = top_face_hypotheses(rz.library_, face, table, hull, u, v, tp,
+                              std::span<Hypothesis>(hyps.data() + nhyp, room));
+    }
+    nhyp += static_cast<std::size_t>(n);
+    stats.single_face += n;
+    // Done with this face unless its hypotheses were cut short by the room left.
+    if (static_cast<std::size_t>(n) < room) lone_tried[static_cast<std::size_t>(face.id)] = 1;
+  }
+  alive.resize(nhyp, 1);
+}
+
+void Recognizer::Impl::outline(const PfrgNode& face, const std::vector<std::int32_t>& labels, const Vec3& u,
+                               const Vec3& v) {
+  hull.clear();
+  const auto& cells = fine.cells();
+  const auto& pts = fine.points();
+  for (std::size_t k = 0; k < cells.size(); ++k)
+    if (cells[k] < labels.size() && labels[cells[k]] == face.id - 1) {
+      const Vec3 q = pts[k].cast<double>();
+      hull.emplace_back(q.dot(u), q.dot(v));
+    }
+  hull.resize(convex_hull_in_place(hull, hull_scratch));
+}
+
+}  // namespace fs::host::rec

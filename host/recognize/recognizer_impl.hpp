@@ -1,0 +1,178 @@
+#pragma once
+// Internal to the recognizer (see README.md): Recognizer::Impl, the working memory of recognize() (sized at
+// construction, reused), and the steps recognize() runs, implemented by stage in prepare.cpp,
+// scene_parts.cpp, match_round.cpp, hypothesis_round.cpp, verify_round.cpp and accept.cpp.
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "host/recognize/hypotheses.hpp"
+#include "host/recognize/pose.hpp"
+#include "host/recognize/recognizer.hpp"
+#include "host/recognize/verify.hpp"
+#include "host/recognize/worker_pool.hpp"
+
+namespace fs::host::rec {
+
+namespace detail {
+
+using Clock = std::chrono::steady_clock;
+inline constexpr std::size_t kMaxMatches =
+    128;  // face matches of one hypothesis (matcher graphs hold <= 128 nodes)
+inline double ms_since(Clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+// One reference's kept solutions (buffers reused across scans).
+struct SolutionSlot {
+  std::vector<int> path;
+  std::vector<match::NodeMatch> matches;
+  Mat3 rotation = Mat3::Identity();
+  double cost = 0, rotfit = 0;
+  int level = 0, rank = 0;
+  bool degenerate = false;
+};
+
+struct ModelSlots {
+  std::vector<SolutionSlot> slots;
+  int count = 0;
+  std::int64_t states = 0;
+};
+
+}  // namespace detail
+
+struct Recognizer::Impl {
+  using ModelSlots = detail::ModelSlots;
+  using SolutionSlot = detail::SolutionSlot;
+
+  // Scene node ids: regions 1..kMaxRegions and the supernode after them (by-id tables need this many
+  // entries).
+  static constexpr std::size_t kMaxRegions = 8192;
+  static constexpr std::size_t kMaxNodeIds = kMaxRegions + 2;
+  static constexpr std::size_t kLoneFaceRoom =
+      4;  // lone faces per round whose single-face hypotheses fit for sure
+  explicit Impl(const Library& lib, const RecognizeParams& p, int threads);
+
+  WorkerPool pool;
+  std::vector<std::unique_ptr<match::InexactMatcher>> matchers;
+  std::vector<Verifier> verifiers;
+  std::vector<ModelGeometry> geometry;
+  std::vector<ModelSlots> per_model;
+  std::vector<Hypothesis> hyps;  // pool; the first nhyp are live this scan
+  std::size_t nhyp = 0;
+  std::vector<std::size_t> order;
+  std::vector<char> alive;
+  std::vector<PlanePair> pairs;
+  std::vector<char> node_used;   // by scene node id
+  std::vector<int> scene_index;  // scene node id -> index in scene.nodes (-1)
+  std::vector<std::int32_t> cell_owner;
+  // Inlier cells of the refined hypotheses: slot k belongs to hyps[slot_owner[k]] during a scan (swapped into
+  // its inlier_cells and back afterwards, so no buffer is ever reallocated).
+  std::vector<std::vector<std::uint32_t>> slot_cells;
+  // Buffers of the reported objects: out.objects[k] holds spare_objects[k]'s buffers during a scan (swapped
+  // in when reported, swapped back at the next scan), so reporting never allocates.
+  std::vector<Hypothesis> spare_objects;
+  std::vector<std::size_t> slot_owner;
+  std::vector<std::size_t> picked;  // scratch of select_covering
+  std::vector<int> face_cover;      // by scene node id
+  // Matching context.
+  const Pfrg* scene = nullptr;
+  const Library* library = nullptr;
+  match::MatchParams mparams;
+  match::MatchParams mparams_small;  // parts with fewer faces than mparams.th_minlevel (TH_minlevel lowered)
+  // Verification context.
+  SampleSet coarse, fine;
+  bool refine_phase = false;
+  // Samples per segmentation region (coarse / fine), to measure how much of its matched regions a hypothesis
+  // explains.
+  std::vector<std::uint32_t> region_coarse, region_fine;
+  std::vector<std::uint32_t> region_hits;
+  const std::vector<std::int32_t>* labels = nullptr;
+  // Connected parts of the scene graph (supernode arcs do not connect), each with >= min_level faces; the
+  // matcher searches each on its own. parts[k] holds the supernode(s) and the part's faces and arcs.
+  std::vector<Pfrg> parts;
+  std::vector<int> part_faces;   // real faces of parts[k]
+  std::vector<int> lone_faces;   // indices into the split graph's nodes of faces that border no other face
+  std::vector<char> lone_tried;  // by scene node id: single-face hypotheses made already
+  Pfrg rest;  // the scene graph without the faces of accepted objects (rounds after the first)
+  std::vector<Eigen::Vector2d> hull, hull_scratch;  // outline of a lone face parallel to the table
+
+  // hull = convex hull of the fine samples of `face` (scene node id = region + 1), in the plane basis (u, v).
+  void outline(const PfrgNode& face, const std::vector<std::int32_t>& labels, const Vec3& u, const Vec3& v);
+  bool round_small = false;  // this round searches every part with mparams_small
+
+  // By scene node id: 1 for the supernode(s), set per scan (the graphs split below are the scene or part of
+  // it, with the same ids). Ids without an entry count as unknown, i.e. as the supernode.
+  std::vector<char> super_by_id;
+  void mark_supernodes(const Pfrg& g);
+  bool is_super(int id) const {
+    return id < 0 || static_cast<std::size_t>(id) >= super_by_id.size() ||
+           super_by_id[static_cast<std::size_t>(id)];
+  }
+
+  // rest = scene without the faces accepted objects hold. A kept face that bordered an accepted one borders
+  // the unknown there, so that arc becomes one to the supernode (one per face; the node-degree condition
+  // counts a face's neighbours, the supernode included). False when no face is left.
+  std::vector<char> rest_super_arc;  // by node id: the kept face has an arc to the supernode in rest
+  bool build_rest(const Pfrg& g);
+
+  std::size_t nparts = 0;
+  std::vector<int> uf;                          // union-find parent by node id
+  std::vector<int> part_of;                     // node id -> part index (-1)
+  std::vector<int> comp_size;                   // by root id
+  static constexpr std::size_t kMaxParts = 32;  // further parts are searched together with the last one
+
+  int find(int x);
+
+  // viewpoint: the sensor position; each part then looks at it from its faces' centroid (the visibility
+  // condition needs the real viewing direction: a scene's mean normal leans toward its largest faces).
+  void split_components(const Pfrg& g, int min_faces, const Vec3* viewpoint = nullptr);
+
+  // The table found in the scene (normal toward the sensor), for the support test.
+  bool have_table = false;
+  Plane table;
+  double support_tol = 3.0, support_radius = 6.0, unsupported_factor = 0.5;
+
+  void support_test(const Model& model, Hypothesis& h) const;
+
+  // ---- the steps of recognize(), by stage ----
+  // Per-scan settings and tallies of recognize() (kept across its rounds).
+  struct Scan {
+    int min_part = 0;          // faces a connected part needs to be searched in the first round
+    bool small_parts = false;  // later rounds search parts down to small_part_min_level faces
+    double best_rejected = -1.0;
+    int best_rejected_model = -1;
+    int hypotheses_total = 0;
+  };
+  // prepare.cpp: the last scan's objects back to the spare pool; segmentation, scene PFRG and table (false:
+  // no face to match); matching parameters and by-id tables; the verification samples.
+  void reset_output(Recognition& out);
+  bool prepare_scene(Recognizer& rz, const OrganizedCloud& cloud, const Plane* table, Recognition& out);
+  Scan prepare_matching(Recognizer& rz, const OrganizedCloud& cloud);
+  void prepare_samples(Recognizer& rz, const OrganizedCloud& cloud, RecognizeStats& stats);
+  // scene_parts.cpp: the graph a round searches (the scene, then what accepted objects leave of it), split
+  // into connected parts; nullptr when nothing is left to search.
+  const Pfrg* split_scene(Recognizer& rz, const Scan& scan, int round, const Vec3& viewpoint,
+                          RecognizeStats& stats);
+  // match_round.cpp: every reference against every part (in parallel, one matcher per worker).
+  void match_references(const Library& lib, int round, RecognizeStats& stats);
+  // hypothesis_round.cpp: hypotheses from the kept solutions (pose, expansion, compatible merge) and the
+  // single-face hypotheses of lone faces.
+  detail::Clock::time_point hyp_t0;  // start of this round's hypotheses (verify_ms counts from there)
+  void make_hypotheses(Recognizer& rz, const HypothesisContext& hc, const Pfrg& graph, Scan& scan,
+                       RecognizeStats& stats);
+  void solutions_to_hypotheses(std::size_t models, RecognizeStats& stats);
+  void lone_face_hypotheses(Recognizer& rz, const Pfrg& graph, RecognizeStats& stats);
+  // verify_round.cpp: low-level verification, coarse for the most plausible hypotheses, then ICP refinement
+  // and fine verification; leaves the verified ones in order (best ordering key first).
+  void verify_hypotheses(Recognizer& rz, const HypothesisContext& hc, const OrganizedCloud& cloud,
+                         RecognizeStats& stats);
+  void rekey(const RecognizeParams& params);
+  // accept.cpp: recognition (ch. 9.4), the compatible set greedily from the best hypothesis; false when the
+  // rounds end here. finish_report: the cell owners reset and the note of an empty result.
+  bool accept_objects(Recognizer& rz, Scan& scan, int round, Recognition& out);
+  void finish_report(Recognizer& rz, const Scan& scan, Recognition& out);
+};
+
+}  // namespace fs::host::rec

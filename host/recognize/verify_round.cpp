@@ -1,0 +1,142 @@
+// Recognizer step 4 (beyond the thesis, its outlook ch. 10): low-level verification of the hypotheses against
+// the measured cloud, in parallel: a coarse check of the most plausible ones (prescore, then matching cost,
+// every scene face its share), then ICP refinement and the fine check of those that pass it.
+#include <algorithm>
+
+#include "host/recognize/recognizer_impl.hpp"
+
+namespace fs::host::rec {
+
+using detail::ms_since;
+
+namespace {
+
+// Filters im.order (kept in order) to at most `limit` hypotheses that pass `ok` and hold a scene face that
+// fewer than `per_face` earlier picks hold.
+template <class Ok>
+void select_covering(Recognizer::Impl& im, int per_face, std::size_t limit, Ok ok) {
+  int max_id = 0;
+  for (std::size_t i : im.order)
+    for (const FaceMatch& m : im.hyps[i].matches) max_id = std::max(max_id, m.scene);
+  im.face_cover.assign(static_cast<std::size_t>(max_id) + 1, 0);
+  im.picked.clear();
+  for (std::size_t i : im.order) {
+    if (im.picked.size() >= limit) break;
+    const Hypothesis& h = im.hyps[i];
+    if (!ok(h)) continue;
+    bool wanted = false;
+    for (const FaceMatch& m : h.matches)
+      wanted = wanted || im.face_cover[static_cast<std::size_t>(m.scene)] < per_face;
+    if (!wanted) continue;
+    for (const FaceMatch& m : h.matches) ++im.face_cover[static_cast<std::size_t>(m.scene)];
+    im.picked.push_back(i);
+  }
+  im.order.assign(im.picked.begin(), im.picked.end());
+}
+
+// Worker task: verifies hypothesis order[task] (coarse, or refined and fine in the refine phase), then
+// scales its confidence by the share of its matched scene regions it explains.
+void verify_task(void* ctx, std::size_t task, int worker) {
+  auto& m = *static_cast<Recognizer::Impl*>(ctx);
+  Hypothesis& h = m.hyps[m.order[task]];
+  Verifier& v = m.verifiers[static_cast<std::size_t>(worker)];
+  h.verify = v.verify(m.refine_phase ? m.fine : m.coarse, m.geometry[static_cast<std::size_t>(h.model)], h.R,
+                      h.t, m.refine_phase);
+  const std::vector<std::uint32_t>* cells = &v.inlier_cells();
+  if (m.refine_phase) {
+    m.slot_owner[task] = m.order[task];
+    std::swap(h.inlier_cells, m.slot_cells[task]);
+    h.inlier_cells.assign(v.inlier_cells().begin(), v.inlier_cells().end());
+    cells = &h.inlier_cells;
+  }
+  // How much of the matched scene regions the model explains: a model smaller than the faces it claims
+  // leaves measured points of those faces unexplained.
+  const auto& counts = m.refine_phase ? m.region_fine : m.region_coarse;
+  std::uint64_t total = 0, explained = 0;
+  for (const FaceMatch& fm : h.matches) {
+    const int r = fm.scene - 1;
+    if (r >= 0 && static_cast<std::size_t>(r) < counts.size()) total += counts[static_cast<std::size_t>(r)];
+  }
+  for (std::uint32_t cell : *cells) {
+    const std::int32_t r = (*m.labels)[cell];
+    for (const FaceMatch& fm : h.matches)
+      if (fm.scene - 1 == r) {
+        ++explained;
+        break;
+      }
+  }
+  h.verify.explained =
+      total > 0 ? std::min(1.0, static_cast<double>(explained) / static_cast<double>(total)) : 0.0;
+  h.verify.confidence *= h.verify.explained;
+  if (m.refine_phase) m.support_test(m.library->models[static_cast<std::size_t>(h.model)], h);
+}
+
+}  // namespace
+
+void Recognizer::Impl::verify_hypotheses(Recognizer& rz, const HypothesisContext& hc,
+                                         const OrganizedCloud& cloud, RecognizeStats& stats) {
+  const RecognizeParams& params = rz.params_;
+  order.clear();
+  for (std::size_t i = 0; i < nhyp; ++i)
+    if (alive[i]) order.push_back(i);
+  for (std::size_t i : order) hyps[i].prescore = prescore(hc, hyps[i]);
+  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    const Hypothesis& x = hyps[a];
+    const Hypothesis& y = hyps[b];
+    if (x.prescore != y.prescore) return x.prescore > y.prescore;
+    return x.cost != y.cost ? x.cost < y.cost : a < b;
+  });
+  // Keep the order but give every scene face its share: a hypothesis is checked when one of its matched
+  // scene faces has been claimed by fewer than verify_per_face better hypotheses (so the faces of a small
+  // object are not crowded out by the many hypotheses of a large one).
+  select_covering(*this, params.verify_per_face, static_cast<std::size_t>(params.max_verified),
+                  [](const Hypothesis&) { return true; });
+  // Phase 1: coarse check of every candidate (no refinement).
+  refine_phase = false;
+  pool.run(order.size(), verify_task, this);
+  rekey(params);
+  // Phase 2: the plausible ones are refined by ICP and verified on the fine sample set.
+  const double min_plausible = 0.5 * params.min_confidence;
+  select_covering(*this, params.refine_per_face, static_cast<std::size_t>(params.max_refined),
+                  [&](const Hypothesis& h) { return h.verify.confidence >= min_plausible; });
+  std::size_t plausible = order.size();
+  refine_phase = true;
+  slot_owner.resize(std::min(plausible, slot_cells.size()));
+  plausible = slot_owner.size();
+  pool.run(plausible, verify_task, this);
+  order.resize(plausible);
+  rekey(params);
+  for (std::size_t i : order) {
+    Hypothesis& h = hyps[i];
+    h.faces_visible =
+        count_visible_faces(rz.library_.models[static_cast<std::size_t>(h.model)], h.R, h.t, cloud.viewpoint);
+  }
+  stats.verify_ms += ms_since(hyp_t0);
+}
+
+// Ordering key of the verified hypotheses (order sorted by it).
+void Recognizer::Impl::rekey(const RecognizeParams& params) {
+  // Of two hypotheses that fit equally, the one explaining more measured points goes first: a model that
+  // covers only part of an object (a prism for the augmented prism) leaves the rest unexplained.
+  int most_inliers = 1;
+  for (std::size_t i : order) most_inliers = std::max(most_inliers, hyps[i].verify.inliers);
+  for (std::size_t i : order) {
+    Hypothesis& h = hyps[i];
+    h.key = h.cost + params.confidence_weight * (1.0 - h.verify.confidence) -
+            params.inlier_weight * static_cast<double>(h.verify.inliers) / static_cast<double>(most_inliers);
+  }
+  // std::sort with the index as tie-break (std::stable_sort would take a temporary buffer from the heap).
+  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    return hyps[a].key != hyps[b].key ? hyps[a].key < hyps[b].key : a < b;
+  });
+}
+
+void Recognizer::Impl::support_test(const Model& model, Hypothesis& h) const {
+  if (!have_table) return;
+  h.verify.support =
+      support_factor(model, h.R, h.t, table, fine.points(),
+                     SupportParams{support_tol, support_radius, unsupported_factor}, &h.verify.lowest_mm);
+  h.verify.confidence *= h.verify.support;
+}
+
+}  // namespace fs::host::rec
