@@ -1,7 +1,7 @@
 #!/bin/bash
 # ctest entry of the real-kernel HIL tests (label vm): builds/caches the VM under BUILD/vm, boots it (QEMU TCG),
 # runs GUEST_BIN inside (chroot into the host's read-only /), prints its output, exits with its status.
-# Skips (exit 77) with a loud message only when qemu cannot be installed.
+# Skips (exit 77) with a loud message only when qemu cannot be installed, and fails instead under CI=true.
 # Usage: run_vm.sh BUILD_DIR GUEST_BIN
 set -u
 B=$(realpath "$1"); GUEST=$(realpath "$2"); HERE=$(dirname "$(realpath "$0")")
@@ -17,6 +17,8 @@ if ! need; then
   echo "## and 'toolchain/setup --vm' could not install them. The backends were NOT exercised     ##"
   echo "## against real kernel drivers.                                                          ##"
   echo "##########################################################################################"
+  # Under CI (CI=true, as .ci/run's caller sets it) a skip would pass unnoticed: fail instead.
+  if [ "${CI:-}" = true ]; then echo "run_vm: FAIL: CI=true and the VM packages are missing"; exit 1; fi
   exit 77
 fi
 "$HERE/build_vm.sh" "$B/vm" || { echo "run_vm: building the VM failed"; exit 1; }
