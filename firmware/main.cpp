@@ -1,40 +1,31 @@
-// facetscan-fw: the scanner board's firmware (galvo, laser, camera, stripe extraction, streaming).
-//   facetscan-fw --scene hw-sim/scenes/cube.json --steps 300 --record cube.fscan          (HIL on the twins)
-//   facetscan-fw --galvo sim-can --record scan.fscan --fault camera.drop@frame=40
+// facetscan-fw and facetscan-fw-hil: the scanner board's firmware (galvo, laser, camera, stripe extraction,
+// streaming). One main and one run_scan for both; the devices come from make_devices
+// (firmware/app/devices.hpp), linked per binary: facetscan-fw has the real backends only (it ships on the
+// board), facetscan-fw-hil adds the twins (hw-sim/devices_hil.cpp) and the sim-frame subcommand.
+//   facetscan-fw-hil --scene hw-sim/scenes/cube.json --steps 300 --record cube.fscan      (HIL on the twins)
+//   facetscan-fw-hil --galvo sim-can --record scan.fscan --fault camera.drop@frame=40
+//   facetscan-fw-hil sim-frame --scene hw-sim/scenes/default.json --step 250 -o f.png
 //   facetscan-fw --galvo gpio:gpiochip0:step=17,dir=27,en=22,home=23,laser=24 --camera v4l2:/dev/video0
 //                --stream 192.168.1.10:5555 --rt   (one command line)
-//   facetscan-fw --galvo can:can0:node=1 --camera v4l2:/dev/video0 --laser gpio:gpiochip0:line=24 --record
-//   s.fscan facetscan-fw --check --galvo can:can0 --camera v4l2:/dev/video0 --laser gpio:gpiochip0:line=24
-//   facetscan-fw sim-frame --scene hw-sim/scenes/default.json --step 250 -o f.png
+//   facetscan-fw --galvo can:can0:node=1 --camera v4l2:/dev/video0 --laser gpio:gpiochip0:line=24
+//                --record s.fscan
+//   facetscan-fw --check --galvo can:can0 --camera v4l2:/dev/video0 --laser gpio:gpiochip0:line=24
 #include <fmt/core.h>
 #include <CLI/CLI.hpp>
 
 #include <cstdio>
-#include <filesystem>
 #include <memory>
-#include <optional>
 
 #include "common/error.hpp"
 #include "common/scan_file.hpp"
 #include "facetscan_version.hpp"
+#include "firmware/app/devices.hpp"
 #include "firmware/fw_config.hpp"
-#include "firmware/galvo_stepper.hpp"
 #include "firmware/loop/controller.hpp"
-#include "firmware/loop/monotonic_clock.hpp"
 #include "firmware/loop/realtime.hpp"
 #include "firmware/loop/safety.hpp"
 #include "firmware/stream/queued_publisher.hpp"
 #include "firmware/stream/tcp_sink.hpp"
-#include "hw-sim/scene/scene.hpp"
-#include "hw-sim/scene/sim_frame_cli.hpp"
-#include "hw-sim/scene_frame_renderer.hpp"
-#include "hw-sim/sim_rig.hpp"
-#if __has_include("firmware/backends/factory.hpp") && defined(FACETSCAN_HAVE_BACKENDS)
-#include "firmware/backends/device_check.hpp"
-#include "firmware/backends/factory.hpp"
-#include "hw-sim/can/cia402_twin.hpp"
-#define FS_BACKENDS 1
-#endif
 
 namespace {
 
@@ -46,119 +37,33 @@ class NullSink final : public wire::FrameSink {
   std::uint64_t bytes = 0;
 };
 
-bool starts_with(const std::string& s, const char* p) { return s.rfind(p, 0) == 0; }
-
-std::string default_scene() {
-  const std::filesystem::path src = FACETSCAN_DEFAULT_SCENE;
-  if (std::filesystem::exists(src)) return src.string();
-  return "hw-sim/scenes/default.json";
+// The end-of-scan summary on stderr.
+void print_report(const fw::LoopReport& rep, const fw::FwConfig& cfg, bool virtual_time,
+                  const ScanFileWriter* file) {
+  const msg::LoopStats s = rep.stats();
+  std::fprintf(
+      stderr,
+      "facetscan-fw: %s%s%s | stripes %u/%u, frames captured %u, dropped %u, stale %u, stripes dropped %u\n"
+      "  loop (%s time, period %.0f us, %llu ticks): lateness min %.1f us, median %.1f us, p99 %.1f us, "
+      "p99.9 %.1f us, max %.1f us, overruns %u\n"
+      "  extraction: mean %.1f us, max %.1f us per frame (%u frames)\n",
+      fw::to_string(rep.state), rep.fault != fw::FaultCode::None ? ": " : "",
+      rep.fault != fw::FaultCode::None ? fw::to_string(rep.fault) : "", rep.stripes_sent, cfg.loop.steps,
+      rep.frames_captured, rep.frames_dropped, rep.frames_stale, rep.stripes_dropped,
+      virtual_time ? "virtual" : "real", cfg.loop.period / 1e3, static_cast<unsigned long long>(rep.ticks),
+      s.lateness_min_ns / 1e3, s.lateness_median_ns / 1e3, s.lateness_p99_ns / 1e3, s.lateness_p999_ns / 1e3,
+      s.lateness_max_ns / 1e3, s.overruns, s.extraction_mean_ns / 1e3, s.extraction_max_ns / 1e3,
+      rep.extractions);
+  if (file)
+    std::fprintf(stderr, "  recorded %s (%llu bytes)\n", cfg.record.c_str(),
+                 static_cast<unsigned long long>(file->bytes_written()));
 }
 
 int run_scan(fw::FwConfig& cfg) {
-  const bool sim_galvo = cfg.galvo == "sim" || starts_with(cfg.galvo, "sim-can");
-  const bool sim_camera = cfg.camera == "sim";
-  if (sim_camera && !sim_galvo)
-    throw Error("--camera sim renders for the simulated mirror: use it with --galvo sim or sim-can");
-  if (!sim_camera && sim_galvo && cfg.galvo == "sim")
-    throw Error("--galvo sim drives a simulated mirror that a real camera cannot see; use --camera sim");
-  const bool virtual_time = cfg.virtual_time.value_or(sim_galvo && sim_camera);
-
-  // Scene and calibration (the scene's scanner geometry; bench default with --steps).
-  sim::Scene scene;
-  ScannerCalibration cal = ScannerCalibration::bench_default(cfg.loop.steps);
-  if (sim_camera) {
-    const std::string path = cfg.scene.empty() ? default_scene() : cfg.scene;
-    scene = sim::load_scene(path);
-    cal = scene.calibration;
-    if (cfg.steps_given && cal.step_count != cfg.loop.steps) {
-      // Same sweep in a different number of steps.
-      const double a0 = cal.laser.mirror_angle(cal.first_step);
-      const double a1 = cal.laser.mirror_angle(cal.first_step + static_cast<double>(cal.step_count) - 1.0);
-      cal.laser.mirror_angle_at_step0 = a0;
-      cal.laser.rad_per_step = cfg.loop.steps > 1 ? (a1 - a0) / (cfg.loop.steps - 1.0) : 0.0;
-      cal.first_step = 0;
-      cal.step_count = cfg.loop.steps;
-      scene.calibration = cal;
-    }
-    if (!cfg.steps_given) cfg.loop.steps = cal.step_count;
-    cfg.loop.first_step = cal.first_step;
-    std::fprintf(stderr, "facetscan-fw: scene %s (%zu objects), %u steps\n", path.c_str(),
-                 scene.objects.size(), cfg.loop.steps);
-  }
-  cfg.loop.max_rows = cal.camera.height;
-
-  sim::RigConfig rc;
-  rc.realtime = !virtual_time;
-  rc.faults = cfg.faults;
-  rc.camera.frame_period = static_cast<fw::Nanos>(cfg.sim_period_us) * 1000;
-  rc.camera.exposure = static_cast<fw::Nanos>(cfg.sim_exposure_us) * 1000;
-  rc.camera.readout = static_cast<fw::Nanos>(cfg.sim_readout_us) * 1000;
-  rc.camera.buffers = cfg.sim_buffers;
-  std::unique_ptr<sim::SceneFrameRenderer> renderer;
-  std::unique_ptr<sim::SimRig> rig;
-  if (sim_camera) {
-    static_assert(fw::kMaxSimSpeckleGrainPx == sim::kMaxSpeckleGrainPx);
-    sim::RenderOptions ro;
-    ro.speckle_grain_px = cfg.sim_speckle_grain_px;
-    renderer = std::make_unique<sim::SceneFrameRenderer>(scene, ro);
-    rig = std::make_unique<sim::SimRig>(*renderer, rc);
-  } else if (!cfg.faults.empty()) {
-    throw Error("--fault needs the simulated devices (--galvo sim --camera sim)");
-  }
-  if (sim_camera && !cfg.laser.empty())
-    throw Error("--laser '" + cfg.laser +
-                "': the simulated camera sees the simulated laser; use --laser with --camera v4l2:...");
-
-  fw::MonotonicClock mono;
-  fw::Clock* clock = rig ? static_cast<fw::Clock*>(&rig->clock) : &mono;
-  fw::Galvo* galvo = nullptr;
-  fw::Laser* laser = rig ? &rig->laser : nullptr;
-  fw::Camera* camera = rig ? &rig->camera : nullptr;
-  std::unique_ptr<fw::Galvo> galvo_owned;
-  std::unique_ptr<fw::Camera> camera_owned;
-  std::shared_ptr<fw::GpioLines> lines_owned;
-  std::shared_ptr<fw::Laser> laser_owned;
-  if (cfg.galvo == "sim") {
-    galvo = &rig->galvo;
-  } else {
-#ifdef FS_BACKENDS
-    if (starts_with(cfg.galvo, "sim-can")) {
-      auto b = fw::make_sim_can_galvo(cfg.galvo, *clock);
-      galvo_owned = std::move(b.galvo);
-      sim::SimMirror* mirror = &rig->mirror;
-      b.twin->set_position_callback([mirror](double pos, std::int64_t t) { mirror->command(t, pos); });
-    } else if (starts_with(cfg.galvo, "gpio:")) {
-      auto b = fw::make_gpio_backend(cfg.galvo);
-      lines_owned = std::move(b.lines);
-      laser_owned = std::move(b.laser);
-      galvo_owned = std::make_unique<fw::StepperGalvo>(*lines_owned);
-    } else if (starts_with(cfg.galvo, "can:")) {
-      galvo_owned = fw::make_can_galvo(cfg.galvo);
-    } else {
-      throw Error("--galvo '" + cfg.galvo + "': expected sim, sim-can[:...], gpio:... or can:...");
-    }
-    galvo = galvo_owned.get();
-    if (!sim_camera) {
-      if (!starts_with(cfg.camera, "v4l2:"))
-        throw Error("--camera '" + cfg.camera + "': expected sim or v4l2:...");
-      camera_owned = fw::make_v4l2_camera(cfg.camera);
-      camera = camera_owned.get();
-    }
-    if (!cfg.laser.empty()) {
-      if (laser_owned)
-        throw Error("--laser '" + cfg.laser +
-                    "': the --galvo gpio spec already has a laser= line; give only one");
-      if (!starts_with(cfg.laser, "gpio:"))
-        throw Error("--laser '" + cfg.laser + "': expected gpio:CHIP:line=L[,active_low=1]");
-      laser_owned = fw::make_gpio_laser(cfg.laser);
-    }
-    if (!laser) laser = laser_owned.get();
-#else
-    throw Error("--galvo '" + cfg.galvo + "': this build has no device backends");
-#endif
-  }
-  if (!laser)
-    throw Error("no laser line: give --laser gpio:CHIP:line=L (or laser=LINE in the --galvo gpio spec)");
+  // Declared first: the devices outlive the controller, the safety guard and the publisher.
+  const std::unique_ptr<fw::ScanDevices> dev = fw::make_devices(cfg);
+  const ScannerCalibration& cal = dev->calibration;
+  const bool virtual_time = dev->virtual_time;
 
   // Output: recording and/or stream.
   std::unique_ptr<ScanFileWriter> file;
@@ -187,8 +92,8 @@ int run_scan(fw::FwConfig& cfg) {
   pc.block_when_full = virtual_time && !tcp;
   fw::QueuedPublisher pub(*sink, pc, tcp.get());
 
-  fw::Controller ctl(fw::Devices{*clock, *galvo, *laser, *camera}, cfg.loop, pub, cal);
-  fw::SafetyGuard guard(*laser, *galvo, &ctl);
+  fw::Controller ctl(dev->devices(), cfg.loop, pub, cal);
+  fw::SafetyGuard guard(*dev->laser, *dev->galvo, &ctl);
   if (cfg.rt) {
     fw::RealtimeRequest rq;
     rq.priority = cfg.rt_priority;
@@ -203,23 +108,7 @@ int run_scan(fw::FwConfig& cfg) {
   if (tcp && !tcp->drain(2'000'000'000))
     std::fprintf(stderr, "facetscan-fw: warning: the host did not take the last frames within 2 s\n");
 
-  const msg::LoopStats s = rep.stats();
-  std::fprintf(
-      stderr,
-      "facetscan-fw: %s%s%s | stripes %u/%u, frames captured %u, dropped %u, stale %u, stripes dropped %u\n"
-      "  loop (%s time, period %.0f us, %llu ticks): lateness min %.1f us, median %.1f us, p99 %.1f us, "
-      "p99.9 %.1f us, max %.1f us, overruns %u\n"
-      "  extraction: mean %.1f us, max %.1f us per frame (%u frames)\n",
-      fw::to_string(rep.state), rep.fault != fw::FaultCode::None ? ": " : "",
-      rep.fault != fw::FaultCode::None ? fw::to_string(rep.fault) : "", rep.stripes_sent, cfg.loop.steps,
-      rep.frames_captured, rep.frames_dropped, rep.frames_stale, rep.stripes_dropped,
-      virtual_time ? "virtual" : "real", cfg.loop.period / 1e3, static_cast<unsigned long long>(rep.ticks),
-      s.lateness_min_ns / 1e3, s.lateness_median_ns / 1e3, s.lateness_p99_ns / 1e3, s.lateness_p999_ns / 1e3,
-      s.lateness_max_ns / 1e3, s.overruns, s.extraction_mean_ns / 1e3, s.extraction_max_ns / 1e3,
-      rep.extractions);
-  if (file)
-    std::fprintf(stderr, "  recorded %s (%llu bytes)\n", cfg.record.c_str(),
-                 static_cast<unsigned long long>(file->bytes_written()));
+  print_report(rep, cfg, virtual_time, file.get());
   return rep.state == fw::State::Done ? 0 : 2;
 }
 
@@ -256,7 +145,7 @@ int main(int argc, char** argv) {
   auto* rt_opt = app.add_flag("--realtime", realtime, "run the twins in real time");
   app.add_flag("--virtual-time", virtual_time, "run the twins on virtual time (default with sim devices)")
       ->excludes(rt_opt);
-  fs::sim::add_sim_frame_command(app);
+  fw::add_device_commands(app);
   app.require_subcommand(0, 1);
   try {
     app.parse(argc, argv);
@@ -266,7 +155,7 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "facetscan-fw: error: %s\n", e.what());
     return 1;
   }
-  if (app.got_subcommand("sim-frame")) return 0;
+  if (!app.get_subcommands().empty()) return 0;  // a subcommand (sim-frame) ran in its callback
   try {
     fw::FwConfig flags = cfg;
     if (!config_path.empty()) {
@@ -291,8 +180,7 @@ int main(int argc, char** argv) {
     if (realtime) cfg.virtual_time = false;
     if (virtual_time) cfg.virtual_time = true;
     if (check) {
-#ifdef FS_BACKENDS
-      const fw::CheckReport r = fw::check_devices(cfg.galvo, cfg.camera, cfg.laser);
+      const fw::CheckReport r = fw::check_configured_devices(cfg);
       std::fputs(r.text().c_str(), stdout);
       if (r.ok()) {
         std::printf("facetscan-fw --check: all %zu checks passed\n", r.items.size());
@@ -301,9 +189,6 @@ int main(int argc, char** argv) {
       std::printf("facetscan-fw --check: %zu of %zu checks failed (MISS above)\n", r.failed(),
                   r.items.size());
       return 3;
-#else
-      throw fs::Error("--check: this build has no device backends");
-#endif
     }
     return run_scan(cfg);
   } catch (const fs::Error& e) {

@@ -8,7 +8,7 @@
 #include <vector>
 
 #include "common/calibration.hpp"
-#include "firmware/galvo_stepper.hpp"
+#include "firmware/galvo/stepper_galvo.hpp"
 #include "hw-sim/frame_renderer.hpp"
 #include "hw-sim/sim_camera.hpp"
 #include "hw-sim/sim_clock.hpp"

@@ -1,4 +1,7 @@
 # Install rules and the Debian package of the firmware (CPack DEB): `cpack -G DEB` in a (cross) build dir.
+# The package (component firmware) carries the board binary facetscan-fw only: no facetscan-fw-hil, no hw-sim
+# scenes. Those go with the host program (component host, `cmake --install`): `facetscan demo` runs the
+# facetscan-fw-hil next to it on the shipped scenes.
 include(GNUInstallDirs)
 install(TARGETS facetscan-fw RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR} COMPONENT firmware)
 install(FILES ${PROJECT_SOURCE_DIR}/toolchain/deploy/facetscan-fw.service
@@ -9,10 +12,10 @@ install(FILES ${PROJECT_SOURCE_DIR}/toolchain/deploy/board.example.json
         DESTINATION ${CMAKE_INSTALL_DATAROOTDIR}/facetscan COMPONENT firmware)
 install(FILES ${PROJECT_SOURCE_DIR}/README.md DESTINATION ${CMAKE_INSTALL_DATAROOTDIR}/doc/facetscan-fw
         COMPONENT firmware)
-install(DIRECTORY ${PROJECT_SOURCE_DIR}/hw-sim/scenes/ DESTINATION ${CMAKE_INSTALL_DATAROOTDIR}/facetscan/scenes
-        COMPONENT firmware OPTIONAL)
 if(TARGET facetscan)
-  install(TARGETS facetscan RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR} COMPONENT host)
+  install(TARGETS facetscan facetscan-fw-hil RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR} COMPONENT host)
+  install(DIRECTORY ${PROJECT_SOURCE_DIR}/hw-sim/scenes/ DESTINATION ${CMAKE_INSTALL_DATAROOTDIR}/facetscan/scenes
+          COMPONENT host OPTIONAL)
 endif()
 
 set(CPACK_PACKAGE_NAME facetscan)

@@ -19,8 +19,8 @@
 #include <array>
 #include <cstdint>
 
+#include "common/cia402_protocol.hpp"
 #include "firmware/backends/can_port.hpp"
-#include "firmware/backends/cia402_protocol.hpp"
 #include "firmware/device/galvo.hpp"
 
 namespace fs::fw {

@@ -14,10 +14,9 @@
 #include <cstring>
 #include <filesystem>
 
+#include "common/cia402_protocol.hpp"
 #include "common/error.hpp"
-#include "firmware/backends/cia402_protocol.hpp"
 #include "firmware/loop/monotonic_clock.hpp"
-#include "hw-sim/can/cia402_twin.hpp"
 
 namespace fs::fw {
 
@@ -370,19 +369,6 @@ void check_can_iface(CheckReport& r, const std::string& device, const CanSpec& c
   }
 }
 
-void check_sim_can(CheckReport& r, const std::string& device, const CanSpec& cs) {
-  MonotonicClock clock;
-  const auto fds = CanPort::socketpair_fds();
-  CanPort port(fds[0], true);
-  sim::Cia402TwinConfig tc;
-  tc.node = cs.node;
-  sim::Cia402Twin twin(fds[1], clock, tc);
-  r.add(device, "CAN (sim-can)", true, "hw-sim CiA 402 drive twin over a socketpair");
-  check_can_drive(
-      r, device, "the socketpair", port, cs.node, clock, [&] { twin.poll(); }, 300'000'000);
-  ::close(fds[1]);
-}
-
 template <typename F>
 void guarded(CheckReport& r, const std::string& device, const std::string& spec, F&& f) {
   try {
@@ -394,14 +380,21 @@ void guarded(CheckReport& r, const std::string& device, const std::string& spec,
 
 }  // namespace
 
-CheckReport check_devices(const std::string& galvo, const std::string& camera, const std::string& laser) {
+bool is_sim_galvo(const std::string& spec) { return spec == "sim" || spec.rfind("sim-can", 0) == 0; }
+bool is_sim_camera(const std::string& spec) { return spec == "sim"; }
+
+CheckReport check_devices(const std::string& galvo, const std::string& camera, const std::string& laser,
+                          const SimChecks& sim) {
   CheckReport r;
   bool galvo_laser = false;  // the gpio galvo spec carries laser=
+  const char* no_sim =
+      "a simulated device: those are in facetscan-fw-hil (this binary has the real backends only)";
   guarded(r, "galvo", galvo, [&] {
-    if (galvo == "sim") {
-      r.add("galvo", "sim", true, "hw-sim stepper twin (no hardware)");
-    } else if (galvo.rfind("sim-can", 0) == 0) {
-      check_sim_can(r, "galvo", parse_can_spec(galvo));
+    if (is_sim_galvo(galvo)) {
+      if (sim.galvo)
+        sim.galvo(r, galvo);
+      else
+        r.add("galvo", galvo, false, no_sim);
     } else if (galvo.rfind("gpio:", 0) == 0) {
       const GpioSpec g = parse_gpio_spec(galvo);
       std::vector<std::pair<std::string, GpioLineRef>> lines = {
@@ -416,12 +409,16 @@ CheckReport check_devices(const std::string& galvo, const std::string& camera, c
     }
   });
   guarded(r, "camera", camera, [&] {
-    if (camera == "sim")
-      r.add("camera", "sim", true, "hw-sim camera twin rendering the scene (no hardware)");
-    else if (camera.rfind("v4l2:", 0) == 0)
+    if (is_sim_camera(camera)) {
+      if (sim.camera)
+        sim.camera(r, camera);
+      else
+        r.add("camera", camera, false, no_sim);
+    } else if (camera.rfind("v4l2:", 0) == 0) {
       check_v4l2(r, "camera", parse_v4l2_spec(camera));
-    else
+    } else {
       r.add("camera", camera, false, "expected sim or v4l2:...");
+    }
   });
   if (!laser.empty()) {
     guarded(r, "laser", laser, [&] {
@@ -432,7 +429,7 @@ CheckReport check_devices(const std::string& galvo, const std::string& camera, c
       const GpioLaserSpec l = parse_gpio_laser_spec(laser);
       check_gpio(r, "laser", l.chip, {{"laser", l.line}});
     });
-  } else if (camera != "sim" && !galvo_laser) {
+  } else if (!is_sim_camera(camera) && !galvo_laser) {
     r.add("laser", "(none)", false,
           "no laser line: give --laser gpio:CHIP:line=L (or laser= in the gpio galvo)");
   }

@@ -5,10 +5,12 @@
 //         character device, every line (offset or name) present and not used by another consumer.
 //   CAN   (can:IFACE...): the interface exists and is up, the drive answers an SDO read of 0x1000 (device
 //   type)
-//         and 0x6041 (statusword); a heartbeat seen meanwhile gives its NMT state. `sim-can` runs the same
-//         probe against the hw-sim drive twin over a socketpair.
+//         and 0x6041 (statusword); a heartbeat seen meanwhile gives its NMT state.
 //   V4L2  (v4l2:/dev/videoN...): the node opens, is a streaming capture device, its formats (VIDIOC_ENUM_FMT)
 //         include the configured one, and VIDIOC_TRY_FMT keeps the configured size.
+//   sim, sim-can, --camera sim: checked by the caller's SimChecks (facetscan-fw-hil, hw-sim/devices_hil.cpp:
+//         the same CAN probe against the drive twin over a socketpair); without them a failed item naming
+//         facetscan-fw-hil (the board binary has no simulated devices).
 // Nothing here throws for a missing device: each problem is one failed item with a message naming the device.
 #include <cstdint>
 #include <functional>
@@ -45,8 +47,18 @@ void check_can_drive(CheckReport& r, const std::string& device, const std::strin
                      std::uint8_t node, Clock& clock, const std::function<void()>& service, Nanos timeout);
 void check_v4l2(CheckReport& r, const std::string& device, const V4l2Spec& spec);
 
-// All configured devices from the facetscan-fw spec strings (sim, sim-can, gpio:, can:, v4l2:, laser gpio:).
-// A malformed spec is a failed item too (the message of the parser).
-CheckReport check_devices(const std::string& galvo, const std::string& camera, const std::string& laser);
+// The specs of the simulated devices: galvo sim / sim-can[:...], camera sim.
+bool is_sim_galvo(const std::string& spec);
+bool is_sim_camera(const std::string& spec);
+
+// Checks of the simulated devices (given by facetscan-fw-hil): each adds the items of its spec.
+struct SimChecks {
+  std::function<void(CheckReport&, const std::string&)> galvo, camera;  // (report, spec)
+};
+
+// All configured devices from the facetscan-fw spec strings (gpio:, can:, v4l2:, laser gpio:; sim, sim-can
+// and camera sim through `sim`). A malformed spec is a failed item too (the message of the parser).
+CheckReport check_devices(const std::string& galvo, const std::string& camera, const std::string& laser,
+                          const SimChecks& sim = {});
 
 }  // namespace fs::fw

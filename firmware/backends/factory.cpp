@@ -5,10 +5,9 @@
 #include <vector>
 
 #include "common/error.hpp"
-#include "firmware/backends/can_galvo.hpp"
 #include "firmware/backends/gpiod_lines.hpp"
-#include "firmware/backends/sim_can_galvo.hpp"
 #include "firmware/backends/v4l2_camera.hpp"
+#include "firmware/galvo/can_galvo.hpp"
 
 namespace fs::fw {
 namespace {
@@ -221,8 +220,7 @@ GpioBackend make_gpio_backend(std::string_view spec) {
   return b;
 }
 
-namespace {
-Cia402Config master_config(const CanSpec& c) {
+Cia402Config cia402_config(const CanSpec& c) {
   Cia402Config m;
   m.node = c.node;
   m.heartbeat_ms = c.heartbeat_ms;
@@ -232,24 +230,11 @@ Cia402Config master_config(const CanSpec& c) {
   m.state_timeout = static_cast<Nanos>(c.state_timeout_ms) * 1'000'000;
   return m;
 }
-}  // namespace
 
 std::unique_ptr<Galvo> make_can_galvo(std::string_view spec) {
   const CanSpec c = parse_can_spec(spec);
-  if (c.iface.empty()) bad(spec, "use make_sim_can_galvo for sim-can");
-  return CanGalvo::open(c.iface, master_config(c));
-}
-
-SimCanBackend make_sim_can_galvo(std::string_view spec, Clock& clock) {
-  const CanSpec c = parse_can_spec(spec);
-  if (!c.iface.empty()) bad(spec, "not a sim-can spec");
-  sim::Cia402TwinConfig t;
-  t.node = c.node;
-  auto g = std::make_unique<SimCanGalvo>(clock, master_config(c), t);
-  SimCanBackend b;
-  b.twin = &g->twin();
-  b.galvo = std::move(g);
-  return b;
+  if (c.iface.empty()) bad(spec, "sim-can is the hw-sim drive twin (facetscan-fw-hil), not a CAN interface");
+  return CanGalvo::open(c.iface, cia402_config(c));
 }
 
 std::unique_ptr<Camera> make_v4l2_camera(std::string_view spec) {

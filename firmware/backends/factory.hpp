@@ -5,8 +5,8 @@
 //   --galvo can:IFACE[:node=N][,hb=MS][,vel=STEPS_PER_S][,acc=STEPS_PER_S2][,sdo_ms=MS][,state_ms=MS]
 //        CiA 402 drive on SocketCAN (sdo_ms: SDO timeout per attempt, default 50; state_ms: enable/homing,
 //        500)
-//   --galvo sim-can[:node=N][,...same keys as can]   the same CiA 402 master driving the hw-sim twin over a
-//        socketpair (deterministic with a SimClock: poll() services the twin too)
+//   --galvo sim-can[:node=N][,...same keys as can]   parsed here (parse_can_spec); the master + drive
+//        twin pair is built in hw-sim (hw-sim/can/sim_can_galvo.hpp, facetscan-fw-hil only)
 //   --camera v4l2:/dev/videoN[:fmt=GREY|Y16|YUYV][,width=W][,height=H][,fps=F][,exposure=E][,buffers=N]
 //   --laser gpio:CHIP:line=L[,active_low=1]   a laser enable on its own GPIO line (for the CAN galvo)
 // Parsing errors throw fs::Error naming the spec and the offending key/value.
@@ -15,15 +15,11 @@
 #include <string>
 #include <string_view>
 
+#include "firmware/backends/cia402_master.hpp"
 #include "firmware/device/camera.hpp"
-#include "firmware/device/clock.hpp"
 #include "firmware/device/galvo.hpp"
 #include "firmware/device/gpio_lines.hpp"
 #include "firmware/device/laser.hpp"
-
-namespace fs::sim {
-class Cia402Twin;
-}
 
 namespace fs::fw {
 
@@ -86,13 +82,8 @@ std::unique_ptr<Laser> make_gpio_laser(std::string_view spec);
 // Opens a raw CAN socket on IFACE and returns the CiA 402 galvo. Throws fs::Error.
 std::unique_ptr<Galvo> make_can_galvo(std::string_view spec);
 
-// CiA 402 master + hw-sim twin over a socketpair. `twin` stays valid as long as `galvo` lives
-// (set its position callback to feed the camera twin).
-struct SimCanBackend {
-  std::unique_ptr<Galvo> galvo;
-  sim::Cia402Twin* twin = nullptr;
-};
-SimCanBackend make_sim_can_galvo(std::string_view spec, Clock& clock);
+// The master's settings of a can: / sim-can spec.
+Cia402Config cia402_config(const CanSpec& spec);
 
 // Opens and configures the V4L2 device (capture starts at Camera::start). Throws fs::Error.
 std::unique_ptr<Camera> make_v4l2_camera(std::string_view spec);

@@ -156,7 +156,7 @@ stdfs::path self_dir() {
   return ec ? stdfs::current_path() : exe.parent_path();
 }
 
-// The galvo twin of the demo, as facetscan-fw's --galvo value:
+// The galvo twin of the demo, as facetscan-fw-hil's --galvo value:
 //   gpio (or sim): the firmware's step/dir StepperGalvo driving the simulated GPIO lines (hw-sim
 //   SimStepperLines); can (or sim-can[:node=N,...]): the firmware's CiA 402 master driving the simulated
 //   drive (hw-sim Cia402Twin) with CAN frames over a socketpair.
@@ -208,8 +208,9 @@ int run_demo(const DemoOptions& o) {
   StreamServer server(so, [&](const Scan& s) { handler(s); });
   server.start();
 
-  const stdfs::path fw = self_dir() / "facetscan-fw";
-  if (!stdfs::exists(fw)) throw Error(fw.string() + ": facetscan-fw not found next to facetscan");
+  // The firmware on the twins (the board binary facetscan-fw has no simulated devices).
+  const stdfs::path fw = self_dir() / "facetscan-fw-hil";
+  if (!stdfs::exists(fw)) throw Error(fw.string() + ": facetscan-fw-hil not found next to facetscan");
   std::vector<std::string> args = {fw.string(),    "--galvo",  twin.fw_spec,
                                    "--camera",     "sim",      "--scene",
                                    scene.string(), "--stream", fmt::format("127.0.0.1:{}", server.port()),
@@ -309,7 +310,7 @@ void add_live_commands(CLI::App& app) {
   auto o = std::make_shared<DemoOptions>();
   auto* demo =
       app.add_subcommand("demo",
-                         "Hardware-in-the-loop demo: facetscan-fw on simulated devices scans a scene and "
+                         "Hardware-in-the-loop demo: facetscan-fw-hil on simulated devices scans a scene and "
                          "streams it over TCP loopback; this process recognizes the objects");
   demo->add_option("--scene", o->scene,
                    "Shipped scene name (default, cube, pyramid, cube-pyramid-separate, "

@@ -1,6 +1,6 @@
 #pragma once
 // `facetscan serve` (recognize every scan a scanner streams) and `facetscan demo` (the hardware-in-the-loop
-// demo: facetscan-fw on the simulated devices streams a scan over TCP loopback to this host process).
+// demo: facetscan-fw-hil on the simulated devices streams a scan over TCP loopback to this host process).
 #include <CLI/CLI.hpp>
 
 namespace fs::host::cli {

@@ -10,7 +10,7 @@
 
 namespace fs::sim {
 
-using namespace fw::cia402;
+using namespace cia402;
 using fw::Nanos;
 
 Cia402Twin::Cia402Twin(int fd, fw::Clock& clock, const Cia402TwinConfig& cfg)

@@ -8,14 +8,14 @@
 // objects, wrong sizes, read-only objects, unsupported values), the controlword/statusword state machine,
 // profile position mode (new set-point / acknowledge handshake, change immediately, relative, halt,
 // trapezoidal motion, target reached), homing mode method 37, heartbeat producer, TPDO1 (statusword +
-// position) on change and on the event timer. PDO mapping: see firmware/backends/cia402_protocol.hpp. Faults:
+// position) on change and on the event timer. PDO mapping: see common/cia402_protocol.hpp. Faults:
 // no response, heartbeat loss, drive fault (EMCY + fault state), error-passive frames, bus-off with restart;
 // scriptable by time (schedule()).
 #include <cstdint>
 #include <functional>
 #include <vector>
 
-#include "firmware/backends/cia402_protocol.hpp"
+#include "common/cia402_protocol.hpp"
 #include "firmware/device/clock.hpp"
 
 namespace fs::sim {
@@ -58,7 +58,7 @@ class Cia402Twin {
   double velocity() const { return vel_; }
   std::int32_t target() const { return target_; }
   std::uint16_t statusword() const;
-  fw::cia402::DriveState state() const { return state_; }
+  cia402::DriveState state() const { return state_; }
   std::uint8_t nmt_state() const { return nmt_; }
   std::int8_t mode() const { return mode_display_; }
   std::uint32_t profile_velocity() const { return prof_vel_; }
@@ -87,12 +87,12 @@ class Cia402Twin {
   PositionCallback on_position_;
   Cia402TwinStats stats_;
 
-  std::uint8_t nmt_ = fw::cia402::kStatePreOperational;
-  fw::cia402::DriveState state_ = fw::cia402::DriveState::SwitchOnDisabled;
+  std::uint8_t nmt_ = cia402::kStatePreOperational;
+  cia402::DriveState state_ = cia402::DriveState::SwitchOnDisabled;
   std::uint16_t cw_ = 0;
   std::uint16_t error_code_ = 0;
   std::int8_t mode_ = 0, mode_display_ = 0;
-  std::int8_t homing_method_ = fw::cia402::kHomingOnCurrentPosition;
+  std::int8_t homing_method_ = cia402::kHomingOnCurrentPosition;
   std::int32_t target_ = 0, target_obj_ = 0, home_offset_ = 0;
   std::uint32_t prof_vel_ = 10000, prof_acc_ = 100000, prof_dec_ = 100000;
   std::uint16_t hb_ms_ = 0, tpdo_ms_ = 0;

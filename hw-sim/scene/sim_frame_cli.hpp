@@ -1,6 +1,6 @@
 #pragma once
 // `sim-frame`: renders one simulated stripe frame of a scene and writes it as PNG.
-//   facetscan-fw sim-frame --scene hw-sim/scenes/default.json --step 250 -o f.png [--noise 1 --seed 7
+//   facetscan-fw-hil sim-frame --scene hw-sim/scenes/default.json --step 250 -o f.png [--noise 1 --seed 7
 //   --mono16]
 #include <CLI/CLI.hpp>
 

@@ -2,8 +2,8 @@
 # ctest `cross_<arch>_deb` (label cross): `cpack -G DEB` in the board's cross build dir (aarch64 or armhf), then
 # checks the package with dpkg-deb -I / -c / -x: name, version, Debian architecture (arm64 / armhf), dependencies,
 # postinst, the binary (an ELF of the board's architecture that runs `--version` under qemu), the systemd unit
-# (restart on failure, RT scheduling, memlock, dedicated user; `systemd-analyze verify` when available), the
-# example board config and the scenes.
+# (restart on failure, RT scheduling, memlock, dedicated user; `systemd-analyze verify` when available) and the
+# example board config; and that it carries no simulator (no facetscan-fw-hil, no hw-sim scenes).
 #   deb_check.sh ARCH SOURCE_DIR CROSS_BUILD_DIR WORK_DIR      (ARCH: aarch64 | armhf)
 set -uo pipefail
 arch="$1"; src="$2"; cross="$3"; work="$4"
@@ -31,11 +31,13 @@ echo "$info" | grep -q ' postinst' || fail "no postinst in the control archive"
 contents="$(dpkg-deb -c "$deb")" || fail "dpkg-deb -c"
 echo "$contents"
 for f in ./usr/bin/facetscan-fw ./usr/lib/systemd/system/facetscan-fw.service \
-         ./usr/share/facetscan/board.example.json ./usr/share/facetscan/scenes/cube.json \
-         ./usr/share/facetscan/scenes/default.json; do
+         ./usr/share/facetscan/board.example.json; do
   echo "$contents" | grep -q " $f\$" || fail "the package lacks $f"
 done
 echo "$contents" | grep -q ' \./usr/bin/facetscan$' && fail "the host program must not be in facetscan-fw"
+echo "$contents" | grep -q 'facetscan-fw-hil' && fail "the HIL binary (facetscan-fw-hil) must not be in facetscan-fw"
+scenes="$(echo "$contents" | grep -i 'scenes\|meshes\|\.json$\|\.stl$\|\.ply$' | grep -v '/board\.example\.json$')"
+[ -z "$scenes" ] || fail "hw-sim scenes must not be in facetscan-fw: $scenes"
 
 dpkg-deb -x "$deb" "$work/root" || fail "dpkg-deb -x"
 dpkg-deb -e "$deb" "$work/control" || fail "dpkg-deb -e"

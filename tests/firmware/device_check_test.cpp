@@ -1,5 +1,6 @@
-// facetscan-fw --check (issue 11): the probes against the twins (sim, sim-can over a socketpair with the real
-// SDO exchange) and the "missing device" messages for absent /dev nodes, chips, interfaces and drives.
+// facetscan-fw(-hil) --check (issue 11): the probes against the twins (sim, sim-can over a socketpair with
+// the real SDO exchange) and the "missing device" messages for absent /dev nodes, chips, interfaces and
+// drives.
 #include <gtest/gtest.h>
 
 #ifdef FACETSCAN_HAVE_BACKENDS
@@ -9,6 +10,7 @@
 #include <string>
 
 #include "common/error.hpp"
+#include "firmware/app/devices.hpp"
 #include "firmware/backends/device_check.hpp"
 #include "firmware/backends/factory.hpp"
 #include "firmware/fw_config.hpp"
@@ -27,15 +29,23 @@ const fw::CheckItem* find_item(const CheckReport& r, const std::string& what_par
   return nullptr;
 }
 
+fw::FwConfig devices(const std::string& galvo, const std::string& camera) {
+  fw::FwConfig c;
+  c.galvo = galvo;
+  c.camera = camera;
+  return c;
+}
+
+// facetscan-fw-hil's check (hw-sim/devices_hil.cpp) takes the twins.
 TEST(DeviceCheck, SimDevicesArePresent) {
-  const CheckReport r = fw::check_devices("sim", "sim", "");
+  const CheckReport r = fw::check_configured_devices(devices("sim", "sim"));
   EXPECT_TRUE(r.ok()) << r.text();
   EXPECT_EQ(r.items.size(), 2u);
   EXPECT_NE(r.text().find("[ ok ] galvo: sim"), std::string::npos) << r.text();
 }
 
 TEST(DeviceCheck, SimCanReadsDeviceTypeAndStatuswordOverSdo) {
-  const CheckReport r = fw::check_devices("sim-can:node=5", "sim", "");
+  const CheckReport r = fw::check_configured_devices(devices("sim-can:node=5", "sim"));
   ASSERT_TRUE(r.ok()) << r.text();
   const auto* dt = find_item(r, "device type (1000h)");
   ASSERT_NE(dt, nullptr) << r.text();
@@ -44,6 +54,18 @@ TEST(DeviceCheck, SimCanReadsDeviceTypeAndStatuswordOverSdo) {
   const auto* sw = find_item(r, "statusword (6041h)");
   ASSERT_NE(sw, nullptr) << r.text();
   EXPECT_NE(sw->detail.find("switch on disabled"), std::string::npos) << sw->detail;
+}
+
+// Without the HIL's checks (facetscan-fw, the board binary) the simulated devices are missing, naming the
+// binary that has them.
+TEST(DeviceCheck, BoardCheckSendsSimDevicesToTheHilBinary) {
+  const CheckReport r = fw::check_devices("sim-can:node=5", "sim", "");
+  EXPECT_EQ(r.failed(), 2u) << r.text();
+  EXPECT_NE(r.text().find("[MISS] galvo: sim-can:node=5: a simulated device: those are in facetscan-fw-hil"),
+            std::string::npos)
+      << r.text();
+  EXPECT_NE(r.text().find("[MISS] camera: sim:"), std::string::npos) << r.text();
+  EXPECT_FALSE(fw::check_devices("sim", "v4l2:/dev/video99", "gpio:gpiochip99:line=1").ok());
 }
 
 TEST(DeviceCheck, DriveInFaultIsReported) {

@@ -5,9 +5,9 @@
 #ifdef FACETSCAN_HAVE_BACKENDS
 #include <cmath>
 
-#include "firmware/backends/factory.hpp"
 #include "hil_support.hpp"
 #include "hw-sim/can/cia402_twin.hpp"
+#include "hw-sim/can/sim_can_galvo.hpp"
 
 namespace fs::test {
 namespace {
@@ -17,7 +17,7 @@ TEST(SimCanHil, ScansWithTheCia402Drive) {
   const ScannerCalibration cal = small_calibration(kSteps);
   sim::TableStripeRenderer renderer(cal);
   sim::SimRig rig(renderer);
-  auto b = fw::make_sim_can_galvo("sim-can", rig.clock);
+  auto b = sim::make_sim_can_galvo("sim-can", rig.clock);
   sim::SimMirror* mirror = &rig.mirror;
   b.twin->set_position_callback([mirror](double pos, std::int64_t t) { mirror->command(t, pos); });
   wire::VectorSink sink;

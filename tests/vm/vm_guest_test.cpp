@@ -17,12 +17,12 @@
 
 #include "common/error.hpp"
 #include "common/messages.hpp"
-#include "firmware/backends/can_galvo.hpp"
 #include "firmware/backends/factory.hpp"
 #include "firmware/backends/gpiod_lines.hpp"
 #include "firmware/backends/v4l2_camera.hpp"
 #include "firmware/extract/stripe_extractor.hpp"
-#include "firmware/galvo_stepper.hpp"
+#include "firmware/galvo/can_galvo.hpp"
+#include "firmware/galvo/stepper_galvo.hpp"
 #include "firmware/loop/monotonic_clock.hpp"
 #include "hw-sim/can/cia402_twin.hpp"
 #include "vm_rig.hpp"
@@ -97,7 +97,7 @@ TEST(VmCan, MasterDrivesTheTwinOverVcan0) {
       [](const fw::GalvoStatus& s) { return s.enabled || s.fault != fw::GalvoFault::None; }, 5000 * kMs));
   ASSERT_TRUE(rig.status.enabled) << fw::to_string(rig.status.fault);
   std::printf("VMRESULT can_enable_ms %.1f\n", double(rig.clock.now() - t0) / 1e6);
-  EXPECT_EQ(rig.twin.state(), fw::cia402::DriveState::OperationEnabled);
+  EXPECT_EQ(rig.twin.state(), cia402::DriveState::OperationEnabled);
   const Nanos t1 = rig.clock.now();
   rig.galvo->move_to(4000, t1);
   ASSERT_TRUE(rig.run_until([](const fw::GalvoStatus& s) { return s.in_position; }, 5000 * kMs));

@@ -16,10 +16,10 @@
 #include <vector>
 
 #include "common/messages.hpp"
-#include "firmware/backends/can_galvo.hpp"
 #include "firmware/backends/gpiod_lines.hpp"
 #include "firmware/backends/v4l2_camera.hpp"
 #include "firmware/extract/stripe_extractor.hpp"
+#include "firmware/galvo/can_galvo.hpp"
 #include "firmware/loop/monotonic_clock.hpp"
 #include "hw-sim/scene/scene.hpp"
 #include "hw-sim/scene/stripe_renderer.hpp"

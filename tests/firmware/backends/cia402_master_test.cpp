@@ -8,8 +8,8 @@
 namespace fs::test {
 namespace {
 
+using cia402::DriveState;
 using fw::GalvoFault;
-using fw::cia402::DriveState;
 
 TEST(Cia402Master, EnableConfiguresTheDriveAndReachesOperationEnabled) {
   fw::Cia402Config cfg;
@@ -20,8 +20,8 @@ TEST(Cia402Master, EnableConfiguresTheDriveAndReachesOperationEnabled) {
   EXPECT_FALSE(rig.tick().enabled);
   ASSERT_TRUE(rig.enable());
   EXPECT_EQ(rig.twin.state(), DriveState::OperationEnabled);
-  EXPECT_EQ(rig.twin.nmt_state(), fw::cia402::kStateOperational);
-  EXPECT_EQ(rig.twin.mode(), fw::cia402::kModeProfilePosition);
+  EXPECT_EQ(rig.twin.nmt_state(), cia402::kStateOperational);
+  EXPECT_EQ(rig.twin.mode(), cia402::kModeProfilePosition);
   EXPECT_EQ(rig.twin.profile_velocity(), 12345u);
   EXPECT_EQ(rig.twin.profile_acceleration(), 222222u);
   EXPECT_EQ(rig.twin.heartbeat_ms(), 50);
@@ -232,7 +232,7 @@ TEST(Cia402Master, HomingMakesTheCurrentPositionZero) {
   EXPECT_TRUE(rig.tick().moving);
   ASSERT_TRUE(rig.run_until([](const fw::GalvoStatus& s) { return s.homed; }, 500 * kMs));
   EXPECT_EQ(rig.status.measured_step, 0.0);
-  EXPECT_EQ(rig.twin.mode(), fw::cia402::kModeProfilePosition);
+  EXPECT_EQ(rig.twin.mode(), cia402::kModeProfilePosition);
   ASSERT_TRUE(rig.move(-40));
   EXPECT_EQ(rig.twin.position(), -40.0);
 }
@@ -261,7 +261,7 @@ TEST(Cia402Master, RejectedConfigurationIsADriveFaultWithTheAbortCode) {
   rig.master.enable(rig.clock.now());
   ASSERT_TRUE(rig.run_until([](const fw::GalvoStatus& s) { return s.fault != GalvoFault::None; }, 500 * kMs));
   EXPECT_EQ(rig.status.fault, GalvoFault::DriveFault);
-  EXPECT_EQ(rig.master.diagnostics().sdo_abort, fw::cia402::kAbortRange);
+  EXPECT_EQ(rig.master.diagnostics().sdo_abort, cia402::kAbortRange);
 }
 
 TEST(Cia402Master, DriveRebootIsCommLostAndClearsHomed) {
@@ -270,7 +270,7 @@ TEST(Cia402Master, DriveRebootIsCommLostAndClearsHomed) {
   rig.master.start_homing(rig.clock.now());
   ASSERT_TRUE(rig.run_until([](const fw::GalvoStatus& s) { return s.homed; }, 500 * kMs));
   // someone resets the node: boot-up message
-  can_frame f = fw::cia402::nmt(fw::cia402::kNmtResetNode, 1);
+  can_frame f = cia402::nmt(cia402::kNmtResetNode, 1);
   ASSERT_EQ(::write(rig.fds[0], &f, sizeof f), static_cast<ssize_t>(sizeof f));
   ASSERT_TRUE(rig.run_until([](const fw::GalvoStatus& s) { return s.fault != GalvoFault::None; }, 500 * kMs));
   EXPECT_EQ(rig.status.fault, GalvoFault::CommLost);
@@ -296,11 +296,11 @@ TEST(Cia402Master, JunkFramesFromTheBusAreIgnored) {
   ASSERT_TRUE(rig.enable());
   // frames for other nodes, short frames, extended ids: none may disturb the master
   const can_frame junk[] = {
-      fw::cia402::make_frame(0x181 + 1, 6),  // TPDO of node 2
-      fw::cia402::make_frame(0x581, 3),      // short SDO response
-      fw::cia402::make_frame(0x701 | CAN_EFF_FLAG, 1),
-      fw::cia402::make_frame(0x081, 1),  // short EMCY
-      fw::cia402::make_frame(0x181, 2),  // short TPDO
+      cia402::make_frame(0x181 + 1, 6),  // TPDO of node 2
+      cia402::make_frame(0x581, 3),      // short SDO response
+      cia402::make_frame(0x701 | CAN_EFF_FLAG, 1),
+      cia402::make_frame(0x081, 1),  // short EMCY
+      cia402::make_frame(0x181, 2),  // short TPDO
   };
   for (const auto& f : junk) ASSERT_EQ(::write(rig.fds[1], &f, sizeof f), static_cast<ssize_t>(sizeof f));
   rig.run_for(20 * kMs);

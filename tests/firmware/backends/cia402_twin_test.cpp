@@ -6,15 +6,15 @@
 
 #include <optional>
 
+#include "common/cia402_protocol.hpp"
 #include "firmware/backends/can_port.hpp"
-#include "firmware/backends/cia402_protocol.hpp"
 #include "hw-sim/can/cia402_twin.hpp"
 #include "test_clock.hpp"
 
 namespace fs::test {
 namespace {
 
-using namespace fw::cia402;
+using namespace cia402;
 
 struct TwinRig {
   TwinRig() : fds(fw::CanPort::socketpair_fds()), port(fds[0], true), twin(fds[1], clock) {}

@@ -6,6 +6,7 @@
 #include "firmware/backends/factory.hpp"
 #include "firmware/backends/gpiod_lines.hpp"
 #include "hw-sim/can/cia402_twin.hpp"
+#include "hw-sim/can/sim_can_galvo.hpp"
 #include "support/error_of.hpp"
 #include "test_clock.hpp"
 
@@ -123,7 +124,7 @@ TEST(BackendOpen, MissingDevicesGiveClearErrors) {
 
 TEST(BackendOpen, SimCanGalvoEnablesAndMovesOnAManualClock) {
   ManualClock clock;
-  auto b = fw::make_sim_can_galvo("sim-can:node=4", clock);
+  auto b = sim::make_sim_can_galvo("sim-can:node=4", clock);
   ASSERT_NE(b.twin, nullptr);
   double last_pos = -1;
   b.twin->set_position_callback([&](double p, std::int64_t) { last_pos = p; });
@@ -144,7 +145,7 @@ TEST(BackendOpen, SimCanGalvoEnablesAndMovesOnAManualClock) {
   EXPECT_EQ(s.measured_step, 2500.0);
   EXPECT_EQ(last_pos, 2500.0);
   b.galvo->disable();
-  EXPECT_EQ(b.twin->state(), fw::cia402::DriveState::SwitchOnDisabled);
+  EXPECT_EQ(b.twin->state(), cia402::DriveState::SwitchOnDisabled);
 }
 
 TEST(BackendOpen, GpiodApiVersionMatchesTheBuild) {

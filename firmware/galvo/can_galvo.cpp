@@ -1,4 +1,4 @@
-#include "firmware/backends/can_galvo.hpp"
+#include "firmware/galvo/can_galvo.hpp"
 
 #include <utility>
 

@@ -1,4 +1,4 @@
-#include "firmware/galvo_stepper.hpp"
+#include "firmware/galvo/stepper_galvo.hpp"
 
 #include <cmath>
 

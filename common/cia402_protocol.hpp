@@ -11,7 +11,7 @@
 #include <cstdint>
 #include <cstring>
 
-namespace fs::fw::cia402 {
+namespace fs::cia402 {
 
 // COB-ID function codes (11-bit identifiers, node id added).
 constexpr std::uint32_t kNmt = 0x000;
@@ -185,4 +185,4 @@ inline can_frame nmt(std::uint8_t command, std::uint8_t node) {
   return f;
 }
 
-}  // namespace fs::fw::cia402
+}  // namespace fs::cia402
