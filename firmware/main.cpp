@@ -123,28 +123,36 @@ int main(int argc, char** argv) {
   bool realtime = false, virtual_time = false, check = false;
   app.add_option("--config", config_path, "JSON configuration file (flags override it)")
       ->check(CLI::ExistingFile);
-  app.add_option(
-      "--galvo", cfg.galvo,
-      "sim | sim-can[:node=N,...] | gpio:CHIP:step=L,dir=L,en=L,home=L[,laser=L] | can:IFACE[:...]");
-  app.add_option("--camera", cfg.camera, "sim | v4l2:/dev/videoN[:fmt=GREY,...]");
+  const bool twins = fw::has_twins();
+  // The twins' options are hidden in the board binary (it refuses them with a message naming
+  // facetscan-fw-hil).
+  const std::string sim_group = twins ? "Options" : "";
+  app.add_option("--galvo", cfg.galvo,
+                 std::string(twins ? "sim | sim-can[:node=N,...] | " : "") +
+                     "gpio:CHIP:step=L,dir=L,en=L,home=L[,laser=L] | can:IFACE[:...]");
+  app.add_option("--camera", cfg.camera,
+                 std::string(twins ? "sim | " : "") + "v4l2:/dev/videoN[:fmt=GREY,...]");
   app.add_option("--laser", cfg.laser,
                  "gpio:CHIP:line=L[,active_low=1] (a laser on its own line, e.g. with --galvo can:...)");
   app.add_option("--scene", cfg.scene,
-                 "scene JSON for the simulated camera (default: the shipped default scene)");
+                 "scene JSON for the simulated camera (default: the shipped default scene)")
+      ->group(sim_group);
   app.add_option("--steps", steps, "number of galvo steps of the scan")->check(CLI::Range(1, 100000));
   app.add_option("--stream", cfg.stream, "stream to the host HOST:PORT (reconnects with backoff)");
   app.add_option("--record", cfg.record, "record the scan to a .fscan file");
   app.add_flag("--rt", cfg.rt,
                "SCHED_FIFO + mlockall + CPU affinity for the loop (warns when not permitted)");
   app.add_option("--fault", cfg.faults,
-                 "inject a fault into the twins, e.g. galvo.stall@step=120 (repeatable)");
+                 "inject a fault into the twins, e.g. galvo.stall@step=120 (repeatable)")
+      ->group(sim_group);
   app.add_flag(
       "--check", check,
       "probe the configured devices (GPIO chip/lines, CAN drive, camera formats), print what is found and "
       "what is missing; exit 0 only when everything is there (3 otherwise)");
-  auto* rt_opt = app.add_flag("--realtime", realtime, "run the twins in real time");
+  auto* rt_opt = app.add_flag("--realtime", realtime, "run the twins in real time")->group(sim_group);
   app.add_flag("--virtual-time", virtual_time, "run the twins on virtual time (default with sim devices)")
-      ->excludes(rt_opt);
+      ->excludes(rt_opt)
+      ->group(sim_group);
   fw::add_device_commands(app);
   app.require_subcommand(0, 1);
   try {

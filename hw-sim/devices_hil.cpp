@@ -161,6 +161,8 @@ CheckReport check_configured_devices(const FwConfig& cfg) {
   return check_devices(cfg.galvo, cfg.camera, cfg.laser, sim);
 }
 
+bool has_twins() { return true; }
+
 void add_device_commands(CLI::App& app) { sim::add_sim_frame_command(app); }
 
 }  // namespace fs::fw

@@ -52,6 +52,10 @@ CheckReport check_configured_devices(const FwConfig& cfg);
 // Subcommands of this binary besides the scan (facetscan-fw-hil: sim-frame; facetscan-fw: none).
 void add_device_commands(CLI::App& app);
 
+// Whether this binary has the twins (facetscan-fw-hil) or the real backends only (facetscan-fw): the help
+// lists the simulated devices and the twins' options only where they work.
+bool has_twins();
+
 // The real devices of the board (facetscan-fw's make_devices; facetscan-fw-hil's for real specs). Destroyed
 // in reverse member order: the laser first, the clock last.
 struct RealDevices {

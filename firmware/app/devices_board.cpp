@@ -53,6 +53,8 @@ CheckReport check_configured_devices(const FwConfig& cfg) {
 
 // sim-frame (the scene renderer) is facetscan-fw-hil's: a hidden stand-in gives the clear error (exit 1)
 // instead of an unknown-argument one.
+bool has_twins() { return false; }
+
 void add_device_commands(CLI::App& app) {
   CLI::App* sub = app.add_subcommand("sim-frame", "")->group("")->prefix_command();
   sub->callback([] { throw Error("sim-frame renders simulated frames: it is in facetscan-fw-hil"); });
