@@ -1,3 +1,6 @@
+// The wire protocol (wire.hpp) in one file on purpose: the field checks, the encoder and the decoder of each
+// message sit side by side so that a change to a message's layout is made in one place; FrameDecoder, at the
+// end, reassembles frames from a byte stream for the TCP server and the .fscan reader.
 #include "common/wire.hpp"
 
 #include <algorithm>

@@ -1,3 +1,5 @@
+// One device twin, one file: the drive's object dictionary, NMT, SDO server, state machine, motion profile
+// and fault injection share the drive's state (see cia402_twin.hpp for what it implements).
 #include "hw-sim/can/cia402_twin.hpp"
 
 #include <fcntl.h>
