@@ -2,7 +2,7 @@
 // What the camera twin needs from a renderer: a stripe image for a mirror position (galvo steps) and laser
 // power, plus the true stripe centre per row for that position (ground truth for tests).
 // Implementations: TableStripeRenderer (hw-sim/table_renderer.hpp: the laser on the bare table, analytic,
-// no scene) and the scene renderer adapter (hw-sim/scene_stripe_renderer.hpp).
+// no scene) and the scene renderer adapter (hw-sim/scene_frame_renderer.hpp).
 #include <cstdint>
 #include <span>
 
