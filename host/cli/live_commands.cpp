@@ -8,12 +8,14 @@
 #include <chrono>
 #include <csignal>
 #include <cstdio>
+#include <deque>
 #include <filesystem>
 #include <fstream>
 #include <functional>
 #include <memory>
 #include <optional>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <fmt/format.h>
@@ -29,6 +31,8 @@
 #include "host/match/params.hpp"
 #include "host/recognize/recognizer.hpp"
 #include "host/recognize/report.hpp"
+#include "host/web/http_server.hpp"
+#include "host/web/report_view.hpp"
 
 extern char** environ;
 
@@ -37,7 +41,66 @@ namespace {
 
 namespace stdfs = std::filesystem;
 
-// Recognizes scans as they are delivered: triangulation -> recognition -> table, JSON and report.
+// The scanner's state for the web view (--http): sampled from the stream server by the serve / demo loop and
+// published at most every 100 ms (and at once on a scan's start / end). Publishing never waits for a client.
+class LiveTracker {
+ public:
+  LiveTracker(web::WebServer* web, const char* mode) : web_(web) { s_.mode = mode; }
+  bool enabled() const { return web_ != nullptr; }
+
+  void update(const StreamServer& server, bool force = false) {
+    if (!web_) return;
+    const auto now = std::chrono::steady_clock::now();
+    const Scan& cur = server.current_scan();
+    const bool scanning = cur.started() && cur.status() == ScanStatus::InProgress;
+    if (!force && now - last_ < std::chrono::milliseconds(100) && scanning == s_.scanning) return;
+    last_ = now;
+    if (cur.started() && cur.scan_id() != s_.scan_id) samples_.clear();
+    s_.connected = server.connected();
+    s_.scanning = scanning;
+    if (cur.started()) {
+      s_.scan_id = cur.scan_id();
+      s_.stripes = cur.stripes_received();
+      s_.steps = cur.slot_count();
+      s_.last_fault_code = cur.last_fault_code();
+    }
+    samples_.push_back({now, s_.stripes});
+    while (samples_.size() > 2 && now - samples_[1].first >= std::chrono::seconds(1)) samples_.pop_front();
+    const double dt = std::chrono::duration<double>(now - samples_.front().first).count();
+    s_.stripes_per_s = scanning && dt > 0.05 ? (s_.stripes - samples_.front().second) / dt : 0.0;
+    s_.faults = server.assembler_stats().faults;
+    const StreamServerStats& st = server.stats();
+    s_.connections = st.connections;
+    s_.disconnects = st.disconnects;
+    s_.protocol_errors = st.protocol_errors;
+    s_.frames = st.frames;
+    web_->publish_status(s_);
+  }
+  // A scan was delivered and is being recognized / was recognized.
+  void recognizing(const Scan& scan, bool on) {
+    if (!web_) return;
+    s_.recognizing = on;
+    s_.scanning = false;
+    s_.scan_id = scan.scan_id();
+    s_.stripes = scan.stripes_received();
+    s_.steps = scan.slot_count();
+    if (!on) ++s_.scans;
+    if (scan.has_end()) {
+      s_.has_loop = true;
+      s_.loop = scan.end_message().loop;
+    }
+    web_->publish_status(s_);
+  }
+
+ private:
+  web::WebServer* web_;
+  web::LiveStatus s_;
+  std::chrono::steady_clock::time_point last_{};
+  std::deque<std::pair<std::chrono::steady_clock::time_point, std::uint32_t>> samples_;
+};
+
+// Recognizes scans as they are delivered: triangulation -> recognition -> table, JSON and report (and the
+// web view's record of the scan with --http).
 class ScanHandler {
  public:
   ScanHandler(const Library& library, rec::RecognizeParams params, std::string out_dir, bool quiet)
@@ -45,10 +108,19 @@ class ScanHandler {
 
   // Called before a scan's result is printed (the demo ends its progress bar there).
   void set_before_result(std::function<void(const Scan&)> f) { before_result_ = std::move(f); }
+  // --http: the web server that gets every scan's record, the live state tracker, the recording's path.
+  void set_web(web::WebServer* w, LiveTracker* tracker, std::string recording = {}) {
+    web_ = w;
+    tracker_ = tracker;
+    recording_ = std::move(recording);
+  }
+  // Recognition times of the scans so far (ms), for measurements.
+  const std::vector<double>& recognition_ms() const { return recognition_ms_; }
 
   void operator()(const Scan& scan) {
     ++scans_;
     if (before_result_) before_result_(scan);
+    if (tracker_) tracker_->recognizing(scan, true);
     const bool partial = !scan.complete();
     triangulator_.triangulate(scan, cloud_);
     if (!recognizer_ || recognizer_cells_ < cloud_.points.size()) {
@@ -57,7 +129,9 @@ class ScanHandler {
     }
     const Plane table = scan.begin_message().calibration.table;
     const rec::Recognition& r = recognizer_->recognize(cloud_, &table);
+    const auto result_time = std::chrono::system_clock::now();
     last_objects_ = static_cast<int>(r.objects.size());
+    recognition_ms_.push_back(r.stats.total_ms);
     if (!quiet_) {
       fmt::print("\nscan {} ({} of {} stripes{}): {} object(s)\n", scan.scan_id(), scan.stripes_received(),
                  scan.slot_count(), partial ? fmt::format(", PARTIAL: {}", to_string(scan.status())) : "",
@@ -66,9 +140,27 @@ class ScanHandler {
       fmt::print("recognition: {:.0f} ms (segmentation {:.0f}, matching {:.0f}, verification {:.0f})\n",
                  r.stats.total_ms, r.stats.segment_ms, r.stats.match_ms, r.stats.verify_ms);
     }
+    // The web view first (its 3D view needs no report), then again with the report's links once it exists.
+    web::ScanInfo info;
+    if (web_) {
+      info.id = static_cast<std::uint64_t>(scans_);
+      info.scan_id = scan.scan_id();
+      info.title = fmt::format("scan {}", scan.scan_id());
+      info.status = to_string(scan.status());
+      info.partial = partial;
+      info.stripes = scan.stripes_received();
+      info.steps = scan.slot_count();
+      info.result_unix_ms =
+          std::chrono::duration_cast<std::chrono::milliseconds>(result_time.time_since_epoch()).count();
+      info.has_recording = !recording_.empty();
+      auto record = web::make_record(info, cloud_, *recognizer_, r, &table);
+      record->recording = recording_;
+      web_->publish_scan(std::move(record));
+    }
     if (!out_dir_.empty()) {
       const stdfs::path dir = stdfs::path(out_dir_) / fmt::format("scan-{:03}-id{}", scans_, scan.scan_id());
-      rec::write_report(dir / "report", fmt::format("scan {}", scan.scan_id()), cloud_, *recognizer_, r);
+      web::write_report(dir / "report", fmt::format("scan {}", scan.scan_id()), cloud_, *recognizer_, r,
+                        &table);
       nlohmann::json j = rec::to_json(r, library_);
       j["scan"] = {{"scan_id", scan.scan_id()},
                    {"status", to_string(scan.status())},
@@ -78,7 +170,15 @@ class ScanHandler {
       std::ofstream(dir / "result.json") << j.dump(2) << "\n";
       last_dir_ = dir;
       if (!quiet_) fmt::print("report: {}\n", (dir / "report" / "index.html").string());
+      if (web_) {
+        info.has_report = info.has_result = true;
+        auto record = web::make_record(info, cloud_, *recognizer_, r, &table);
+        record->dir = dir;
+        record->recording = recording_;
+        web_->publish_scan(std::move(record));
+      }
     }
+    if (tracker_) tracker_->recognizing(scan, false);
     std::fflush(stdout);  // a log file or pipe sees each scan's result as it is recognized
   }
   int scans() const { return scans_; }
@@ -95,6 +195,10 @@ class ScanHandler {
   std::unique_ptr<rec::Recognizer> recognizer_;
   std::size_t recognizer_cells_ = 0;
   std::function<void(const Scan&)> before_result_;
+  web::WebServer* web_ = nullptr;
+  LiveTracker* tracker_ = nullptr;
+  std::string recording_;
+  std::vector<double> recognition_ms_;
   int scans_ = 0;
   int last_objects_ = -1;
   stdfs::path last_dir_;
@@ -105,6 +209,40 @@ extern "C" void on_signal(int) {
   if (StreamServer* s = g_server.load()) s->stop();
 }
 
+// --http and its limits (serve and demo).
+struct WebCliOptions {
+  std::string listen;  // empty = no web view
+  std::size_t history = web::WebOptions{}.history;
+  int max_clients = web::WebOptions{}.max_event_clients;
+  int wait_s = 0;  // demo: wait up to this long for a page to connect before the scan starts
+};
+
+void add_web_options(CLI::App* cmd, WebCliOptions& w) {
+  cmd->add_option("--http", w.listen,
+                  "Serve the live web view (3D view, status, history, JSON API) on ADDR:PORT, e.g. "
+                  "127.0.0.1:8080 (loopback unless you name another address; port 0 picks one)");
+  cmd->add_option("--http-history", w.history, "Scans the web view keeps (memory bound)")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 1000));
+  cmd->add_option("--http-clients", w.max_clients, "Open pages (event streams) the web view accepts")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 256));
+}
+
+std::unique_ptr<web::WebServer> start_web(const WebCliOptions& w, bool quiet) {
+  if (w.listen.empty()) return nullptr;
+  web::WebOptions wo;
+  wo.listen = w.listen;
+  wo.history = w.history;
+  wo.max_event_clients = w.max_clients;
+  wo.threads = std::max(wo.threads, w.max_clients + 4);  // every open page holds a thread for its events
+  auto server = std::make_unique<web::WebServer>(wo);
+  server->start();
+  if (!quiet) fmt::print("web view: {}\n", server->url());
+  std::fflush(stdout);
+  return server;
+}
+
 struct ServeOptions {
   std::string listen = "127.0.0.1:7450";
   std::vector<std::string> library;
@@ -113,6 +251,7 @@ struct ServeOptions {
   int max_scans = 0;
   std::int64_t reconnect_grace_ms = StreamServerOptions{}.reconnect_grace_ms;
   bool quiet = false;
+  WebCliOptions web;
 };
 
 void run_serve(const ServeOptions& o) {
@@ -120,6 +259,9 @@ void run_serve(const ServeOptions& o) {
   rec::RecognizeParams params;
   params.match = match::read_params(o.params);
   ScanHandler handler(library, params, o.out_dir, o.quiet);
+  const auto web = start_web(o.web, o.quiet);
+  LiveTracker tracker(web.get(), "serve");
+  if (web) handler.set_web(web.get(), &tracker);
   StreamServerOptions so;
   so.listen = o.listen;
   so.reconnect_grace_ms = o.reconnect_grace_ms;
@@ -132,14 +274,19 @@ void run_serve(const ServeOptions& o) {
     fmt::print("facetscan serve: listening on {} (port {}), {} models; Ctrl-C stops\n", o.listen,
                server.port(), library.models.size());
   std::fflush(stdout);
+  tracker.update(server, true);
   while (server.poll_once(200)) {
+    tracker.update(server);
     if (o.max_scans > 0 && handler.scans() >= o.max_scans) break;
   }
   server.close_all();
+  if (web) web->stop();
   g_server = nullptr;
-  if (!o.quiet)
+  if (!o.quiet) {
     fmt::print("facetscan serve: {} scan(s), {} connection(s), {} disconnect(s)\n", handler.scans(),
                server.stats().connections, server.stats().disconnects);
+    if (web) fmt::print("recognition ms per scan: {:.1f}\n", fmt::join(handler.recognition_ms(), " "));
+  }
 }
 
 // Where the shipped scenes are: next to the sources, or installed.
@@ -183,6 +330,7 @@ struct DemoOptions {
   int steps = 0;
   int timeout_s = 120;
   bool quiet = false;
+  WebCliOptions web;
 };
 
 int run_demo(const DemoOptions& o) {
@@ -202,11 +350,22 @@ int run_demo(const DemoOptions& o) {
   const std::string recording = (stdfs::path(o.out_dir) / "scan.fscan").string();
 
   ScanHandler handler(library, rec::RecognizeParams{}, o.out_dir, o.quiet);
+  const auto web = start_web(o.web, o.quiet);
+  LiveTracker tracker(web.get(), "demo");
+  if (web) handler.set_web(web.get(), &tracker, recording);
   StreamServerOptions so;
   so.listen = "127.0.0.1:0";
   so.reconnect_grace_ms = 2000;
   StreamServer server(so, [&](const Scan& s) { handler(s); });
   server.start();
+  if (web && o.web.wait_s > 0) {
+    // Let a page connect first, so that it watches the whole scan (the browser test; a presenter).
+    const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(o.web.wait_s);
+    while (web->stats().event_clients == 0 && std::chrono::steady_clock::now() < until) {
+      tracker.update(server);
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+  }
 
   // The firmware on the twins (the board binary facetscan-fw has no simulated devices).
   const stdfs::path fw = self_dir() / "facetscan-fw-hil";
@@ -253,6 +412,7 @@ int run_demo(const DemoOptions& o) {
   bool exited = false;
   while (handler.scans() == 0) {
     server.poll_once(50);
+    tracker.update(server);
     const std::uint64_t frames = server.stats().frames;
     if (frames >= shown + 10 || (frames > shown && frames >= steps)) {
       shown = frames;
@@ -278,6 +438,18 @@ int run_demo(const DemoOptions& o) {
     fmt::print("firmware exit code {}; recording: {}\n", fw_code, recording);
     if (!handler.last_dir().empty())
       fmt::print("result: {}\n", (handler.last_dir() / "result.json").string());
+  }
+  if (web && handler.scans() > 0) {
+    // The web view stays up to be looked at: until Ctrl-C / SIGTERM.
+    if (!o.quiet) fmt::print("web view: {} (Ctrl-C stops)\n", web->url());
+    std::fflush(stdout);
+    g_server = &server;
+    std::signal(SIGINT, on_signal);
+    std::signal(SIGTERM, on_signal);
+    tracker.update(server, true);
+    while (server.poll_once(200)) tracker.update(server);
+    g_server = nullptr;
+    web->stop();
   }
   if (handler.scans() == 0)
     throw Error("the demo received no scan from facetscan-fw (exit code " + std::to_string(fw_code) + ")");
@@ -305,6 +477,7 @@ void add_live_commands(CLI::App& app) {
       ->capture_default_str()
       ->check(CLI::Range(std::int64_t{0}, std::int64_t{3'600'000}));
   serve->add_flag("-q,--quiet", so->quiet, "Print nothing per scan");
+  add_web_options(serve, so->web);
   serve->callback([so] { run_serve(*so); });
 
   auto o = std::make_shared<DemoOptions>();
@@ -329,6 +502,9 @@ void add_live_commands(CLI::App& app) {
   demo->add_option("--steps", o->steps, "Galvo steps of the scan (default: the scene's)");
   demo->add_option("--timeout", o->timeout_s, "Give up after this many seconds");
   demo->add_flag("-q,--quiet", o->quiet, "Less output");
+  add_web_options(demo, o->web);
+  demo->add_option("--http-wait", o->web.wait_s,
+                   "With --http: wait up to S seconds for a page to open before the scan starts");
   demo->callback([o] {
     const int code = run_demo(*o);
     // With an injected fault the firmware is expected to stop in its fault state.

@@ -22,6 +22,7 @@
 #include "host/pfrg/pfrg.hpp"
 #include "host/recognize/recognizer.hpp"
 #include "host/recognize/report.hpp"
+#include "host/web/report_view.hpp"
 
 namespace fs::host::cli {
 namespace {
@@ -153,7 +154,7 @@ void run_recognize(const RecognizeOptions& o) {
       if (!o.report_dir.empty()) {
         const stdfs::path dir =
             batch ? stdfs::path(o.report_dir) / files[i].stem() : stdfs::path(o.report_dir);
-        rec::write_report(dir, files[i].filename().string(), cloud, *recognizer, r);
+        web::write_report(dir, files[i].filename().string(), cloud, *recognizer, r);
         if (!batch && !o.quiet) fmt::print("report: {}\n", (dir / "index.html").string());
       }
       std::string models, confs;

@@ -67,6 +67,8 @@ class StreamServer {
   bool connected() const { return client_ >= 0; }
   const StreamServerStats& stats() const { return stats_; }
   const AssemblerStats& assembler_stats() const { return assembler_.stats(); }
+  // The scan in progress, or the last one delivered (for status displays).
+  const Scan& current_scan() const { return assembler_.current(); }
 
  private:
   std::int64_t now() const;

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <iterator>
 #include <limits>
 #include <sstream>
 
@@ -108,10 +109,27 @@ std::string html_escape(const std::string& s) {
   return o;
 }
 
+std::string base64_file(const std::filesystem::path& p) {
+  static constexpr char k[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::ifstream f(p, std::ios::binary);
+  const std::string b((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  std::string out;
+  for (std::size_t i = 0; i < b.size(); i += 3) {
+    const std::size_t n = std::min<std::size_t>(3, b.size() - i);
+    std::uint32_t v = 0;
+    for (std::size_t j = 0; j < 3; ++j) v = (v << 8) | (j < n ? static_cast<std::uint8_t>(b[i + j]) : 0u);
+    out += k[v >> 18];
+    out += k[(v >> 12) & 63];
+    out += n > 1 ? k[(v >> 6) & 63] : '=';
+    out += n > 2 ? k[v & 63] : '=';
+  }
+  return out;
+}
+
 }  // namespace
 
 void write_report(const std::filesystem::path& dir, const std::string& title, const OrganizedCloud& cloud,
-                  const Recognizer& recognizer, const Recognition& r) {
+                  const Recognizer& recognizer, const Recognition& r, const std::string& view_html) {
   std::filesystem::create_directories(dir);
   const Library& library = recognizer.library();
   // Segmentation, PFRG, ENM pictures.
@@ -139,64 +157,159 @@ void write_report(const std::filesystem::path& dir, const std::string& title, co
   wo.colours_from_labels = true;
   write_cloud((dir / "objects.ply").string(), coloured, wo);
 
-  // Top view: height-shaded points, objects' points in their colours, models drawn in their poses.
+  // Top view: the measured surface seen from above (grid cells drawn as triangles with a z-buffer, so no
+  // stripe-by-stripe moire and no gaps between stripes), height- and slope-shaded grey, each recognized
+  // object's points in its colour; no data (laser / camera shadows) in a flat blue-grey.
   const TopView tv = top_view(cloud);
-  std::vector<std::uint8_t> rgb(static_cast<std::size_t>(tv.w) * tv.h * 3, 255);
+  const std::size_t npx = static_cast<std::size_t>(tv.w) * tv.h;
+  std::vector<std::uint8_t> rgb(npx * 3);
+  for (std::size_t i = 0; i < npx; ++i) {
+    rgb[3 * i] = 0xc9;
+    rgb[3 * i + 1] = 0xd2;
+    rgb[3 * i + 2] = 0xdc;
+  }
+  std::vector<float> zbuf(npx, -std::numeric_limits<float>::infinity());
   double zmin = std::numeric_limits<double>::infinity(), zmax = -zmin;
   for (const auto& p : cloud.points)
     if (OrganizedCloud::valid(p)) {
       zmin = std::min<double>(zmin, p.z());
       zmax = std::max<double>(zmax, p.z());
     }
+  auto cell_colour = [&](std::size_t i, const Eigen::Vector3f& n, std::uint8_t out[3]) {
+    const Eigen::Vector3f light = Eigen::Vector3f(-0.35f, 0.45f, 0.82f).normalized();
+    const double shade = 0.55 + 0.45 * std::max(0.0f, std::abs(n.dot(light)));
+    if (labels[i] >= 0) {
+      const std::uint32_t c = label_colour(labels[i] + 1);
+      for (int k = 0; k < 3; ++k)
+        out[k] =
+            static_cast<std::uint8_t>(std::min(255.0, ((c >> (16 - 8 * k)) & 0xff) * (0.35 + 0.75 * shade)));
+    } else {
+      const double g = zmax > zmin ? (cloud.points[i].z() - zmin) / (zmax - zmin) : 0.5;
+      const auto v = static_cast<std::uint8_t>(std::min(255.0, (70 + 120 * g) * (0.6 + 0.5 * shade)));
+      out[0] = out[1] = out[2] = v;
+    }
+  };
+  // Fills the triangle (a, b, c) (image coordinates + height) with one colour where it is the highest.
+  auto fill = [&](const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,
+                  const std::uint8_t col[3]) {
+    const int x0 = std::max(0, static_cast<int>(std::floor(std::min({a.x(), b.x(), c.x()}))));
+    const int x1 = std::min(tv.w - 1, static_cast<int>(std::ceil(std::max({a.x(), b.x(), c.x()}))));
+    const int y0 = std::max(0, static_cast<int>(std::floor(std::min({a.y(), b.y(), c.y()}))));
+    const int y1 = std::min(tv.h - 1, static_cast<int>(std::ceil(std::max({a.y(), b.y(), c.y()}))));
+    const double area = (b.x() - a.x()) * (c.y() - a.y()) - (c.x() - a.x()) * (b.y() - a.y());
+    if (std::abs(area) < 1e-12) return;
+    for (int y = y0; y <= y1; ++y)
+      for (int x = x0; x <= x1; ++x) {
+        const double px = x + 0.5, py = y + 0.5;
+        const double w0 = ((b.x() - px) * (c.y() - py) - (c.x() - px) * (b.y() - py)) / area;
+        const double w1 = ((c.x() - px) * (a.y() - py) - (a.x() - px) * (c.y() - py)) / area;
+        const double w2 = 1.0 - w0 - w1;
+        constexpr double e = -1e-6;
+        if (w0 < e || w1 < e || w2 < e) continue;
+        const auto z = static_cast<float>(w0 * a.z() + w1 * b.z() + w2 * c.z());
+        const std::size_t k = static_cast<std::size_t>(y) * tv.w + x;
+        if (z <= zbuf[k]) continue;
+        zbuf[k] = z;
+        std::copy(col, col + 3, &rgb[3 * k]);
+      }
+  };
+  // Neighbouring cells farther apart than this are a depth jump (an occlusion edge), not a surface.
+  const float max_edge = 6.0f;
+  auto img = [&](const Eigen::Vector3f& p) {
+    const Eigen::Vector2d q = tv.px(p.cast<double>());
+    return Eigen::Vector3d(q.x(), q.y(), p.z());
+  };
+  if (cloud.organized && cloud.height > 1 && cloud.width > 1) {
+    for (std::uint32_t row = 0; row + 1 < cloud.height; ++row)
+      for (std::uint32_t col = 0; col + 1 < cloud.width; ++col) {
+        const std::size_t i00 = cloud.index(row, col), i01 = cloud.index(row, col + 1),
+                          i10 = cloud.index(row + 1, col), i11 = cloud.index(row + 1, col + 1);
+        const auto &p00 = cloud.points[i00], &p01 = cloud.points[i01], &p10 = cloud.points[i10],
+                   &p11 = cloud.points[i11];
+        if (!OrganizedCloud::valid(p00)) continue;
+        auto near = [&](const Eigen::Vector3f& a, const Eigen::Vector3f& b) {
+          return OrganizedCloud::valid(b) && (a - b).norm() < max_edge;
+        };
+        std::uint8_t c[3];
+        if (near(p00, p01) && near(p00, p10)) {
+          cell_colour(i00, (p01 - p00).cross(p10 - p00).normalized(), c);
+          fill(img(p00), img(p01), img(p10), c);
+        }
+        if (near(p11, p01) && near(p11, p10)) {
+          cell_colour(labels[i11] >= 0 ? i11 : i00, (p10 - p11).cross(p01 - p11).normalized(), c);
+          fill(img(p11), img(p01), img(p10), c);
+        }
+      }
+  }
+  // Isolated points (and unorganized clouds) as single pixels.
   for (std::size_t i = 0; i < cloud.points.size(); ++i) {
     const auto& p = cloud.points[i];
     if (!OrganizedCloud::valid(p)) continue;
     const Eigen::Vector2d q = tv.px(p.cast<double>());
     const int x = static_cast<int>(q.x()), y = static_cast<int>(q.y());
     if (x < 0 || y < 0 || x >= tv.w || y >= tv.h) continue;
-    std::uint8_t* o = &rgb[(static_cast<std::size_t>(y) * tv.w + x) * 3];
-    if (labels[i] >= 0) {
-      const std::uint32_t c = label_colour(labels[i] + 1);
-      o[0] = static_cast<std::uint8_t>(c >> 16);
-      o[1] = static_cast<std::uint8_t>(c >> 8);
-      o[2] = static_cast<std::uint8_t>(c);
-    } else {
-      const double g = zmax > zmin ? (p.z() - zmin) / (zmax - zmin) : 0.5;
-      const auto v = static_cast<std::uint8_t>(90 + 140 * g);
-      o[0] = o[1] = o[2] = v;
-    }
+    const std::size_t k = static_cast<std::size_t>(y) * tv.w + x;
+    if (zbuf[k] > -std::numeric_limits<float>::infinity()) continue;
+    zbuf[k] = p.z();
+    std::uint8_t c[3];
+    cell_colour(i, Eigen::Vector3f::UnitZ(), c);
+    std::copy(c, c + 3, &rgb[3 * k]);
   }
   write_png_rgb8(dir / "scene_top.png", static_cast<std::uint32_t>(tv.w), static_cast<std::uint32_t>(tv.h),
                  rgb);
+  // The SVG: the picture, each model's outline in its pose, and a legend below the picture.
+  const int legend_rows = static_cast<int>(r.objects.size()) + 2;
+  const int svg_h = tv.h + 12 + 24 * legend_rows;
   std::ostringstream svg;
   svg << fmt::format(R"(<svg xmlns="http://www.w3.org/2000/svg" width="{}" height="{}" viewBox="0 0 {} {}">)",
-                     tv.w, tv.h, tv.w, tv.h)
+                     tv.w, svg_h, tv.w, svg_h)
       << "\n"
-      << fmt::format(R"(<image href="scene_top.png" x="0" y="0" width="{}" height="{}"/>)", tv.w, tv.h)
+      << fmt::format(R"(<rect x="0" y="0" width="{}" height="{}" fill="white"/>)", tv.w, svg_h)
+      << "\n"
+      // The picture inline (data: URI): an SVG shown with <img> loads no external file.
+      << fmt::format(R"(<image href="data:image/png;base64,{}" x="0" y="0" width="{}" height="{}"/>)",
+                     base64_file(dir / "scene_top.png"), tv.w, tv.h)
       << "\n";
   for (std::size_t o = 0; o < r.objects.size(); ++o) {
     const Hypothesis& h = r.objects[o];
     const Model& m = library.models[static_cast<std::size_t>(h.model)];
     const std::string col = colour_hex(label_colour(static_cast<std::int32_t>(o) + 1));
     for (const ModelFace& f : m.faces) {
-      const bool up = (h.R * f.normal).z() > 0.05;
+      if ((h.R * f.normal).z() <= 0.05) continue;  // the outline seen from above: upward faces
       for (const auto& loop : f.loops) {
         svg << "<polygon points=\"";
         for (const Vec3& p : loop) {
           const Eigen::Vector2d q = tv.px(h.R * p + h.t);
           svg << fmt::format("{:.1f},{:.1f} ", q.x(), q.y());
         }
-        svg << fmt::format(R"(" fill="{}" fill-opacity="{}" stroke="{}" stroke-width="1.5"/>)", col,
-                           up ? 0.18 : 0.0, col)
+        svg << R"(" fill="none" stroke="black" stroke-opacity="0.55" stroke-width="1"/>)"
             << "\n";
       }
     }
     const Eigen::Vector2d c = tv.px(h.R * m.center + h.t);
     svg << fmt::format(
-               R"(<text x="{:.0f}" y="{:.0f}" font-family="sans-serif" font-size="14" fill="black" stroke="white" stroke-width="0.6">{}{}</text>)",
+               R"(<text x="{:.0f}" y="{:.0f}" text-anchor="middle" font-family="sans-serif" font-size="15" font-weight="bold" fill="black" stroke="white" stroke-width="3" paint-order="stroke">{}{}</text>)",
                c.x(), c.y(), html_escape(m.name), h.instance > 0 ? fmt::format(" #{}", h.instance + 1) : "")
         << "\n";
   }
+  auto legend_row = [&](int k, const std::string& fill, const std::string& text) {
+    const int y = tv.h + 10 + 24 * k;
+    svg << fmt::format(
+               R"(<rect x="10" y="{}" width="18" height="18" fill="{}" stroke="#555"/><text x="36" y="{}" font-family="sans-serif" font-size="14" fill="black">{}</text>)",
+               y, fill, y + 14, html_escape(text))
+        << "\n";
+  };
+  for (std::size_t o = 0; o < r.objects.size(); ++o) {
+    const Hypothesis& h = r.objects[o];
+    const Model& m = library.models[static_cast<std::size_t>(h.model)];
+    legend_row(static_cast<int>(o), colour_hex(label_colour(static_cast<std::int32_t>(o) + 1)),
+               fmt::format("{}{}: confidence {:.2f}, at ({:.0f}, {:.0f}, {:.0f}) mm", m.name,
+                           h.instance > 0 ? fmt::format(" #{}", h.instance + 1) : "", h.verify.confidence,
+                           h.t.x(), h.t.y(), h.t.z()));
+  }
+  legend_row(static_cast<int>(r.objects.size()), "#8c8c8c",
+             "table and unrecognized surfaces (grey by height, lighter = higher)");
+  legend_row(static_cast<int>(r.objects.size()) + 1, "#c9d2dc", "no data (laser or camera shadow)");
   svg << "</svg>\n";
   write_text(dir / "scene.svg", svg.str());
 
@@ -210,6 +323,7 @@ void write_report(const std::filesystem::path& dir, const std::string& title, co
           "#ddd}.g{display:flex;flex-wrap:wrap;gap:"
           "1em}.g figure{margin:0}</style></head><body>\n";
   html << "<h1>Facetscan recognition: " << html_escape(title) << "</h1>\n";
+  html << view_html;
   if (r.objects.empty()) html << "<p><b>No objects recognized.</b> " << html_escape(r.note) << "</p>\n";
   html << "<table><tr><th>#</th><th>model</th><th>position (mm)</th><th>rotation</th><th>confidence</th>"
           "<th>cost</th><th>faces matched / visible</th><th>state</th></tr>\n";

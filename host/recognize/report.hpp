@@ -16,9 +16,11 @@ std::string axis_angle_text(const Mat3& R);
 // A fixed-width table: model, instance, position (mm), rotation (axis-angle), confidence, cost, faces.
 std::string result_table(const Recognition& r, const Library& library);
 
-// Writes DIR/index.html, segmentation.png, pfrg.svg, enm.svg, scene.svg (+ scene_top.png) and
-// objects.ply. `title` names the input.
+// Writes DIR/index.html, segmentation.png, pfrg.svg, enm.svg, scene.svg (+ scene_top.png: the top view with
+// every recognized object coloured over its points; scene.svg adds the outlines and a legend) and
+// objects.ply. `title` names the input. `view_html` is placed above the table (host/web/report_view.hpp: the
+// 3D view).
 void write_report(const std::filesystem::path& dir, const std::string& title, const OrganizedCloud& cloud,
-                  const Recognizer& recognizer, const Recognition& r);
+                  const Recognizer& recognizer, const Recognition& r, const std::string& view_html = {});
 
 }  // namespace fs::host::rec
