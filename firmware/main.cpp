@@ -43,11 +43,11 @@ void print_report(const fw::LoopReport& rep, const fw::FwConfig& cfg, bool virtu
   const msg::LoopStats s = rep.stats();
   std::fprintf(
       stderr,
-      "facetscan-fw: %s%s%s | stripes %u/%u, frames captured %u, dropped %u, stale %u, stripes dropped %u\n"
+      "%s: %s%s%s | stripes %u/%u, frames captured %u, dropped %u, stale %u, stripes dropped %u\n"
       "  loop (%s time, period %.0f us, %llu ticks): lateness min %.1f us, median %.1f us, p99 %.1f us, "
       "p99.9 %.1f us, max %.1f us, overruns %u\n"
       "  extraction: mean %.1f us, max %.1f us per frame (%u frames)\n",
-      fw::to_string(rep.state), rep.fault != fw::FaultCode::None ? ": " : "",
+      fw::program_name(), fw::to_string(rep.state), rep.fault != fw::FaultCode::None ? ": " : "",
       rep.fault != fw::FaultCode::None ? fw::to_string(rep.fault) : "", rep.stripes_sent, cfg.loop.steps,
       rep.frames_captured, rep.frames_dropped, rep.frames_stale, rep.stripes_dropped,
       virtual_time ? "virtual" : "real", cfg.loop.period / 1e3, static_cast<unsigned long long>(rep.ticks),
@@ -99,14 +99,15 @@ int run_scan(fw::FwConfig& cfg) {
     rq.priority = cfg.rt_priority;
     rq.cpu = cfg.rt_cpu;
     const auto r = fw::apply_realtime(rq);
-    for (const auto& w : r.warnings) std::fprintf(stderr, "facetscan-fw: warning: %s\n", w.c_str());
+    for (const auto& w : r.warnings) std::fprintf(stderr, "%s: warning: %s\n", fw::program_name(), w.c_str());
   }
   const fw::LoopReport& rep = ctl.run();
   pub.flush();
   if (file) file->close();
   // Hand the last frames (the final stripes and ScanEnd) to the host before the process exits.
   if (tcp && !tcp->drain(2'000'000'000))
-    std::fprintf(stderr, "facetscan-fw: warning: the host did not take the last frames within 2 s\n");
+    std::fprintf(stderr, "%s: warning: the host did not take the last frames within 2 s\n",
+                 fw::program_name());
 
   print_report(rep, cfg, virtual_time, file.get());
   return rep.state == fw::State::Done ? 0 : 2;
@@ -115,8 +116,10 @@ int run_scan(fw::FwConfig& cfg) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"facetscan-fw: laser-stripe scanner firmware (controller loop, stripe extraction, streaming)"};
-  app.set_version_flag("--version", std::string("facetscan-fw ") + fs::kVersion);
+  const std::string name = fw::program_name();
+  CLI::App app{name + ": laser-stripe scanner firmware (controller loop, stripe extraction, streaming)" +
+               (fw::has_twins() ? ", on the simulated devices" : "")};
+  app.set_version_flag("--version", name + " " + fs::kVersion);
   fw::FwConfig cfg;
   std::string config_path;
   std::uint32_t steps = 0;
@@ -160,7 +163,7 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
   } catch (const fs::Error& e) {
-    std::fprintf(stderr, "facetscan-fw: error: %s\n", e.what());
+    std::fprintf(stderr, "%s: error: %s\n", fw::program_name(), e.what());
     return 1;
   }
   if (!app.get_subcommands().empty()) return 0;  // a subcommand (sim-frame) ran in its callback
@@ -191,19 +194,19 @@ int main(int argc, char** argv) {
       const fw::CheckReport r = fw::check_configured_devices(cfg);
       std::fputs(r.text().c_str(), stdout);
       if (r.ok()) {
-        std::printf("facetscan-fw --check: all %zu checks passed\n", r.items.size());
+        std::printf("%s --check: all %zu checks passed\n", fw::program_name(), r.items.size());
         return 0;
       }
-      std::printf("facetscan-fw --check: %zu of %zu checks failed (MISS above)\n", r.failed(),
+      std::printf("%s --check: %zu of %zu checks failed (MISS above)\n", fw::program_name(), r.failed(),
                   r.items.size());
       return 3;
     }
     return run_scan(cfg);
   } catch (const fs::Error& e) {
-    std::fprintf(stderr, "facetscan-fw: error: %s\n", e.what());
+    std::fprintf(stderr, "%s: error: %s\n", fw::program_name(), e.what());
     return 1;
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "facetscan-fw: error: %s\n", e.what());
+    std::fprintf(stderr, "%s: error: %s\n", fw::program_name(), e.what());
     return 1;
   }
 }

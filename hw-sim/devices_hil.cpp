@@ -63,7 +63,7 @@ void load_scene(HilDevices& d, FwConfig& cfg) {
   }
   if (!cfg.steps_given) cfg.loop.steps = cal.step_count;
   cfg.loop.first_step = cal.first_step;
-  std::fprintf(stderr, "facetscan-fw: scene %s (%zu objects), %u steps\n", path.c_str(),
+  std::fprintf(stderr, "%s: scene %s (%zu objects), %u steps\n", program_name(), path.c_str(),
                d.scene.objects.size(), cfg.loop.steps);
 }
 
@@ -162,6 +162,8 @@ CheckReport check_configured_devices(const FwConfig& cfg) {
 }
 
 bool has_twins() { return true; }
+
+const char* program_name() { return "facetscan-fw-hil"; }
 
 void add_device_commands(CLI::App& app) { sim::add_sim_frame_command(app); }
 

@@ -56,6 +56,10 @@ void add_device_commands(CLI::App& app);
 // lists the simulated devices and the twins' options only where they work.
 bool has_twins();
 
+// This binary's name, for --version, the help and the prefix of its messages: "facetscan-fw" or
+// "facetscan-fw-hil".
+const char* program_name();
+
 // The real devices of the board (facetscan-fw's make_devices; facetscan-fw-hil's for real specs). Destroyed
 // in reverse member order: the laser first, the clock last.
 struct RealDevices {

@@ -14,8 +14,8 @@ namespace fs::fw {
 namespace {
 
 constexpr const char* kInHil =
-    "the simulated devices (--galvo sim / sim-can, --camera sim, --fault) are in facetscan-fw-hil; this "
-    "board binary has the real backends only";
+    "the simulated devices (--galvo sim / sim-can, --camera sim, --scene, --fault, --virtual-time) are in "
+    "facetscan-fw-hil; this board binary has the real backends only";
 
 struct BoardDevices final : ScanDevices {
   RealDevices real;
@@ -27,8 +27,11 @@ std::unique_ptr<ScanDevices> make_devices(FwConfig& cfg) {
   if (is_sim_galvo(cfg.galvo)) throw Error("--galvo '" + cfg.galvo + "': " + kInHil);
   if (is_sim_camera(cfg.camera)) throw Error("--camera '" + cfg.camera + "': " + kInHil);
   if (!cfg.faults.empty()) throw Error("--fault '" + cfg.faults.front() + "': " + kInHil);
+  if (!cfg.scene.empty()) throw Error("--scene '" + cfg.scene + "': " + kInHil);
+  // Virtual time is the twins' clock: the real devices run on the monotonic clock only.
+  if (cfg.virtual_time.value_or(false)) throw Error(std::string("--virtual-time: ") + kInHil);
   auto d = std::make_unique<BoardDevices>();
-  d->virtual_time = cfg.virtual_time.value_or(false);
+  d->virtual_time = false;
   d->calibration = ScannerCalibration::bench_default(cfg.loop.steps);
   cfg.loop.max_rows = d->calibration.camera.height;
   RealDevices& r = d->real;
@@ -54,6 +57,8 @@ CheckReport check_configured_devices(const FwConfig& cfg) {
 // sim-frame (the scene renderer) is facetscan-fw-hil's: a hidden stand-in gives the clear error (exit 1)
 // instead of an unknown-argument one.
 bool has_twins() { return false; }
+
+const char* program_name() { return "facetscan-fw"; }
 
 void add_device_commands(CLI::App& app) {
   CLI::App* sub = app.add_subcommand("sim-frame", "")->group("")->prefix_command();

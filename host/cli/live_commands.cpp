@@ -452,7 +452,8 @@ int run_demo(const DemoOptions& o) {
     web->stop();
   }
   if (handler.scans() == 0)
-    throw Error("the demo received no scan from facetscan-fw (exit code " + std::to_string(fw_code) + ")");
+    throw Error("the demo received no scan from facetscan-fw-hil (exit code " + std::to_string(fw_code) +
+                ")");
   return fw_code;
 }
 
@@ -509,7 +510,7 @@ void add_live_commands(CLI::App& app) {
     const int code = run_demo(*o);
     // With an injected fault the firmware is expected to stop in its fault state.
     if (code != 0 && o->faults.empty())
-      throw Error(fmt::format("facetscan-fw ended with exit code {}", code));
+      throw Error(fmt::format("facetscan-fw-hil ended with exit code {}", code));
   });
 }
 

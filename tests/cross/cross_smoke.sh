@@ -29,11 +29,12 @@ done
 # point release) that it finds through qemu's path fallback; mixing the two hangs the first pthread_create. The
 # other libraries come from multiarch (or the private sysroot cross-build unpacked).
 qemu=("$cross/qemu-run")
-native_ver="$("$native_fw" --version 2>&1)"
 for b in "$fw" "$hil"; do
-  ver="$("${qemu[@]}" "$b" --version 2>&1)" || { echo "FAIL: $(basename "$b") --version under qemu: $ver" >&2; exit 1; }
-  echo "qemu ($arch): $(basename "$b"): $ver"
-  if [ "$ver" != "$native_ver" ] || [[ "$ver" != facetscan-fw\ * ]]; then
+  name="$(basename "$b")"
+  native_ver="$("$(dirname "$native_fw")/$name" --version 2>&1)"
+  ver="$("${qemu[@]}" "$b" --version 2>&1)" || { echo "FAIL: $name --version under qemu: $ver" >&2; exit 1; }
+  echo "qemu ($arch): $name: $ver"
+  if [ "$ver" != "$native_ver" ] || [[ "$ver" != "$name "* ]]; then
     echo "FAIL: version '$ver' ($arch $(basename "$b")) vs '$native_ver' (native)" >&2; exit 1
   fi
 done
