@@ -1,6 +1,6 @@
 #pragma once
 // Scanner -> host messages (the payloads of wire frames; encoding lives in common/wire.hpp).
-// Every field is encoded explicitly, little-endian; see README "Wire format".
+// Every field is encoded explicitly, little-endian; see docs/formats.md, "Wire protocol".
 #include <array>
 #include <cstdint>
 #include <span>

@@ -1,7 +1,7 @@
 #pragma once
 // Planar Face Representation Graph (thesis ch. 3.4, 7.1): nodes = planar faces (area mm^2, unit outward
 // normal), arcs = adjacencies (border length mm). One supernode stands for all unknown / NIL / image-border
-// regions and is never matched. JSON contract: see DESIGN.md and README "PFRG JSON".
+// regions and is never matched. JSON contract: see DESIGN.md and docs/formats.md.
 #include <cstdint>
 #include <filesystem>
 #include <string>

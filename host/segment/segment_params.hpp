@@ -27,7 +27,7 @@ struct SegmentParams {
   // = fixed dist_abs_mm. The laser default 0.3 mm is 6 sigma of the bench scanner's 0.05 mm and separates
   // faces meeting at 5-6 degrees (augmented prisms). Off by default: at 4x that noise the recognition
   // benchmark found more objects with the fixed 0.3 mm (a split face costs the matcher less than a merged
-  // one; README).
+  // one; docs/performance.md, segmentation).
   double dist_noise_factor = 0.0;
   // Edge refinement: unassigned cells next to a region join it when within edge_dist_factor * dist.
   double edge_dist_factor = 2.0;

@@ -40,8 +40,8 @@ struct RenderOptions {
   double speckle = 0.12;             // relative sigma of the multiplicative speckle on stripe pixels
   // Speckle grain: the correlation length (px) of the speckle pattern, along the row and between rows (its
   // correlation at a distance of d pixels is exp(-d^2 / (2 grain^2))). 0 = independent per pixel (the
-  // default, and the README's numbers unless they name a grain); a real laser's subjective speckle is about a
-  // pixel or more
+  // default, and the numbers of docs/performance.md unless they name a grain); a real laser's subjective
+  // speckle is about a pixel or more
   // (~1.2 lambda F# (1 + M) on the sensor), correlated in both directions. Kept at most kMaxSpeckleGrainPx.
   double speckle_grain_px = 0.0;
   double noise_scale = 1.0;  // multiplies sensor_noise, shot_noise and speckle (0 = noise-free)

@@ -1,5 +1,5 @@
 // End-to-end: runs the built binaries (build/bin/facetscan, facetscan-fw-hil) as a user would, in the three
-// ways Facetscan is used (issue 11): the hardware-in-the-loop demo over TCP loopback (each galvo twin, a
+// ways Facetscan is used: the hardware-in-the-loop demo over TCP loopback (each galvo twin, a
 // scene, a fault), `facetscan serve` with a scanner that disconnects mid-scan, and offline recognition of
 // each input format (.fscan, .pcd, .ply) and of a directory (batch, summary CSV/JSON).
 #include <gtest/gtest.h>

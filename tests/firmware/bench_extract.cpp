@@ -1,13 +1,13 @@
 // bench_extract: stripe extraction throughput on a 1280x1024 Mono8 frame of the cube scene (scene renderer,
 // default noise) next to memcpy of the same frame in the same run. bytes_per_second = pixels per second.
 // BM_ExtractVsMemcpy (the frame hot in the caches) and BM_StreamVsMemcpy (the frame in memory, as a camera's
-// DMA leaves it): the two readings of issue #4's criterion (README, "Issue #4's speed target"). memcpy and
-// extraction alternate in one loop; the counters give their medians, pixel rates (extract_Gpx_s,
-// memcpy_Gpx_s) and ratios (ratio: of the medians; ratio_paired: the median of each iteration's own ratio),
-// and the extraction without software prefetch next to it. BM_StreamPrefetch: the camera's frame over
-// prefetch distances. BM_Memcpy / BM_Extract*: one hot frame, apart. BM_ScanRow: the per-row pass alone over
-// the frame, 0 = the portable auto-vectorized loop, 1 = the path extraction uses (SIMD on x86-64; label says
-// which). BM_GaussMlBatch: the batched sub-pixel fit alone.
+// DMA leaves it): the two readings of the extraction speed criterion (docs/performance.md, stripe
+// extraction). memcpy and extraction alternate in one loop; the counters give their medians, pixel rates
+// (extract_Gpx_s, memcpy_Gpx_s) and ratios (ratio: of the medians; ratio_paired: the median of each
+// iteration's own ratio), and the extraction without software prefetch next to it. BM_StreamPrefetch: the
+// camera's frame over prefetch distances. BM_Memcpy / BM_Extract*: one hot frame, apart. BM_ScanRow: the
+// per-row pass alone over the frame, 0 = the portable auto-vectorized loop, 1 = the path extraction uses
+// (SIMD on x86-64; label says which). BM_GaussMlBatch: the batched sub-pixel fit alone.
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
@@ -64,7 +64,7 @@ void BM_Memcpy(benchmark::State& state) {
 }
 BENCHMARK(BM_Memcpy);
 
-// Issue #4's criterion in one number: memcpy of the frame and its extraction alternate in every iteration,
+// The speed criterion in one number: memcpy of the frame and its extraction alternate in every iteration,
 // each timed by the thread's CPU clock, and the counters give their medians and the ratio (memcpy /
 // extraction = extraction's throughput as a fraction of memcpy's). Alternating makes both see the same state
 // of this shared, noisy host, where separate benchmarks seconds apart do not. Every iteration also extracts

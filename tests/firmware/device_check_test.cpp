@@ -1,4 +1,4 @@
-// facetscan-fw(-hil) --check (issue 11): the probes against the twins (sim, sim-can over a socketpair with
+// facetscan-fw(-hil) --check: the probes against the twins (sim, sim-can over a socketpair with
 // the real SDO exchange) and the "missing device" messages for absent /dev nodes, chips, interfaces and
 // drives.
 #include <gtest/gtest.h>

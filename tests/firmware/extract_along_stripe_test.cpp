@@ -1,7 +1,7 @@
 // The along-stripe refinement (ExtractParams::along_stripe, along_stripe.hpp) on the scene renderer's cube
 // frames through extract_frame: the error of all rows and of the rows near an edge of the stripe (a depth
 // discontinuity, a corner between two faces, a row without stripe) with and without it, at several noise
-// levels. Prints the table quoted in the README (Firmware, Stripe extraction).
+// levels. Prints the table quoted in docs/performance.md (stripe extraction, accuracy).
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -108,7 +108,7 @@ TEST(ExtractAlongStripe, ErrorAndEdgesOnCubeFrames) {
         const double limit = ns == 0.0 ? 0.0055 : ns <= 0.25 ? 0.006 : ns <= 0.5 ? 0.011 : 0.021;
         EXPECT_LE(e.mean, limit) << "noise " << ns;
         if (ns == 1.0) {
-          EXPECT_LE(e.mean, 0.05);  // issue #4's target at the default noise
+          EXPECT_LE(e.mean, 0.05);  // the accuracy target (0.05 px) at the default noise
         }
       }
     }
@@ -116,8 +116,8 @@ TEST(ExtractAlongStripe, ErrorAndEdgesOnCubeFrames) {
 }
 
 // GaussLog (GaussMl's first step alone, the cheaper fit) with the default refinement on the same frames:
-// inside issue #4's 0.05 px at the default noise too. Measured per row 0.0704, refined 0.0297 px (gauss-ml
-// 0.0599 / 0.0256).
+// inside the 0.05 px accuracy target at the default noise too. Measured per row 0.0704, refined 0.0297 px
+// (gauss-ml 0.0599 / 0.0256).
 TEST(ExtractAlongStripe, GaussLogMeetsTheTargetRefined) {
   const sim::Scene scene = sim::load_scene(test::source_dir() / "hw-sim/scenes/cube.json");
   const std::vector<double> steps = {80.0, 200.0, 260.0, 330.0};
@@ -142,13 +142,13 @@ TEST(ExtractAlongStripe, GaussLogMeetsTheTargetRefined) {
 
 // Speckle correlated over neighbouring pixels and rows (RenderOptions::speckle_grain_px), as a real laser's
 // is: the accuracy to expect on hardware rather than on hw-sim's default per-pixel independent speckle.
-// Prints the table quoted in the README. The refinement must still never be worse than the per-row centres,
-// all rows and the edge rows alike (it assumes nothing about the noise beyond its robust sigma); correlated
-// errors average less over a window, so its gain must shrink once neighbouring pixels are correlated (a grain
-// of 0.5 px: their correlation exp(-2) = 0.14, nearly independent). Measured (gauss-ml, per row -> refined
-// over the default 15 rows): grain 0 0.0599 -> 0.0170 px, 0.5 px 0.0626 -> 0.0188, 1 px 0.0784 -> 0.0381, 2
-// px 0.0940 -> 0.0733 (with the noise scale of second differences, before along_stripe_scale: 0.0174, 0.0200,
-// 0.0605, 0.0941; over 7 rows: 0.0256, 0.0275, 0.0512, 0.0785).
+// Prints the table quoted in docs/performance.md. The refinement must still never be worse than the per-row
+// centres, all rows and the edge rows alike (it assumes nothing about the noise beyond its robust sigma);
+// correlated errors average less over a window, so its gain must shrink once neighbouring pixels are
+// correlated (a grain of 0.5 px: their correlation exp(-2) = 0.14, nearly independent). Measured (gauss-ml,
+// per row -> refined over the default 15 rows): grain 0 0.0599 -> 0.0170 px, 0.5 px 0.0626 -> 0.0188, 1 px
+// 0.0784 -> 0.0381, 2 px 0.0940 -> 0.0733 (with the noise scale of second differences, before
+// along_stripe_scale: 0.0174, 0.0200, 0.0605, 0.0941; over 7 rows: 0.0256, 0.0275, 0.0512, 0.0785).
 TEST(ExtractAlongStripe, CorrelatedSpeckle) {
   const sim::Scene scene = sim::load_scene(source_dir() / "hw-sim/scenes/cube.json");
   const std::vector<double> steps = {80.0, 200.0, 260.0, 330.0};
@@ -169,7 +169,7 @@ TEST(ExtractAlongStripe, CorrelatedSpeckle) {
       if (m != fw::SubpixelMethod::GaussMl) continue;
       if (grain == 0.0) gain0 = gain;
       if (grain == 1.0) {
-        EXPECT_LE(ref.mean, 0.05);  // issue #4's target here too: 0.0381 (0.0605 with second differences)
+        EXPECT_LE(ref.mean, 0.05);  // the 0.05 px target here too
       }
       if (grain >= 1.0) {
         EXPECT_LT(gain, 0.8 * gain0) << grain;
@@ -185,11 +185,11 @@ TEST(ExtractAlongStripe, CorrelatedSpeckle) {
 }
 
 // Every sub-pixel method per row and with the default refinement, at the default noise and with a 1 px
-// speckle grain: what a cheaper method than the default would cost in accuracy (issue #4's speed target
-// against its 0.05 px; the README's table of methods). Prints the table. Per row, no method reaches 0.05 px
-// at the default noise (the per-row Cramer-Rao bound is 0.058 px): only rows combined along the stripe do.
-// The refinement never makes a method worse, and the default (gauss-ml) is the most accurate refined at both
-// grains.
+// speckle grain: what a cheaper method than the default would cost in accuracy (the speed target
+// against the 0.05 px accuracy target; the table of methods in docs/performance.md). Prints the table. Per
+// row, no method reaches 0.05 px at the default noise (the per-row Cramer-Rao bound is 0.058 px): only rows
+// combined along the stripe do. The refinement never makes a method worse, and the default (gauss-ml) is the
+// most accurate refined at both grains.
 TEST(ExtractAlongStripe, EveryMethodPerRowAndRefined) {
   const sim::Scene scene = sim::load_scene(source_dir() / "hw-sim/scenes/cube.json");
   const std::vector<double> steps = {80.0, 200.0, 260.0, 330.0};

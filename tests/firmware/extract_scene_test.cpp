@@ -1,6 +1,6 @@
 // Stripe extraction on frames of the scene renderer (hw-sim/scene) against its per-row ground truth, for each
 // sub-pixel method and several noise levels (RenderOptions::noise_scale: 1 = the renderer's default sensor
-// noise, shot noise and 12 % laser speckle). Prints the error table quoted in the README (Firmware, Stripe
+// noise, shot noise and 12 % laser speckle). Prints the error table quoted in docs/performance.md (stripe
 // extraction) next to the Cramer-Rao bound of the renderer's noise model: the mean |error| an efficient
 // unbiased per-row estimator would reach (sqrt(2/pi) * sqrt(CRB), averaged over the rows).
 #include <gtest/gtest.h>
@@ -79,7 +79,8 @@ TEST(ExtractScene, ErrorVersusNoiseOnCubeFrames) {
       if (m == fw::ExtractParams{}.method) {
         EXPECT_EQ(e.outliers, 0) << "noise " << ns;
         EXPECT_EQ(e.rejected, 0) << "noise " << ns;
-        // 1.0: the bound itself is ~0.058 px, above the 0.05 px target (README): speckle-limited.
+        // 1.0: the bound itself is ~0.058 px, above the 0.05 px target (docs/performance.md):
+        // speckle-limited.
         const double limit = ns == 0.0 ? 0.01 : ns <= 0.25 ? 0.02 : ns <= 0.5 ? 0.035 : 0.065;
         EXPECT_LE(e.mean, limit) << "noise " << ns;
         // Efficiency: within 10 % of the Cramer-Rao bound wherever noise dominates quantization.

@@ -1,4 +1,4 @@
-// Laser calibration on hw-sim renders (issue 6): flat-target scans at several known heights are rendered with
+// Laser calibration on hw-sim renders: flat-target scans at several known heights are rendered with
 // a perturbed ("true") scanner geometry and extracted by the firmware's extractor; the scans' headers carry
 // the nominal geometry. `calibrate_laser` (and the `facetscan calibrate` binary on .fscan files of the same
 // renders) must recover a laser model that triangulates another rendered scene (the cube) with an RMS 3D

@@ -23,7 +23,7 @@ TEST(Report, CornerExampleTextAndJson) {
   ASSERT_GE(r.solutions.size(), 2u);
   // A cube corner has 24 equivalent matches (8 corners x 3 rotations).
   EXPECT_EQ(r.stats.solutions, 24);
-  // The rotation fits of the level >= 2 states take the fast path (issue 9); none is degenerate here.
+  // The rotation fits of the level >= 2 states take the fast path; none is degenerate here.
   EXPECT_GT(r.stats.fits_fast, 0);
   EXPECT_EQ(r.stats.fits_fallback, 0);
   EXPECT_DOUBLE_EQ(r.stats.cost_ratio, 1.0);

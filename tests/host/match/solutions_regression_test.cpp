@@ -1,4 +1,4 @@
-// Regression pin of the inexact matcher's output: the speed work of issue 9 (lazy rotation fits, pair tables,
+// Regression pin of the inexact matcher's output: speed work on the search (lazy rotation fits, pair tables,
 // top-k selection of the reported solutions) must not change any result. For a set of scene / reference pairs
 // and presets the full solution lists (rank, state number, path, matches, arc counts, dissimilarities,
 // rotation, cost, flags) and the search statistics (states, expansions, candidates, removals per condition,

@@ -1,4 +1,4 @@
-// Recognition benchmark (issue 10): random scenes of the 120 polyhedra (hw-sim/scene/random_scene.hpp), ideal
+// Recognition benchmark: random scenes of the 120 polyhedra (hw-sim/scene/random_scene.hpp), ideal
 // scan grids with depth noise, recognized against the 120-model library; accuracy, pose errors, false
 // positives, CPU time and the allocations of a warm recognize(), per scene category.
 //
@@ -398,7 +398,7 @@ int run(const Args& args) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"bench_recognition: the recognition benchmark (issue 10)"};
+  CLI::App app{"bench_recognition: the recognition benchmark"};
   try {
     return run(parse_args(app, argc, argv));
   } catch (const CLI::ParseError& e) {

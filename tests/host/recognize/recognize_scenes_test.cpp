@@ -125,7 +125,7 @@ TEST(RecognizeScenes, OneRoundMissesTheTouchingTwoFaceCube) {
   EXPECT_EQ(r.stats.rounds, 1);
 }
 
-// Issue 10: zero heap allocations per scan after warm-up, shown around a second recognize() of a scan in the
+// Zero heap allocations per scan after warm-up, shown around a second recognize() of a scan in the
 // same process (all threads of the process are counted: the matching and verification workers too).
 TEST(RecognizeScenes, WarmRecognizeAllocatesNothing) {
   SceneRun s = scan("cube-pyramid-separate");
