@@ -154,7 +154,7 @@ void run_recognize(const RecognizeOptions& o) {
       if (!o.report_dir.empty()) {
         const stdfs::path dir =
             batch ? stdfs::path(o.report_dir) / files[i].stem() : stdfs::path(o.report_dir);
-        web::write_report(dir, files[i].filename().string(), cloud, *recognizer, r);
+        web::write_report(dir, files[i].filename().string(), cloud, *recognizer, r, recognizer->table());
         if (!batch && !o.quiet) fmt::print("report: {}\n", (dir / "index.html").string());
       }
       std::string models, confs;

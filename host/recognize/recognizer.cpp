@@ -137,6 +137,8 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
   return out;
 }
 
+const Plane* Recognizer::table() const { return impl_->have_table ? &impl_->table : nullptr; }
+
 std::vector<const Hypothesis*> Recognizer::candidates() const {
   std::vector<const Hypothesis*> out;
   for (std::size_t i : impl_->order) out.push_back(&impl_->hyps[i]);

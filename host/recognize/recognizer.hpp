@@ -182,6 +182,9 @@ class Recognizer {
   std::vector<const Hypothesis*> candidates() const;
   // Every hypothesis of the last recognize() that survived the compatible merge (diagnostics).
   std::vector<const Hypothesis*> all_hypotheses() const;
+  // The table (support plane) the last recognize() found and removed, normal toward the sensor; nullptr when
+  // none (for reports).
+  const Plane* table() const;
   // Cell -> object index (into objects) or -1, for colouring.
   void object_labels(const OrganizedCloud& cloud, std::vector<std::int32_t>& labels) const;
 

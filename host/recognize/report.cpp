@@ -1,3 +1,7 @@
+// The outputs of a recognition that people look at (report.hpp): the result table and the HTML report
+// directory. write_report() writes the pictures of seg::write_pictures, objects.ply, the top view
+// (draw_top_view -> scene_top.png, write_scene_svg -> scene.svg) and the page (write_index_html ->
+// index.html).
 #include "host/recognize/report.hpp"
 
 #include <Eigen/Geometry>
@@ -56,9 +60,36 @@ std::string result_table(const Recognition& r, const Library& library) {
   return s;
 }
 
+std::string base64(const std::string& bytes) {
+  static constexpr char k[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string out;
+  out.reserve((bytes.size() + 2) / 3 * 4);
+  std::size_t i = 0;
+  for (; i + 2 < bytes.size(); i += 3) {
+    const auto v = (std::uint32_t(std::uint8_t(bytes[i])) << 16) |
+                   (std::uint32_t(std::uint8_t(bytes[i + 1])) << 8) | std::uint8_t(bytes[i + 2]);
+    out += {k[v >> 18], k[(v >> 12) & 63], k[(v >> 6) & 63], k[v & 63]};
+  }
+  if (i + 1 == bytes.size()) {
+    const auto v = std::uint32_t(std::uint8_t(bytes[i])) << 16;
+    out += {k[v >> 18], k[(v >> 12) & 63], '=', '='};
+  } else if (i + 2 == bytes.size()) {
+    const auto v =
+        (std::uint32_t(std::uint8_t(bytes[i])) << 16) | (std::uint32_t(std::uint8_t(bytes[i + 1])) << 8);
+    out += {k[v >> 18], k[(v >> 12) & 63], k[(v >> 6) & 63], '='};
+  }
+  return out;
+}
+
 namespace {
 
 std::string colour_hex(std::uint32_t rgb) { return fmt::format("#{:06x}", rgb & 0xffffff); }
+
+// Whole millimetres; a value that rounds to zero is "0", not "-0".
+std::string mm_text(double v) {
+  std::string t = fmt::format("{:.0f}", v);
+  return t == "-0" ? "0" : t;
+}
 
 struct TopView {
   double xmin = 0, ymax = 0, scale = 1;
@@ -110,57 +141,16 @@ std::string html_escape(const std::string& s) {
 }
 
 std::string base64_file(const std::filesystem::path& p) {
-  static constexpr char k[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
   std::ifstream f(p, std::ios::binary);
-  const std::string b((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
-  std::string out;
-  for (std::size_t i = 0; i < b.size(); i += 3) {
-    const std::size_t n = std::min<std::size_t>(3, b.size() - i);
-    std::uint32_t v = 0;
-    for (std::size_t j = 0; j < 3; ++j) v = (v << 8) | (j < n ? static_cast<std::uint8_t>(b[i + j]) : 0u);
-    out += k[v >> 18];
-    out += k[(v >> 12) & 63];
-    out += n > 1 ? k[(v >> 6) & 63] : '=';
-    out += n > 2 ? k[v & 63] : '=';
-  }
-  return out;
+  return base64(std::string((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>()));
 }
 
-}  // namespace
-
-void write_report(const std::filesystem::path& dir, const std::string& title, const OrganizedCloud& cloud,
-                  const Recognizer& recognizer, const Recognition& r, const std::string& view_html) {
-  std::filesystem::create_directories(dir);
-  const Library& library = recognizer.library();
-  // Segmentation, PFRG, ENM pictures.
-  Vec3 view = Vec3::UnitZ();
-  {
-    Vec3 c = Vec3::Zero();
-    std::size_t n = 0;
-    for (const auto& p : cloud.points)
-      if (OrganizedCloud::valid(p)) {
-        c += p.cast<double>();
-        ++n;
-      }
-    if (n > 0) view = (cloud.viewpoint - c / static_cast<double>(n)).normalized();
-  }
-  if (recognizer.segmentation().width > 0)
-    seg::write_pictures(recognizer.segmentation(), recognizer.scene_graph(), view, dir);
-
-  // Cloud coloured by object.
-  std::vector<std::int32_t> labels;
-  recognizer.object_labels(cloud, labels);
-  OrganizedCloud coloured = cloud;
-  coloured.labels.resize(labels.size());
-  for (std::size_t i = 0; i < labels.size(); ++i) coloured.labels[i] = labels[i] >= 0 ? labels[i] + 1 : 0;
-  CloudWriteOptions wo;
-  wo.colours_from_labels = true;
-  write_cloud((dir / "objects.ply").string(), coloured, wo);
-
-  // Top view: the measured surface seen from above (grid cells drawn as triangles with a z-buffer, so no
-  // stripe-by-stripe moire and no gaps between stripes), height- and slope-shaded grey, each recognized
-  // object's points in its colour; no data (laser / camera shadows) in a flat blue-grey.
-  const TopView tv = top_view(cloud);
+// The top view (scene_top.png): the measured surface seen from above (grid cells drawn as triangles with a
+// z-buffer, so no stripe-by-stripe moire and no gaps between stripes), height- and slope-shaded grey, each
+// recognized object's points in its colour (labels: cell -> object or -1); no data (laser / camera shadows)
+// in a flat blue-grey. Returns the RGB8 pixels, tv.w x tv.h.
+std::vector<std::uint8_t> draw_top_view(const OrganizedCloud& cloud, const std::vector<std::int32_t>& labels,
+                                        const TopView& tv) {
   const std::size_t npx = static_cast<std::size_t>(tv.w) * tv.h;
   std::vector<std::uint8_t> rgb(npx * 3);
   for (std::size_t i = 0; i < npx; ++i) {
@@ -255,9 +245,12 @@ void write_report(const std::filesystem::path& dir, const std::string& title, co
     cell_colour(i, Eigen::Vector3f::UnitZ(), c);
     std::copy(c, c + 3, &rgb[3 * k]);
   }
-  write_png_rgb8(dir / "scene_top.png", static_cast<std::uint32_t>(tv.w), static_cast<std::uint32_t>(tv.h),
-                 rgb);
-  // The SVG: the picture, each model's outline in its pose, and a legend below the picture.
+  return rgb;
+}
+
+// scene.svg: the top view picture (inline), each model's outline in its pose, and a legend below the picture.
+void write_scene_svg(const std::filesystem::path& dir, const Library& library, const Recognition& r,
+                     const TopView& tv) {
   const int legend_rows = static_cast<int>(r.objects.size()) + 2;
   const int svg_h = tv.h + 12 + 24 * legend_rows;
   std::ostringstream svg;
@@ -303,17 +296,21 @@ void write_report(const std::filesystem::path& dir, const std::string& title, co
     const Hypothesis& h = r.objects[o];
     const Model& m = library.models[static_cast<std::size_t>(h.model)];
     legend_row(static_cast<int>(o), colour_hex(label_colour(static_cast<std::int32_t>(o) + 1)),
-               fmt::format("{}{}: confidence {:.2f}, at ({:.0f}, {:.0f}, {:.0f}) mm", m.name,
+               fmt::format("{}{}: confidence {:.2f}, at ({}, {}, {}) mm", m.name,
                            h.instance > 0 ? fmt::format(" #{}", h.instance + 1) : "", h.verify.confidence,
-                           h.t.x(), h.t.y(), h.t.z()));
+                           mm_text(h.t.x()), mm_text(h.t.y()), mm_text(h.t.z())));
   }
-  legend_row(static_cast<int>(r.objects.size()), "#8c8c8c",
-             "table and unrecognized surfaces (grey by height, lighter = higher)");
+  // The swatch: a level surface at the lowest height (the table) as draw_top_view shades it.
+  legend_row(static_cast<int>(r.objects.size()), "#4a4a4a",
+             "table and unrecognized surfaces (grey by height: the table this dark, lighter = higher)");
   legend_row(static_cast<int>(r.objects.size()) + 1, "#c9d2dc", "no data (laser or camera shadow)");
   svg << "</svg>\n";
   write_text(dir / "scene.svg", svg.str());
+}
 
-  // The page.
+// index.html: the title, `view_html`, the object table, the statistics and the pictures.
+void write_index_html(const std::filesystem::path& dir, const std::string& title, const Library& library,
+                      const Recognition& r, const std::string& view_html) {
   std::ostringstream html;
   html << "<!doctype html><html><head><meta charset=\"utf-8\"><title>Facetscan: " << html_escape(title)
        << "</"
@@ -358,6 +355,45 @@ void write_report(const std::filesystem::path& dir, const std::string& title, co
           "src=\"enm.svg\"><figcaption>Extended needle map</figcaption></figure></div>\n";
   html << "<p><a href=\"objects.ply\">objects.ply</a>: the cloud coloured by object.</p></body></html>\n";
   write_text(dir / "index.html", html.str());
+}
+
+}  // namespace
+
+void write_report(const std::filesystem::path& dir, const std::string& title, const OrganizedCloud& cloud,
+                  const Recognizer& recognizer, const Recognition& r, const std::string& view_html) {
+  std::filesystem::create_directories(dir);
+  const Library& library = recognizer.library();
+  // Segmentation, PFRG, ENM pictures.
+  Vec3 view = Vec3::UnitZ();
+  {
+    Vec3 c = Vec3::Zero();
+    std::size_t n = 0;
+    for (const auto& p : cloud.points)
+      if (OrganizedCloud::valid(p)) {
+        c += p.cast<double>();
+        ++n;
+      }
+    if (n > 0) view = (cloud.viewpoint - c / static_cast<double>(n)).normalized();
+  }
+  if (recognizer.segmentation().width > 0)
+    seg::write_pictures(recognizer.segmentation(), recognizer.scene_graph(), view, dir);
+
+  // Cloud coloured by object.
+  std::vector<std::int32_t> labels;
+  recognizer.object_labels(cloud, labels);
+  OrganizedCloud coloured = cloud;
+  coloured.labels.resize(labels.size());
+  for (std::size_t i = 0; i < labels.size(); ++i) coloured.labels[i] = labels[i] >= 0 ? labels[i] + 1 : 0;
+  CloudWriteOptions wo;
+  wo.colours_from_labels = true;
+  write_cloud((dir / "objects.ply").string(), coloured, wo);
+
+  // Top view, its SVG, the page.
+  const TopView tv = top_view(cloud);
+  write_png_rgb8(dir / "scene_top.png", static_cast<std::uint32_t>(tv.w), static_cast<std::uint32_t>(tv.h),
+                 draw_top_view(cloud, labels, tv));
+  write_scene_svg(dir, library, r, tv);
+  write_index_html(dir, title, library, r, view_html);
 }
 
 }  // namespace fs::host::rec

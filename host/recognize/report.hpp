@@ -16,6 +16,9 @@ std::string axis_angle_text(const Mat3& R);
 // A fixed-width table: model, instance, position (mm), rotation (axis-angle), confidence, cost, faces.
 std::string result_table(const Recognition& r, const Library& library);
 
+// `bytes` in base64 (RFC 4648, with '=' padding): the data: URIs and scene-data.js of the reports.
+std::string base64(const std::string& bytes);
+
 // Writes DIR/index.html, segmentation.png, pfrg.svg, enm.svg, scene.svg (+ scene_top.png: the top view with
 // every recognized object coloured over its points; scene.svg adds the outlines and a legend) and
 // objects.ply. `title` names the input. `view_html` is placed above the table (host/web/report_view.hpp: the

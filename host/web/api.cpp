@@ -152,15 +152,21 @@ std::string points_blob(const OrganizedCloud& cloud, const std::vector<std::int3
     while (valid / (grid ? stride * stride : stride) > max_points) ++stride;
   std::vector<std::uint32_t> keep;
   keep.reserve(std::min(valid, max_points > 0 ? max_points + 1 : valid));
-  if (grid) {
-    for (std::uint32_t row = 0; row < cloud.height; row += static_cast<std::uint32_t>(stride))
-      for (std::uint32_t col = 0; col < cloud.width; col += static_cast<std::uint32_t>(stride)) {
-        const std::size_t i = cloud.index(row, col);
+  // The stride above assumes the valid points spread evenly; where they do not, thin further until at most
+  // max_points are kept (ends: at a stride of the grid's size one point is left).
+  for (;; ++stride) {
+    keep.clear();
+    if (grid) {
+      for (std::uint32_t row = 0; row < cloud.height; row += static_cast<std::uint32_t>(stride))
+        for (std::uint32_t col = 0; col < cloud.width; col += static_cast<std::uint32_t>(stride)) {
+          const std::size_t i = cloud.index(row, col);
+          if (OrganizedCloud::valid(cloud.points[i])) keep.push_back(static_cast<std::uint32_t>(i));
+        }
+    } else {
+      for (std::size_t i = 0; i < cloud.points.size(); i += stride)
         if (OrganizedCloud::valid(cloud.points[i])) keep.push_back(static_cast<std::uint32_t>(i));
-      }
-  } else {
-    for (std::size_t i = 0; i < cloud.points.size(); i += stride)
-      if (OrganizedCloud::valid(cloud.points[i])) keep.push_back(static_cast<std::uint32_t>(i));
+    }
+    if (max_points == 0 || keep.size() <= max_points) break;
   }
   const std::size_t n = keep.size();
   const bool regions = region_labels.size() == cloud.points.size();
@@ -186,10 +192,12 @@ std::string points_blob(const OrganizedCloud& cloud, const std::vector<std::int3
     const std::int32_t o = i < object_labels.size() ? object_labels[i] : -1;
     out.push_back(static_cast<char>(o >= 0 && o < 255 ? o : 255));
   }
-  if (out.size() % 2) out.push_back('\0');
-  for (std::uint32_t i : keep) {
-    const std::int32_t g = regions ? region_labels[i] : -1;
-    put(out, static_cast<std::uint16_t>(g >= 0 && g < 0xffff ? g : 0xffff));
+  if (regions) {
+    if (out.size() % 2) out.push_back('\0');
+    for (std::uint32_t i : keep) {
+      const std::int32_t g = region_labels[i];
+      put(out, static_cast<std::uint16_t>(g >= 0 && g < 0xffff ? g : 0xffff));
+    }
   }
   return out;
 }

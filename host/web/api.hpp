@@ -63,8 +63,8 @@ nlohmann::json scan_summary_json(const ScanInfo& info, const rec::Recognition& r
 // Points format (little-endian), version 1:
 //   0  "FSPT"   4 u32 version (1)   8 u32 n   12 u32 flags (bit 0: region ids present)
 //   16 f32 min x,y,z   28 f32 max x,y,z
-//   40 f32 xyz[3n]   then u8 object[n] (255 = none)   then padding to even   then u16 region[n] (0xffff =
-//   none)
+//   40 f32 xyz[3n]   then u8 object[n] (255 = none)   then, only with flags bit 0: padding to even and
+//   u16 region[n] (0xffff = none)
 inline constexpr std::size_t kPointsHeader = 40;
 inline constexpr std::size_t kDefaultMaxPoints = 80000;
 std::string points_blob(const OrganizedCloud& cloud, const std::vector<std::int32_t>& object_labels,

@@ -1,6 +1,7 @@
 #include "host/web/http_server.hpp"
 
 #include <httplib.h>
+#include <sys/socket.h>
 
 #include <cstdio>
 #include <fstream>
@@ -53,7 +54,7 @@ void error_reply(httplib::Response& res, int status, const std::string& why) {
 
 // "123" -> 123; anything else (empty, sign, leading zeros beyond "0", > 18 digits) -> nothing.
 std::optional<std::uint64_t> parse_id(const std::string& s) {
-  if (s.empty() || s.size() > 18) return std::nullopt;
+  if (s.empty() || s.size() > 18 || (s.size() > 1 && s[0] == '0')) return std::nullopt;
   std::uint64_t v = 0;
   for (char c : s) {
     if (c < '0' || c > '9') return std::nullopt;
@@ -133,12 +134,22 @@ void WebServer::start() {
   svr_->set_write_timeout(opt_.io_timeout_s, 0);
   svr_->set_payload_max_length(1024);  // read-only: no request bodies
   routes();
+  // httplib listens with a backlog of 5: a burst of connects beyond it would wait in the kernel (SYN and data
+  // retransmits, seconds) instead of being answered (503 beyond max_connections). Listen again, with room for
+  // max_connections, on the socket httplib binds (it passes through the socket options).
+  int listen_fd = -1;
+  svr_->set_socket_options([&listen_fd](socket_t sock) {
+    httplib::default_socket_options(sock);
+    listen_fd = sock;
+  });
   int bound = -1;
   if (port == 0)
     bound = svr_->bind_to_any_port(host_);
   else
     bound = svr_->bind_to_port(host_, port) ? port : -1;
+  svr_->set_socket_options(httplib::default_socket_options);
   if (bound <= 0) throw Error("--http " + opt_.listen + ": cannot listen (address in use or not local?)");
+  if (listen_fd >= 0) ::listen(listen_fd, std::max(128, 2 * opt_.max_connections));
   port_ = static_cast<std::uint16_t>(bound);
   thread_ = std::thread([this] { svr_->listen_after_bind(); });
 }

@@ -9,27 +9,6 @@
 
 namespace fs::host::web {
 
-std::string base64(const std::string& bytes) {
-  static constexpr char k[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-  std::string out;
-  out.reserve((bytes.size() + 2) / 3 * 4);
-  std::size_t i = 0;
-  for (; i + 2 < bytes.size(); i += 3) {
-    const auto v = (std::uint32_t(std::uint8_t(bytes[i])) << 16) |
-                   (std::uint32_t(std::uint8_t(bytes[i + 1])) << 8) | std::uint8_t(bytes[i + 2]);
-    out += {k[v >> 18], k[(v >> 12) & 63], k[(v >> 6) & 63], k[v & 63]};
-  }
-  if (i + 1 == bytes.size()) {
-    const auto v = std::uint32_t(std::uint8_t(bytes[i])) << 16;
-    out += {k[v >> 18], k[(v >> 12) & 63], '=', '='};
-  } else if (i + 2 == bytes.size()) {
-    const auto v =
-        (std::uint32_t(std::uint8_t(bytes[i])) << 16) | (std::uint32_t(std::uint8_t(bytes[i + 1])) << 8);
-    out += {k[v >> 18], k[(v >> 12) & 63], k[(v >> 6) & 63], '='};
-  }
-  return out;
-}
-
 void write_report(const std::filesystem::path& dir, const std::string& title, const OrganizedCloud& cloud,
                   const rec::Recognizer& recognizer, const rec::Recognition& r, const Plane* table) {
   std::filesystem::create_directories(dir);
@@ -43,8 +22,8 @@ void write_report(const std::filesystem::path& dir, const std::string& title, co
   {
     std::ofstream f(dir / "scene-data.js", std::ios::binary);
     // </script> cannot occur: JSON strings escape nothing of it, but this file is loaded by src=, not inline.
-    f << "window.FACETSCAN_SCENE = {\"detail\": " << detail.dump() << ",\n\"points\": \"" << base64(points)
-      << "\"};\n";
+    f << "window.FACETSCAN_SCENE = {\"detail\": " << detail.dump() << ",\n\"points\": \""
+      << rec::base64(points) << "\"};\n";
     if (!f) throw Error((dir / "scene-data.js").string() + ": cannot write");
   }
   const std::string view =

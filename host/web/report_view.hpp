@@ -15,6 +15,4 @@ namespace fs::host::web {
 void write_report(const std::filesystem::path& dir, const std::string& title, const OrganizedCloud& cloud,
                   const rec::Recognizer& recognizer, const rec::Recognition& r, const Plane* table = nullptr);
 
-std::string base64(const std::string& bytes);
-
 }  // namespace fs::host::web
