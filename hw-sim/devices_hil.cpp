@@ -85,6 +85,13 @@ void check_sim_can(CheckReport& r, const std::string& device, const CanSpec& cs)
 std::unique_ptr<ScanDevices> make_devices(FwConfig& cfg) {
   const bool sim_galvo = is_sim_galvo(cfg.galvo);
   const bool sim_camera = is_sim_camera(cfg.camera);
+  if (!sim_galvo && !starts_with(cfg.galvo, "gpio:") && !starts_with(cfg.galvo, "can:"))
+    throw Error("--galvo '" + cfg.galvo + "': expected sim, sim-can[:...], gpio:... or can:...");
+  // The galvo faults act on the step/dir lines' twin; the CAN drive twin has none of its own (as demo says).
+  for (const auto& f : cfg.faults)
+    if (cfg.galvo != "sim" && starts_with(f, "galvo."))
+      throw Error("--fault '" + f + "': galvo faults act on the step/dir GPIO twin (--galvo sim); --galvo '" +
+                  cfg.galvo + "' takes camera.* and laser.* faults");
   if (sim_camera && !sim_galvo)
     throw Error("--camera sim renders for the simulated mirror: use it with --galvo sim or sim-can");
   if (!sim_camera && sim_galvo && cfg.galvo == "sim")

@@ -5,9 +5,11 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <cerrno>
 #include <chrono>
 #include <csignal>
 #include <cstdio>
+#include <cstring>
 #include <deque>
 #include <filesystem>
 #include <fstream>
@@ -254,7 +256,21 @@ struct ServeOptions {
   WebCliOptions web;
 };
 
+// The output folder, checked before anything listens or scans: created when missing; a path that is a file
+// (or cannot be created or written) is refused naming it, instead of failing at the first scan.
+void prepare_out_dir(const std::string& dir) {
+  if (dir.empty()) return;
+  std::error_code ec;
+  stdfs::create_directories(dir, ec);
+  if (stdfs::exists(dir) && !stdfs::is_directory(dir))
+    throw Error(fmt::format("-o {}: not a directory", dir));
+  if (!stdfs::is_directory(dir)) throw Error(fmt::format("-o {}: cannot create it ({})", dir, ec.message()));
+  if (::access(dir.c_str(), W_OK) != 0)
+    throw Error(fmt::format("-o {}: not writable ({})", dir, std::strerror(errno)));
+}
+
 void run_serve(const ServeOptions& o) {
+  prepare_out_dir(o.out_dir);
   const Library library = load_or_build_library(o.library);
   rec::RecognizeParams params;
   params.match = match::read_params(o.params);
@@ -346,7 +362,7 @@ int run_demo(const DemoOptions& o) {
   std::vector<std::string> lib_inputs = o.library;
   if (lib_inputs.empty()) lib_inputs.push_back((scene.parent_path() / "meshes").string());
   const Library library = load_or_build_library(lib_inputs);
-  stdfs::create_directories(o.out_dir);
+  prepare_out_dir(o.out_dir);
   const std::string recording = (stdfs::path(o.out_dir) / "scan.fscan").string();
 
   ScanHandler handler(library, rec::RecognizeParams{}, o.out_dir, o.quiet);

@@ -3,7 +3,8 @@
 #     an unknown ARCH.
 #   cross_build_or_skip ARCH SRC CROSS_DIR LOG_PREFIX WHAT: runs toolchain/cross-build (FS_CROSS_JOBS default 2),
 #     stdout to LOG_PREFIX.out, stderr to LOG_PREFIX.err; sets fw to the built binary. Exits 77 (ctest SKIP, with
-#     a banner naming WHAT was not tested) when the cross packages are not installable, 1 when the build failed.
+#     a banner naming WHAT was not tested) when the cross packages are not installable (1 under CI=true), 1 when
+#     the build failed.
 cross_arch() {
   case "$1" in
     aarch64) deb_arch=arm64; elf='ARM aarch64' ;;
@@ -21,6 +22,8 @@ cross_build_or_skip() {
     echo "SKIPPED: the $arch cross packages (crossbuild-essential-$deb_arch, qemu-user, the :$deb_arch -dev" >&2
     echo "libraries) are not installed and could not be installed here: $what was NOT tested." >&2
     echo "################################################################################" >&2
+    # Under CI (CI=true) a skip would pass unnoticed: fail instead.
+    if [ "${CI:-}" = true ]; then echo "FAIL: CI=true and the $arch cross packages are missing" >&2; exit 1; fi
     exit 77
   fi
   if [ $rc -ne 0 ]; then
