@@ -119,10 +119,62 @@ class ScanHandler {
   // Recognition times of the scans so far (ms), for measurements.
   const std::vector<double>& recognition_ms() const { return recognition_ms_; }
 
+  // Every scan delivered ends in exactly one result: recognized, or failed (a calibration the triangulation
+  // refuses, a scene the matcher cannot take, ...) with the reason logged and written to result.json.
   void operator()(const Scan& scan) {
     ++scans_;
-    if (before_result_) before_result_(scan);
-    if (tracker_) tracker_->recognizing(scan, true);
+    try {
+      if (before_result_) before_result_(scan);
+      if (tracker_) tracker_->recognizing(scan, true);
+      process(scan);
+    } catch (const std::exception& e) {
+      fail(scan, e.what());
+    }
+    if (tracker_) tracker_->recognizing(scan, false);
+    std::fflush(stdout);  // a log file or pipe sees each scan's result as it is recognized
+  }
+  int scans() const { return scans_; }
+  int failed() const { return failed_; }
+  int last_objects() const { return last_objects_; }
+  const stdfs::path& last_dir() const { return last_dir_; }
+
+ private:
+  stdfs::path scan_dir(const Scan& scan) const {
+    return stdfs::path(out_dir_) / fmt::format("scan-{:03}-id{}", scans_, scan.scan_id());
+  }
+
+  // A scan that could not be processed: "scan N (...): FAILED: reason" on stdout (also with -q) and
+  // {"failed": true, "error": reason, "scan": {...}} as its result.json.
+  void fail(const Scan& scan, const std::string& reason) {
+    ++failed_;
+    last_objects_ = -1;
+    fmt::print("\nscan {} ({} of {} stripes{}): FAILED: {}\n", scan.scan_id(), scan.stripes_received(),
+               scan.slot_count(),
+               scan.complete() ? "" : fmt::format(", PARTIAL: {}", to_string(scan.status())), reason);
+    if (out_dir_.empty()) return;
+    try {
+      const stdfs::path dir = scan_dir(scan);
+      stdfs::create_directories(dir);
+      nlohmann::json j = {{"failed", true},
+                          {"error", reason},
+                          {"scan",
+                           {{"scan_id", scan.scan_id()},
+                            {"status", to_string(scan.status())},
+                            {"partial", !scan.complete()},
+                            {"stripes", scan.stripes_received()},
+                            {"steps", scan.slot_count()}}}};
+      std::ofstream f(dir / "result.json");
+      f << j.dump(2) << "\n";
+      if (!f) throw Error((dir / "result.json").string() + ": cannot write");
+      last_dir_ = dir;
+      fmt::print("result: {}\n", (dir / "result.json").string());
+    } catch (const std::exception& e) {
+      fmt::print(stderr, "facetscan: scan {}: cannot write the failed result: {}\n", scan.scan_id(),
+                 e.what());
+    }
+  }
+
+  void process(const Scan& scan) {
     const bool partial = !scan.complete();
     triangulator_.triangulate(scan, cloud_);
     if (!recognizer_ || recognizer_cells_ < cloud_.points.size()) {
@@ -160,7 +212,7 @@ class ScanHandler {
       web_->publish_scan(std::move(record));
     }
     if (!out_dir_.empty()) {
-      const stdfs::path dir = stdfs::path(out_dir_) / fmt::format("scan-{:03}-id{}", scans_, scan.scan_id());
+      const stdfs::path dir = scan_dir(scan);
       web::write_report(dir / "report", fmt::format("scan {}", scan.scan_id()), cloud_, *recognizer_, r,
                         &table);
       nlohmann::json j = rec::to_json(r, library_);
@@ -180,14 +232,8 @@ class ScanHandler {
         web_->publish_scan(std::move(record));
       }
     }
-    if (tracker_) tracker_->recognizing(scan, false);
-    std::fflush(stdout);  // a log file or pipe sees each scan's result as it is recognized
   }
-  int scans() const { return scans_; }
-  int last_objects() const { return last_objects_; }
-  const stdfs::path& last_dir() const { return last_dir_; }
 
- private:
   const Library& library_;
   rec::RecognizeParams params_;
   std::string out_dir_;
@@ -202,6 +248,7 @@ class ScanHandler {
   std::string recording_;
   std::vector<double> recognition_ms_;
   int scans_ = 0;
+  int failed_ = 0;
   int last_objects_ = -1;
   stdfs::path last_dir_;
 };
@@ -269,6 +316,13 @@ void prepare_out_dir(const std::string& dir) {
     throw Error(fmt::format("-o {}: not writable ({})", dir, std::strerror(errno)));
 }
 
+// A malformed frame from the scanner (bad magic / CRC, oversize frame, absurd stripe): logged on stdout with
+// the peer; serve closes that connection and goes on.
+void log_protocol_error(const std::string& peer, const std::string& reason) {
+  fmt::print("facetscan serve: protocol error from {}: {}; connection closed\n", peer, reason);
+  std::fflush(stdout);
+}
+
 void run_serve(const ServeOptions& o) {
   prepare_out_dir(o.out_dir);
   const Library library = load_or_build_library(o.library);
@@ -281,6 +335,7 @@ void run_serve(const ServeOptions& o) {
   StreamServerOptions so;
   so.listen = o.listen;
   so.reconnect_grace_ms = o.reconnect_grace_ms;
+  so.on_protocol_error = log_protocol_error;
   StreamServer server(so, [&](const Scan& s) { handler(s); });
   server.start();
   g_server = &server;
@@ -299,8 +354,16 @@ void run_serve(const ServeOptions& o) {
   if (web) web->stop();
   g_server = nullptr;
   if (!o.quiet) {
-    fmt::print("facetscan serve: {} scan(s), {} connection(s), {} disconnect(s)\n", handler.scans(),
-               server.stats().connections, server.stats().disconnects);
+    const StreamServerStats& st = server.stats();
+    // Failures and protocol errors only when there were any: a clean run's summary stays as it was.
+    std::string problems;
+    if (handler.failed() > 0) problems += fmt::format(", {} failed", handler.failed());
+    if (st.protocol_errors > 0)
+      problems += fmt::format(", {} protocol error(s) (last: {})", st.protocol_errors, st.last_error);
+    if (st.scan_errors > 0)
+      problems += fmt::format(", {} scan error(s) (last: {})", st.scan_errors, st.last_scan_error);
+    fmt::print("facetscan serve: {} scan(s), {} connection(s), {} disconnect(s){}\n", handler.scans(),
+               st.connections, st.disconnects, problems);
     if (web) fmt::print("recognition ms per scan: {:.1f}\n", fmt::join(handler.recognition_ms(), " "));
   }
 }

@@ -20,6 +20,8 @@ const char* to_string(ScanStatus s) {
       return "disconnected before ScanEnd";
     case ScanStatus::Superseded:
       return "superseded by a new scan";
+    case ScanStatus::ProtocolError:
+      return "connection closed for a protocol error";
   }
   return "?";
 }

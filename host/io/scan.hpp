@@ -18,6 +18,7 @@ enum class ScanStatus : std::uint8_t {
   MissingStripes,  // ScanEnd(completed) but some steps never arrived (dropped frames / stripes)
   Disconnected,    // the stream / file ended before ScanEnd
   Superseded,      // a new ScanBegin arrived before ScanEnd
+  ProtocolError,   // the connection was closed for a malformed frame and the scan was not resumed
 };
 const char* to_string(ScanStatus s);
 

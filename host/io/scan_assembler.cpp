@@ -72,9 +72,9 @@ void ScanAssembler::on_fault(const msg::Fault& m) {
   if (in_scan()) scan_.note_fault(m);
 }
 
-void ScanAssembler::end_of_stream() {
+void ScanAssembler::end_of_stream(ScanStatus why) {
   if (in_scan()) {
-    scan_.interrupt(ScanStatus::Disconnected);
+    scan_.interrupt(why);
     deliver();
   }
 }

@@ -33,8 +33,8 @@ class ScanAssembler {
   void on_scan_end(const msg::ScanEnd& m);
   void on_heartbeat(const msg::Heartbeat& m);
   void on_fault(const msg::Fault& m);
-  // The source closed: a scan in progress is delivered as partial (Disconnected).
-  void end_of_stream();
+  // The source closed: a scan in progress is delivered as partial (Disconnected, or `why`).
+  void end_of_stream(ScanStatus why = ScanStatus::Disconnected);
 
   bool in_scan() const { return scan_.started() && scan_.status() == ScanStatus::InProgress; }
   const Scan& current() const { return scan_; }

@@ -23,7 +23,7 @@ void parse_listen_address(const std::string& spec, std::string& host, std::uint1
 
 StreamServer::StreamServer(StreamServerOptions options, ScanAssembler::Callback on_scan)
     : opt_(std::move(options)),
-      assembler_(std::move(on_scan), opt_.limits),
+      assembler_([this, cb = std::move(on_scan)](const Scan& scan) { deliver(cb, scan); }, opt_.limits),
       decoder_("tcp " + opt_.listen),
       rx_(64 * 1024),
       tx_(wire::kFrameOverhead + wire::kHeartbeatSize + 16) {
@@ -41,6 +41,26 @@ StreamServer::~StreamServer() {
 std::int64_t StreamServer::now() const {
   if (opt_.now_ns) return opt_.now_ns();
   return monotonic_ns();
+}
+
+void StreamServer::deliver(const ScanAssembler::Callback& on_scan, const Scan& scan) {
+  protocol_cut_ = false;
+  if (!on_scan) return;
+  // Processing a scan is not the stream's business: what escapes is counted, never a protocol error.
+  try {
+    on_scan(scan);
+  } catch (const std::exception& e) {
+    ++stats_.scan_errors;
+    stats_.last_scan_error = "scan " + std::to_string(scan.scan_id()) + ": " + e.what();
+  }
+}
+
+void StreamServer::on_frame() {
+  // A scan cut by a protocol error and not resumed (a new ScanBegin instead) ends as such, not superseded.
+  if (protocol_cut_ && message_.type == msg::Type::ScanBegin)
+    assembler_.end_of_stream(ScanStatus::ProtocolError);
+  if (message_.type != msg::Type::Heartbeat) protocol_cut_ = false;
+  assembler_.on_message(message_);
 }
 
 void StreamServer::start() {
@@ -113,9 +133,15 @@ bool StreamServer::poll_once(int timeout_ms) {
 }
 
 void StreamServer::accept_client() {
-  const int fd = ::accept4(listen_fd_, nullptr, nullptr, SOCK_NONBLOCK | SOCK_CLOEXEC);
+  sockaddr_storage ss{};
+  socklen_t len = sizeof(ss);
+  const int fd = ::accept4(listen_fd_, reinterpret_cast<sockaddr*>(&ss), &len, SOCK_NONBLOCK | SOCK_CLOEXEC);
   if (fd < 0) return;                    // EAGAIN / ECONNABORTED: nothing to do
   if (client_ >= 0) drop_client(false);  // the scanner re-dialled: the new connection wins
+  char host[NI_MAXHOST] = "?", serv[NI_MAXSERV] = "?";
+  ::getnameinfo(reinterpret_cast<sockaddr*>(&ss), len, host, sizeof(host), serv, sizeof(serv),
+                NI_NUMERICHOST | NI_NUMERICSERV);
+  peer_ = ss.ss_family == AF_INET6 ? "[" + std::string(host) + "]:" + serv : std::string(host) + ":" + serv;
   const int one = 1;
   ::setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &one, sizeof(one));
   client_ = fd;
@@ -150,20 +176,22 @@ void StreamServer::read_client() {
         while (decoder_.next(f)) {
           ++stats_.frames;
           wire::decode(f, message_, decoder_.source());
-          assembler_.on_message(message_);
+          on_frame();
         }
       }
     } catch (const Error& e) {
       ++stats_.protocol_errors;
-      stats_.last_error = e.what();
-      drop_client(false);
+      stats_.last_error = "protocol error from " + peer_ + ": " + e.what();
+      if (opt_.on_protocol_error) opt_.on_protocol_error(peer_, e.what());
+      if (assembler_.in_scan()) protocol_cut_ = true;
+      drop_client(false, protocol_cut_ ? ScanStatus::ProtocolError : ScanStatus::Disconnected);
       return;
     }
     stats_.sequence_gaps = decoder_.sequence_gaps();
   }
 }
 
-void StreamServer::drop_client(bool timeout) {
+void StreamServer::drop_client(bool timeout, ScanStatus why) {
   if (client_ < 0) return;
   ::close(client_);
   client_ = -1;
@@ -172,7 +200,7 @@ void StreamServer::drop_client(bool timeout) {
   else
     ++stats_.disconnects;
   disconnected_at_ns_ = now();
-  if (opt_.reconnect_grace_ms <= 0) assembler_.end_of_stream();
+  if (opt_.reconnect_grace_ms <= 0) assembler_.end_of_stream(why);
 }
 
 void StreamServer::send_heartbeat() {
@@ -201,7 +229,7 @@ void StreamServer::check_timers() {
   }
   if (client_ < 0 && disconnected_at_ns_ >= 0 && assembler_.in_scan() &&
       t - disconnected_at_ns_ >= opt_.reconnect_grace_ms * 1'000'000) {
-    assembler_.end_of_stream();
+    assembler_.end_of_stream(protocol_cut_ ? ScanStatus::ProtocolError : ScanStatus::Disconnected);
     disconnected_at_ns_ = -1;
   }
 }
@@ -211,7 +239,7 @@ void StreamServer::close_all() {
     ::close(client_);
     client_ = -1;
   }
-  assembler_.end_of_stream();
+  assembler_.end_of_stream(protocol_cut_ ? ScanStatus::ProtocolError : ScanStatus::Disconnected);
   disconnected_at_ns_ = -1;
 }
 

@@ -11,7 +11,10 @@
 //    expires, the scan is delivered as partial (ScanStatus::Disconnected). grace 0 = deliver at once.
 //  * A new connection replaces the current one (a scanner that rebooted / re-dialled).
 //  * A malformed frame (bad CRC, unknown version, absurd length) closes the connection (protocol error,
-//    counted, last_error kept); the scanner reconnects and resends.
+//    counted, last_error names the peer, on_protocol_error is told); the scanner reconnects and resends. A
+//    scan cut by it that is not resumed ends as ScanStatus::ProtocolError (not Superseded / Disconnected).
+//  * The scan callback handles its own processing errors; an exception escaping it is counted (scan_errors,
+//    last_scan_error) and is neither a protocol error nor the end of the connection or of the server.
 // One thread: run() or poll_once() in the caller's thread; stop() may be called from any thread.
 // The clock is injectable for tests.
 #include <atomic>
@@ -32,6 +35,8 @@ struct StreamServerOptions {
   std::int64_t reconnect_grace_ms = 5000;
   ScanLimits limits;
   std::function<std::int64_t()> now_ns;  // monotonic clock; default CLOCK_MONOTONIC
+  // Called for every protocol error, before the connection is closed: (peer "ADDR:PORT", reason).
+  std::function<void(const std::string& peer, const std::string& reason)> on_protocol_error;
 };
 
 struct StreamServerStats {
@@ -43,7 +48,9 @@ struct StreamServerStats {
   std::uint64_t frames = 0;
   std::uint64_t heartbeats_sent = 0;
   std::uint64_t sequence_gaps = 0;
+  std::uint64_t scan_errors = 0;  // exceptions that escaped the scan callback
   std::string last_error;
+  std::string last_scan_error;
 };
 
 class StreamServer {
@@ -65,6 +72,8 @@ class StreamServer {
   void close_all();
 
   bool connected() const { return client_ >= 0; }
+  // The current (or last) scanner's address, "ADDR:PORT".
+  const std::string& peer() const { return peer_; }
   const StreamServerStats& stats() const { return stats_; }
   const AssemblerStats& assembler_stats() const { return assembler_.stats(); }
   // The scan in progress, or the last one delivered (for status displays).
@@ -74,7 +83,9 @@ class StreamServer {
   std::int64_t now() const;
   void accept_client();
   void read_client();
-  void drop_client(bool timeout);
+  void drop_client(bool timeout, ScanStatus why = ScanStatus::Disconnected);
+  void deliver(const ScanAssembler::Callback& on_scan, const Scan& scan);
+  void on_frame();
   void send_heartbeat();
   void check_timers();
 
@@ -91,6 +102,8 @@ class StreamServer {
   std::int64_t last_rx_ns_ = 0, last_hb_ns_ = 0, disconnected_at_ns_ = -1;
   std::uint64_t hb_counter_ = 0;
   std::uint32_t tx_seq_ = 0;
+  bool protocol_cut_ = false;  // the scan in progress lost its connection to a protocol error
+  std::string peer_;
   StreamServerStats stats_;
 };
 

@@ -30,6 +30,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "common/wire.hpp"
 #include "support/test_paths.hpp"
 
 namespace {
@@ -488,6 +489,109 @@ TEST(EndToEndServe, SurvivesAScannerDisconnectingMidScan) {
   EXPECT_FALSE(second["scan"]["partial"].get<bool>()) << second.dump(1);
   EXPECT_EQ(second["scan"]["status"], "complete");
   expect_pyramid(second);
+}
+
+// The stream re-encoded with the ScanBegin's camera made 65536 x 1024 (the wire accepts it, triangulation
+// refuses it); begin_only: just that ScanBegin.
+std::string with_bad_calibration(const std::string& frames, bool begin_only) {
+  fs::wire::FrameDecoder dec("recorded scan");
+  fs::wire::FrameView f;
+  fs::wire::DecodedMessage m;
+  fs::wire::VectorSink sink;
+  fs::wire::FrameWriter w(sink);
+  std::span in(reinterpret_cast<const std::uint8_t*>(frames.data()), frames.size());
+  bool done = false;
+  while (!in.empty() && !done) {
+    in = in.subspan(dec.feed(in));
+    while (!done && dec.next(f)) {
+      fs::wire::decode(f, m);
+      switch (m.type) {
+        case fs::msg::Type::ScanBegin:
+          m.scan_begin.calibration.camera.width = 65536;
+          m.scan_begin.calibration.camera.height = 1024;
+          w.send(m.scan_begin);
+          break;
+        case fs::msg::Type::Stripe:
+          w.send(m.stripe);
+          break;
+        case fs::msg::Type::ScanEnd:
+          w.send(m.scan_end);
+          break;
+        case fs::msg::Type::Heartbeat:
+          w.send(m.heartbeat);
+          break;
+        case fs::msg::Type::Fault:
+          w.send(m.fault);
+          break;
+      }
+      done = begin_only;
+    }
+  }
+  return std::string(sink.data.begin(), sink.data.end());
+}
+
+// Scans that cannot be processed end as failed results and serve goes on: (a) a ScanBegin with a calibration
+// triangulation refuses, then a disconnect; (b) a whole scan with that calibration followed, on the same
+// connection, by a good scan (recognized: the processing error did not drop the connection); (c) a frame with
+// a bad CRC mid-scan is a protocol error, logged with the peer and counted, and the cut scan says so.
+TEST(EndToEndServe, FailedScansAreResultsAndProtocolErrorsAreLogged) {
+  const std::string bytes = read_text(recorded_scan());
+  ASSERT_GT(bytes.size(), 1000u);
+  const std::string frames = bytes.substr(16);
+  const std::string bad_begin = with_bad_calibration(frames, true);
+  const std::string bad_then_good = with_bad_calibration(frames, false) + frames;
+  std::string corrupt = frames;
+  corrupt[corrupt.size() / 2] = static_cast<char>(corrupt[corrupt.size() / 2] ^ 0x5a);
+  const stdfs::path out = temp_dir("serve-failed");
+  const stdfs::path log = out / "serve.log";
+  const int port = free_loopback_port();
+  ASSERT_GT(port, 0);
+  CmdResult served;
+  std::thread server([&] {
+    served = run("timeout -s INT 300 " + facetscan() + " serve --listen 127.0.0.1:" + std::to_string(port) +
+                 " -l " + library() + " --max-scans 4 --reconnect-grace 300 -o " + (out / "scans").string() +
+                 " > " + log.string());
+  });
+  auto wait_for = [&](const std::string& what, std::size_t count) {  // event, not time: at most 120 s
+    for (int i = 0; i < 1200; ++i) {
+      const std::string t = read_text(log);
+      std::size_t n = 0;
+      for (auto p = t.find(what); p != std::string::npos; p = t.find(what, p + 1)) ++n;
+      if (n >= count) return true;
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
+    return false;
+  };
+  const bool a = send_stream(port, bad_begin, bad_begin.size()) && wait_for("FAILED", 1);
+  const bool b = a && send_stream(port, bad_then_good, bad_then_good.size()) && wait_for("object(s)", 1);
+  if (b) send_stream(port, corrupt, corrupt.size());  // the server closes it mid-way
+  server.join();
+  const std::string text = read_text(log);
+  ASSERT_TRUE(a) << text;
+  ASSERT_TRUE(b) << text;
+  ASSERT_EQ(served.code, 0) << served.out << text;
+  EXPECT_NE(text.find("FAILED: calibration: camera size 65536 x 1024 is out of range"), std::string::npos)
+      << text;
+  EXPECT_NE(text.find("protocol error from 127.0.0.1:"), std::string::npos) << text;
+  EXPECT_EQ(text.find("superseded"), std::string::npos) << text;
+  EXPECT_NE(text.find("4 scan(s), 3 connection(s)"), std::string::npos) << text;
+  EXPECT_NE(text.find(", 2 failed, 1 protocol error(s)"), std::string::npos) << text;
+
+  const auto results = results_under(out / "scans");
+  ASSERT_EQ(results.size(), 4u) << text;
+  const nlohmann::json first = read_json(results[0]);
+  EXPECT_TRUE(first["failed"].get<bool>()) << first.dump(1);
+  EXPECT_NE(first["error"].get<std::string>().find("camera size 65536"), std::string::npos);
+  EXPECT_EQ(first["scan"]["status"], "disconnected before ScanEnd");
+  const nlohmann::json second = read_json(results[1]);
+  EXPECT_TRUE(second["failed"].get<bool>()) << second.dump(1);
+  EXPECT_EQ(second["scan"]["status"], "complete");
+  const nlohmann::json third = read_json(results[2]);
+  EXPECT_FALSE(third.contains("failed")) << third.dump(1);
+  EXPECT_EQ(third["scan"]["status"], "complete");
+  expect_pyramid(third);
+  const nlohmann::json fourth = read_json(results[3]);
+  EXPECT_EQ(fourth["scan"]["status"], "connection closed for a protocol error") << fourth.dump(1);
 }
 
 }  // namespace

@@ -209,6 +209,72 @@ TEST_F(StreamTest, SilentLinkTimesOutAndGarbageIsAProtocolError) {
   ::close(fd);
 }
 
+// A bad CRC mid-scan is a protocol error naming the peer (counted, reported through on_protocol_error); the
+// cut scan, not resumed, ends as ProtocolError when the next scan begins, not as Superseded.
+TEST_F(StreamTest, ProtocolErrorNamesThePeerAndIsNotSuperseded) {
+  std::vector<std::string> logged;
+  StreamServerOptions o;
+  o.listen = "127.0.0.1:0";
+  o.reconnect_grace_ms = 5000;
+  o.now_ns = clock.fn();
+  o.on_protocol_error = [&](const std::string& peer, const std::string& reason) {
+    logged.push_back(peer + " " + reason);
+  };
+  StreamServer server(o, [this](const Scan& sc) { statuses.push_back(sc.status()); });
+  server.start();
+  int fd = connect_to(server.port());
+  ASSERT_TRUE(pump(server, [&] { return server.connected(); }));
+  auto bytes = frames(synth, true, 0, 10, false);
+  bytes[bytes.size() - 30] ^= 0x5a;  // inside the last frames: a CRC mismatch
+  send_all(fd, bytes);
+  ASSERT_TRUE(pump(server, [&] { return server.stats().protocol_errors == 1; }));
+  EXPECT_FALSE(server.connected());
+  EXPECT_NE(server.stats().last_error.find("protocol error from 127.0.0.1:"), std::string::npos)
+      << server.stats().last_error;
+  ASSERT_EQ(logged.size(), 1u);
+  EXPECT_EQ(logged[0].rfind("127.0.0.1:", 0), 0u) << logged[0];
+  EXPECT_TRUE(statuses.empty());  // within the grace the scanner may still resume it
+  ::close(fd);
+  fd = connect_to(server.port());
+  ASSERT_TRUE(pump(server, [&] { return server.connected(); }));
+  send_all(fd, frames(synth, true, 0, 30, true, 200));  // a new scan instead
+  ASSERT_TRUE(pump(server, [&] { return statuses.size() == 2; }));
+  EXPECT_EQ(statuses[0], ScanStatus::ProtocolError);
+  EXPECT_STREQ(to_string(statuses[0]), "connection closed for a protocol error");
+  EXPECT_EQ(statuses[1], ScanStatus::Complete);
+  EXPECT_EQ(server.stats().protocol_errors, 1u);
+  ::close(fd);
+}
+
+// A scan the callback fails to process is not a protocol error: the connection stays, the next scan on it is
+// delivered, the error is counted and the server keeps serving.
+TEST_F(StreamTest, ProcessingErrorKeepsTheConnection) {
+  StreamServerOptions o;
+  o.listen = "127.0.0.1:0";
+  o.now_ns = clock.fn();
+  int calls = 0;
+  StreamServer server(o, [&](const Scan& sc) {
+    statuses.push_back(sc.status());
+    if (++calls == 1) throw Error("graph: 515 nodes, the matcher handles at most 128");
+  });
+  server.start();
+  const int fd = connect_to(server.port());
+  ASSERT_TRUE(pump(server, [&] { return server.connected(); }));
+  auto bytes = frames(synth, true, 0, 30, true);
+  const auto again = frames(synth, true, 0, 30, true, 100);
+  bytes.insert(bytes.end(), again.begin(), again.end());
+  send_all(fd, bytes);
+  ASSERT_TRUE(pump(server, [&] { return statuses.size() == 2; }));
+  EXPECT_EQ(statuses[0], ScanStatus::Complete);
+  EXPECT_EQ(statuses[1], ScanStatus::Complete);
+  EXPECT_TRUE(server.connected());
+  EXPECT_EQ(server.stats().protocol_errors, 0u);
+  EXPECT_EQ(server.stats().disconnects, 0u);
+  EXPECT_EQ(server.stats().scan_errors, 1u);
+  EXPECT_NE(server.stats().last_scan_error.find("515 nodes"), std::string::npos);
+  ::close(fd);
+}
+
 TEST(StreamServerAddress, ParsesAndRejects) {
   std::string host;
   std::uint16_t port = 0;
