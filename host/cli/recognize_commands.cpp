@@ -94,7 +94,10 @@ void run_recognize(const RecognizeOptions& o) {
   OrganizedCloud cloud;
   LoadOptions lo;
   lo.scale = o.scale;
-  const bool batch = files.size() > 1;
+  // A directory is a batch even when it holds one input (its summary tables are written as for more).
+  bool any_directory = false;
+  for (const auto& in : o.inputs) any_directory = any_directory || stdfs::is_directory(in);
+  const bool batch = files.size() > 1 || any_directory;
   Progress progress(files.size(), o.quiet || !batch);
   nlohmann::json summary = nlohmann::json::array();
   std::string csv = "file,status,objects,models,confidences,total_ms,note\n";
@@ -172,7 +175,12 @@ void run_recognize(const RecognizeOptions& o) {
       last_json = std::move(j);
       if (batch) row["result"] = last_json;
     } catch (const Error& e) {
-      if (!batch) throw;
+      // Errors of the stages after loading (segmentation, matching) name the input too.
+      const std::string what = e.what();
+      if (!batch) {
+        if (what.rfind(path, 0) == 0) throw;
+        throw Error(path + ": " + what);
+      }
       row["status"] = "error";
       row["note"] = e.what();
       csv += fmt::format("{},error,0,,,0,{}\n", csv_field(path), csv_field(e.what()));

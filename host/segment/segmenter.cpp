@@ -59,6 +59,10 @@ void Segmenter::segment(const OrganizedCloud& cloud, Segmentation& out) {
                 " points, expected width " + std::to_string(cloud.width) + " x height " +
                 std::to_string(cloud.height));
   }
+  if (!cloud.organized)
+    throw Error(
+        "segment: the cloud has no grid (a PLY without obj_info num_cols/num_rows or a range_grid "
+        "element): segmentation needs an organized cloud");
   if (!cloud.viewpoint.allFinite()) throw Error("segment: viewpoint is not finite");
   reserve(n);
   width_ = cloud.width;

@@ -319,6 +319,23 @@ TEST(EndToEndOffline, RecognizesAnExportedPcd) { recognize_exported("pcd"); }
 
 TEST(EndToEndOffline, RecognizesAnExportedPly) { recognize_exported("ply"); }
 
+// A directory of one input is a batch too: its summary tables are written.
+TEST(EndToEndOffline, OneFileDirectoryWritesTheSummaries) {
+  const stdfs::path in = temp_dir("batch-one");
+  const stdfs::path out = temp_dir("batch-one-out");
+  stdfs::copy_file(recorded_scan(), in / "a.fscan");
+  const CmdResult r = run(facetscan() + " recognize " + in.string() + " -l " + library() +
+                          " --segment laser --scale 1 --summary-csv " + (out / "summary.csv").string() +
+                          " --summary-json " + (out / "summary.json").string());
+  ASSERT_EQ(r.code, 0) << r.out;
+  ASSERT_TRUE(stdfs::exists(out / "summary.csv")) << r.out;
+  const std::string csv = read_text(out / "summary.csv");
+  EXPECT_NE(csv.find("a.fscan,ok,1,truncated_pyramid,"), std::string::npos) << csv;
+  const nlohmann::json j = read_json(out / "summary.json");
+  ASSERT_TRUE(j.is_array() && j.size() == 1u) << j.dump(1);
+  EXPECT_EQ(j[0]["status"], "ok");
+}
+
 // A directory is a batch: every input is recognized (a broken one is reported, not fatal), with summary
 // tables.
 TEST(EndToEndOffline, BatchOverADirectoryWritesCsvAndJsonSummaries) {

@@ -7,6 +7,7 @@
 
 #include <Eigen/Eigenvalues>
 
+#include "common/error.hpp"
 #include "host/segment/quality.hpp"
 #include "host/segment/scene_pfrg.hpp"
 #include "host/segment/segmenter.hpp"
@@ -81,3 +82,25 @@ TEST(SyntheticSegment, PyramidFacesDetectedWithAccurateNormals) {
 }
 
 }  // namespace
+
+// A cloud without a grid (a PLY with no grid information) is refused with a message that says why; the same
+// points with their grid segment.
+TEST(SyntheticSegment, UnorganizedCloudIsRefused) {
+  fs::test::SyntheticScene sc;
+  sc.objects.push_back(fs::test::make_box({0, 0, 20}, {20, 20, 20}, 10));
+  fs::test::SyntheticGrid g;
+  fs::test::render(sc, g);
+  Segmenter s;
+  Segmentation seg;
+  EXPECT_NO_THROW(s.segment(g.cloud, seg));
+  fs::host::OrganizedCloud flat = g.cloud;
+  flat.organized = false;
+  flat.width = static_cast<std::uint32_t>(flat.points.size());
+  flat.height = 1;
+  try {
+    s.segment(flat, seg);
+    ADD_FAILURE() << "an unorganized cloud was segmented";
+  } catch (const fs::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("the cloud has no grid"), std::string::npos) << e.what();
+  }
+}
