@@ -17,6 +17,7 @@
 #include "host/library/mesh_files.hpp"
 #include "host/library/polycubes.hpp"
 #include "host/library/views.hpp"
+#include "host/match/node_set.hpp"
 #include "host/pfrg/pfrg.hpp"
 
 #include <nlohmann/json.hpp>
@@ -49,6 +50,7 @@ void add_library_commands(CLI::App& app) {
     std::string out;
     BuildOptions options;
     bool quiet = false;
+    bool allow_large = false;
   };
   auto b = std::make_shared<BuildArgs>();
   auto* build =
@@ -61,6 +63,8 @@ void add_library_commands(CLI::App& app) {
       ->check(CLI::Range(0.0, 30.0));
   build->add_flag("--allow-open", b->options.allow_open,
                   "Accept open meshes (flagged: faces may be missing)");
+  build->add_flag("--allow-large", b->allow_large,
+                  "Keep models of more faces than the matcher takes (a warning; they are never matched)");
   build->add_flag("-q,--quiet", b->quiet, "No progress bar, no table");
   build->callback([b] {
     const auto files = collect_mesh_files(b->inputs);
@@ -71,6 +75,13 @@ void add_library_commands(CLI::App& app) {
       Mesh mesh = read_mesh(files[i]);
       mesh.name = files[i].stem().string();
       Model m = build_model(mesh, b->options);
+      // A model the matcher cannot take would fail every scan matched against it: refused here, by default.
+      if (m.face_count() > static_cast<std::size_t>(match::kMaxNodes)) {
+        const std::string msg = fmt::format("{}: {} faces; the matcher takes models of at most {} faces",
+                                            files[i].string(), m.face_count(), match::kMaxNodes);
+        if (!b->allow_large) throw Error(msg + " (--allow-large keeps it)");
+        std::fprintf(stderr, "facetscan library build: warning: %s\n", msg.c_str());
+      }
       if (out.find(m.name))
         throw Error(fmt::format("{}: a model named '{}' is already in the library (names are file stems)",
                                 files[i].string(), m.name));

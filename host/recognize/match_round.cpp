@@ -1,5 +1,6 @@
 // Recognizer step 2b (thesis ch. 7): every reference PFRG matched against every part of the scene graph, in
 // parallel (one InexactMatcher per worker); each model's best solutions kept in its solution slots.
+#include "host/match/node_set.hpp"
 #include "host/recognize/recognizer_impl.hpp"
 
 namespace fs::host::rec {
@@ -18,6 +19,8 @@ void match_model(void* ctx, std::size_t task, int worker) {
   ModelSlots& ms = m.per_model[task];
   ms.states = 0;
   ms.count = 0;
+  // A model of more faces than the matcher takes (kept by `library build --allow-large`) is never matched.
+  if (model.graph.nodes.size() > static_cast<std::size_t>(match::kMaxNodes)) return;
   // Each connected part of the scene graph is searched on its own (a solution is connected, so
   // it lies in one part); the model's solution slots are shared out evenly among the parts.
   const int per_part = static_cast<int>((ms.slots.size() + m.nparts - 1) / m.nparts);

@@ -300,6 +300,49 @@ TEST(EndToEndOffline, RecognizesTheRecordedScan) {
 }
 
 // A scan exported as an organized point cloud (millimetres) is recognized like the scan itself.
+// A model of more faces than the matcher takes (a 130-sided prism: 132 faces) is refused by `library build`
+// naming the file; with --allow-large it is kept with a warning and never matched, so the other models are
+// still recognized (it used to make every scan fail).
+TEST(EndToEndOffline, LibraryBuildRefusesModelsTooLargeToMatch) {
+  const stdfs::path in = temp_dir("large-model");
+  const stdfs::path out = temp_dir("large-model-out");
+  for (const auto& e : stdfs::directory_iterator(library()))
+    stdfs::copy_file(e.path(), in / e.path().filename());
+  {
+    const int n = 130;
+    std::ofstream off(in / "prism130.off");
+    off << "OFF\n" << 2 * n << " " << n + 2 << " 0\n";
+    for (int z : {0, 30})
+      for (int i = 0; i < n; ++i) {
+        const double a = 2.0 * 3.14159265358979 * i / n;
+        off << 40.0 * std::cos(a) << " " << 40.0 * std::sin(a) << " " << z << "\n";
+      }
+    for (int i = 0; i < n; ++i) {
+      const int j = (i + 1) % n;
+      off << "4 " << i << " " << j << " " << n + j << " " << n + i << "\n";
+    }
+    off << n;
+    for (int i = n - 1; i >= 0; --i) off << " " << i;
+    off << "\n" << n;
+    for (int i = 0; i < n; ++i) off << " " << n + i;
+    off << "\n";
+  }
+  const std::string lib = (out / "lib.fslib").string();
+  const CmdResult refused = run(facetscan() + " library build " + in.string() + " -o " + lib + " -q");
+  EXPECT_NE(refused.code, 0);
+  EXPECT_NE(refused.out.find("prism130.off: 132 faces; the matcher takes models of at most 128 faces"),
+            std::string::npos)
+      << refused.out;
+  const CmdResult kept =
+      run(facetscan() + " library build " + in.string() + " -o " + lib + " -q --allow-large");
+  ASSERT_EQ(kept.code, 0) << kept.out;
+  EXPECT_NE(kept.out.find("warning: "), std::string::npos) << kept.out;
+  const CmdResult r = run(facetscan() + " recognize " + recorded_scan().string() + " -l " + lib + " --json " +
+                          (out / "r.json").string());
+  ASSERT_EQ(r.code, 0) << r.out;
+  expect_pyramid(read_json(out / "r.json"));
+}
+
 void recognize_exported(const std::string& ext) {
   const stdfs::path scan = recorded_scan();
   const stdfs::path d = temp_dir("offline-" + ext);
