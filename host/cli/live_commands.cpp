@@ -139,6 +139,15 @@ class ScanHandler {
   const stdfs::path& last_dir() const { return last_dir_; }
 
  private:
+  // The "scan" object of a result.json, recognized or failed.
+  static nlohmann::json scan_json(const Scan& scan) {
+    return {{"scan_id", scan.scan_id()},
+            {"status", to_string(scan.status())},
+            {"partial", !scan.complete()},
+            {"stripes", scan.stripes_received()},
+            {"steps", scan.slot_count()}};
+  }
+
   stdfs::path scan_dir(const Scan& scan) const {
     return stdfs::path(out_dir_) / fmt::format("scan-{:03}-id{}", scans_, scan.scan_id());
   }
@@ -155,14 +164,7 @@ class ScanHandler {
     try {
       const stdfs::path dir = scan_dir(scan);
       stdfs::create_directories(dir);
-      nlohmann::json j = {{"failed", true},
-                          {"error", reason},
-                          {"scan",
-                           {{"scan_id", scan.scan_id()},
-                            {"status", to_string(scan.status())},
-                            {"partial", !scan.complete()},
-                            {"stripes", scan.stripes_received()},
-                            {"steps", scan.slot_count()}}}};
+      const nlohmann::json j = {{"failed", true}, {"error", reason}, {"scan", scan_json(scan)}};
       std::ofstream f(dir / "result.json");
       f << j.dump(2) << "\n";
       if (!f) throw Error((dir / "result.json").string() + ": cannot write");
@@ -196,6 +198,7 @@ class ScanHandler {
     }
     // The web view first (its 3D view needs no report), then again with the report's links once it exists.
     web::ScanInfo info;
+    std::shared_ptr<web::ScanRecord> published;  // the first record: its points serve the second one too
     if (web_) {
       info.id = static_cast<std::uint64_t>(scans_);
       info.scan_id = scan.scan_id();
@@ -207,28 +210,23 @@ class ScanHandler {
       info.result_unix_ms =
           std::chrono::duration_cast<std::chrono::milliseconds>(result_time.time_since_epoch()).count();
       info.has_recording = !recording_.empty();
-      auto record = web::make_record(info, cloud_, *recognizer_, r, &table);
-      record->recording = recording_;
-      web_->publish_scan(std::move(record));
+      published = web::make_record(info, cloud_, *recognizer_, r, &table);
+      published->recording = recording_;
+      web_->publish_scan(published);
     }
     if (!out_dir_.empty()) {
       const stdfs::path dir = scan_dir(scan);
       web::write_report(dir / "report", fmt::format("scan {}", scan.scan_id()), cloud_, *recognizer_, r,
                         &table);
       nlohmann::json j = rec::to_json(r, library_);
-      j["scan"] = {{"scan_id", scan.scan_id()},
-                   {"status", to_string(scan.status())},
-                   {"partial", partial},
-                   {"stripes", scan.stripes_received()},
-                   {"steps", scan.slot_count()}};
+      j["scan"] = scan_json(scan);
       std::ofstream(dir / "result.json") << j.dump(2) << "\n";
       last_dir_ = dir;
       if (!quiet_) fmt::print("report: {}\n", (dir / "report" / "index.html").string());
       if (web_) {
         info.has_report = info.has_result = true;
-        auto record = web::make_record(info, cloud_, *recognizer_, r, &table);
+        auto record = web::make_record(info, *published, cloud_, *recognizer_, r, &table);
         record->dir = dir;
-        record->recording = recording_;
         web_->publish_scan(std::move(record));
       }
     }

@@ -202,18 +202,36 @@ std::string points_blob(const OrganizedCloud& cloud, const std::vector<std::int3
   return out;
 }
 
+namespace {
+
+// What a record holds of `info`: its ids, time and the two JSON texts.
+void set_info(ScanRecord& out, const ScanInfo& info, const OrganizedCloud& cloud,
+              const rec::Recognizer& recognizer, const rec::Recognition& r, const Plane* table) {
+  out.id = info.id;
+  out.scan_id = info.scan_id;
+  out.result_unix_ms = info.result_unix_ms;
+  out.summary_json = scan_summary_json(info, r, recognizer.library()).dump();
+  out.detail_json = scan_detail_json(info, r, recognizer.library(), cloud, table).dump();
+}
+
+}  // namespace
+
 std::shared_ptr<ScanRecord> make_record(const ScanInfo& info, const OrganizedCloud& cloud,
                                         const rec::Recognizer& recognizer, const rec::Recognition& r,
                                         const Plane* table) {
   auto rec = std::make_shared<ScanRecord>();
-  rec->id = info.id;
-  rec->scan_id = info.scan_id;
-  rec->result_unix_ms = info.result_unix_ms;
-  rec->summary_json = scan_summary_json(info, r, recognizer.library()).dump();
-  rec->detail_json = scan_detail_json(info, r, recognizer.library(), cloud, table).dump();
+  set_info(*rec, info, cloud, recognizer, r, table);
   std::vector<std::int32_t> objects;
   recognizer.object_labels(cloud, objects);
   rec->points = points_blob(cloud, objects, recognizer.segmentation().labels);
+  return rec;
+}
+
+std::shared_ptr<ScanRecord> make_record(const ScanInfo& info, const ScanRecord& base,
+                                        const OrganizedCloud& cloud, const rec::Recognizer& recognizer,
+                                        const rec::Recognition& r, const Plane* table) {
+  auto rec = std::make_shared<ScanRecord>(base);
+  set_info(*rec, info, cloud, recognizer, r, table);
   return rec;
 }
 

@@ -76,4 +76,10 @@ std::shared_ptr<ScanRecord> make_record(const ScanInfo& info, const OrganizedClo
                                         const rec::Recognizer& recognizer, const rec::Recognition& r,
                                         const Plane* table);
 
+// The same scan's record with new info (e.g. the report's links once it is written): the JSON texts anew,
+// the points, folder and recording taken over from `base` instead of computed again.
+std::shared_ptr<ScanRecord> make_record(const ScanInfo& info, const ScanRecord& base,
+                                        const OrganizedCloud& cloud, const rec::Recognizer& recognizer,
+                                        const rec::Recognition& r, const Plane* table);
+
 }  // namespace fs::host::web

@@ -504,6 +504,17 @@ bool send_stream(int port, const std::string& frames, std::size_t n) {
   return false;
 }
 
+// `facetscan serve` on PORT in a thread until MAX_SCANS scans (results under OUT/scans, stdout into LOG, the
+// exit code and stderr into SERVED). `timeout`: if a test fails half way, serve must still end.
+std::thread start_serve(int port, int max_scans, const stdfs::path& out, const stdfs::path& log,
+                        CmdResult& served) {
+  const std::string cmd = "timeout -s INT 300 " + facetscan() +
+                          " serve --listen 127.0.0.1:" + std::to_string(port) + " -l " + library() +
+                          " --max-scans " + std::to_string(max_scans) + " --reconnect-grace 300 -o " +
+                          (out / "scans").string() + " > " + log.string();
+  return std::thread([cmd, &served] { served = run(cmd); });
+}
+
 // A scanner that dies mid-scan: serve reports the partial scan as such (once the reconnect grace expired),
 // then recognizes the next complete scan the scanner sends after reconnecting.
 TEST(EndToEndServe, SurvivesAScannerDisconnectingMidScan) {
@@ -515,12 +526,7 @@ TEST(EndToEndServe, SurvivesAScannerDisconnectingMidScan) {
   const int port = free_loopback_port();
   ASSERT_GT(port, 0);
   CmdResult served;
-  std::thread server([&] {
-    // `timeout`: serve waits for --max-scans; if this test fails half way it must still end.
-    served = run("timeout -s INT 300 " + facetscan() + " serve --listen 127.0.0.1:" + std::to_string(port) +
-                 " -l " + library() + " --max-scans 2 --reconnect-grace 300 -o " + (out / "scans").string() +
-                 " > " + log.string());
-  });
+  std::thread server = start_serve(port, 2, out, log, served);
   const bool sent_half = send_stream(port, frames, frames.size() / 2);  // dies half way
   // Wait (event, not time) until serve has given up on the first scan and reported it as partial.
   bool partial_reported = false;
@@ -607,11 +613,7 @@ TEST(EndToEndServe, FailedScansAreResultsAndProtocolErrorsAreLogged) {
   const int port = free_loopback_port();
   ASSERT_GT(port, 0);
   CmdResult served;
-  std::thread server([&] {
-    served = run("timeout -s INT 300 " + facetscan() + " serve --listen 127.0.0.1:" + std::to_string(port) +
-                 " -l " + library() + " --max-scans 4 --reconnect-grace 300 -o " + (out / "scans").string() +
-                 " > " + log.string());
-  });
+  std::thread server = start_serve(port, 4, out, log, served);
   auto wait_for = [&](const std::string& what, std::size_t count) {  // event, not time: at most 120 s
     for (int i = 0; i < 1200; ++i) {
       const std::string t = read_text(log);
