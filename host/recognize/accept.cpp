@@ -103,6 +103,16 @@ void Recognizer::Impl::finish_report(Recognizer& rz, const Scan& scan, Recogniti
       out.note = "all hypotheses were incompatible";
     }
   }
+  // A scene graph beyond the matcher's size: say how it was searched (and what was not).
+  if (out.stats.windows > 0 || out.stats.unsearched_faces > 0) {
+    char buf[240];
+    std::snprintf(buf, sizeof buf,
+                  "%sa connected part of %d faces exceeds the matcher's limit: searched in %d overlapping "
+                  "windows%s",
+                  out.note.empty() ? "" : "; ", out.stats.largest_component, out.stats.windows,
+                  out.stats.unsearched_faces > 0 ? ", some faces in none (see stats.unsearched_faces)" : "");
+    out.note.append(buf);
+  }
 }
 
 }  // namespace fs::host::rec

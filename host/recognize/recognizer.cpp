@@ -76,6 +76,11 @@ Recognizer::Recognizer(const Library& library, const RecognizeParams& params, st
   impl_->rest.name.reserve(64);
   impl_->part_of.reserve(Impl::kMaxNodeIds);
   impl_->comp_size.reserve(Impl::kMaxNodeIds);
+  impl_->stamp.reserve(Impl::kMaxNodeIds);
+  impl_->bfs.reserve(Impl::kMaxNodeIds + 1);
+  impl_->adj_start.reserve(Impl::kMaxNodeIds + 1);
+  impl_->adj.reserve(2 * 32768);
+  impl_->max_part_faces = params.max_part_faces;
   // Fine samples of a grid of max_cells cells: at most ceil(h/s) * ceil(w/s) <= cells/s^2 + cells/s + 1.
   const std::size_t step = static_cast<std::size_t>(std::max(1, params.verify.sample_step));
   const std::size_t max_samples = max_cells / (step * step) + max_cells / step + 1;

@@ -79,6 +79,10 @@ struct RecognizeParams {
   double alternative_confidence = 0.02;
   double alternative_inliers = 0.97;
   int max_objects = 16;
+  // Faces one searched part of the scene graph may hold; a connected part with more is searched in
+  // overlapping windows of this many faces. 0 = the matcher's limit (match::kMaxNodes minus the supernodes);
+  // a larger value is clamped to it.
+  int max_part_faces = 0;
   int max_verified = 96;  // hypotheses checked against the cloud (highest prescore first)
   double prescore_area_slack =
       1.1;                   // a scene face may be this much larger than its model face (segmentation)
@@ -151,6 +155,9 @@ struct RecognizeStats {
   double segment_ms = 0, pfrg_ms = 0, match_ms = 0, verify_ms = 0, total_ms = 0;
   int regions = 0, known_regions = 0, scene_nodes = 0, scene_arcs = 0;
   int components = 0;  // connected parts of the scene graph searched (>= min_level faces)
+  // A connected part of more faces than the matcher takes is searched in overlapping windows (counted here,
+  // with its size); faces beyond every part slot are not searched (counted; 0 in any normal scene).
+  int windows = 0, largest_component = 0, unsearched_faces = 0;
   bool table_removed = false;
   int references = 0;
   std::int64_t states = 0;  // search states over all references

@@ -2,6 +2,7 @@
 // Internal to the recognizer (see README.md): Recognizer::Impl, the working memory of recognize() (sized at
 // construction, reused), and the steps recognize() runs, implemented by stage in prepare.cpp,
 // scene_parts.cpp, match_round.cpp, hypothesis_round.cpp, verify_round.cpp and accept.cpp.
+#include <array>
 #include <chrono>
 #include <cstdint>
 #include <memory>
@@ -118,12 +119,31 @@ struct Recognizer::Impl {
   bool build_rest(const Pfrg& g);
 
   std::size_t nparts = 0;
-  std::vector<int> uf;                          // union-find parent by node id
-  std::vector<int> part_of;                     // node id -> part index (-1)
-  std::vector<int> comp_size;                   // by root id
-  static constexpr std::size_t kMaxParts = 32;  // further parts are searched together with the last one
+  std::vector<int> uf;         // union-find parent by node id
+  std::vector<int> part_of;    // node id -> part index (-1); a window's faces: the first window holding them
+  std::vector<int> comp_size;  // by root id
+  // Parts searched per round. Components beyond them join the last part while it has room; faces that find no
+  // part are counted (RecognizeStats::unsearched_faces).
+  static constexpr std::size_t kMaxParts = 64;
+  // A component of more faces than the matcher takes (match::kMaxNodes with the supernodes) is searched in
+  // overlapping windows: breadth-first from its first face not yet in a window, up to the cap, so that each
+  // face lies in a window with its graph neighbourhood (an object's faces are few and adjacent).
+  std::vector<int> adj_start, adj;            // face-face adjacency by node id (CSR)
+  std::vector<int> stamp;                     // by node id: window being built
+  std::vector<int> bfs;                       // queue of a window's breadth-first search
+  std::array<char, kMaxParts> window_part{};  // parts[k] is a window of a larger component
+  int windows = 0, unsearched_faces = 0, largest_component = 0;
+  int max_part_faces = 0;  // RecognizeParams::max_part_faces
 
   int find(int x);
+  // The largest number of faces one part may hold (matcher limit minus supernodes, RecognizeParams cap).
+  int part_cap(const Pfrg& g) const;
+  // New part k (empty: the supernodes of g, the observer); returns false when every part is in use.
+  bool open_part(const Pfrg& g, const Vec3& observer);
+  // Adds the arcs of g among part k's nodes (and to the supernode) to it, in g's order.
+  void add_part_arcs(const Pfrg& g, std::size_t k, int mark);
+  // Covers the component `root` (more than cap faces) with overlapping windows.
+  void split_windows(const Pfrg& g, int root, int cap, const Vec3& observer);
 
   // viewpoint: the sensor position; each part then looks at it from its faces' centroid (the visibility
   // condition needs the real viewing direction: a scene's mean normal leans toward its largest faces).

@@ -57,6 +57,7 @@ std::string result_table(const Recognition& r, const Library& library) {
       s += "\n";
     }
   }
+  if (!r.note.empty()) s += "note: " + r.note + "\n";
   return s;
 }
 
