@@ -221,7 +221,7 @@ int run(const Args& args) {
             library.models[static_cast<std::size_t>(h->model)].name.c_str(), h->level, h->matches.size(),
             h->prescore, h->verify.confidence, h->verify.explained, h->verify.support, h->verify.lowest_mm,
             h->verify.inliers, h->verify.violations, h->verify.occluded,
-            h->model == rs.catalog_index[0]
+            !rs.catalog_index.empty() && h->model == rs.catalog_index[0]
                 ? fs::host::rec::rotation_angle_deg_sym(rs.scene.objects[0].rotation, h->R,
                                                         library.models[static_cast<std::size_t>(h->model)])
                 : -1.0);
