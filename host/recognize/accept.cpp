@@ -1,6 +1,7 @@
-// Recognizer step 5 (thesis ch. 9.4): recognition, the greedy extraction of the compatible set that holds the
-// best verified hypothesis (no shared scene face, few shared inliers; a reused model is a second instance),
-// and the report of an empty result.
+// Recognizer step 5 (thesis ch. 9.4): recognition, the extraction of a compatible set from the best verified
+// hypothesis down (no shared scene face, few shared inliers, no interpenetrating solids; a reused model is a
+// second instance). Beyond the thesis's greedy extraction, a hypothesis that explains the points of the
+// objects it conflicts with, and more, replaces them; and the report of an empty result.
 #include <algorithm>
 #include <cstdio>
 
@@ -37,11 +38,47 @@ void find_alternatives(const Recognizer::Impl& im, std::size_t self, const Recog
 
 }  // namespace
 
+void Recognizer::Impl::remove_object(Recognition& out, std::size_t k) {
+  for (std::uint32_t c : out.objects[k].inlier_cells)
+    if (cell_owner[c] == static_cast<std::int32_t>(k)) cell_owner[c] = -1;
+  for (const FaceMatch& m : out.objects[k].matches) node_used[static_cast<std::size_t>(m.scene)] = 0;
+  for (std::size_t j = k + 1; j < out.objects.size(); ++j)
+    for (std::uint32_t c : out.objects[j].inlier_cells)
+      if (cell_owner[c] == static_cast<std::int32_t>(j)) cell_owner[c] = static_cast<std::int32_t>(j - 1);
+  // The removed object's buffers go back to the spare pool (see spare_objects): no buffer is freed.
+  std::rotate(out.objects.begin() + static_cast<std::ptrdiff_t>(k),
+              out.objects.begin() + static_cast<std::ptrdiff_t>(k) + 1, out.objects.end());
+  std::swap(out.objects.back(), spare_objects[out.objects.size() - 1]);
+  out.objects.pop_back();
+}
+
+// What h shares with each accepted object: scene faces, inlier cells, interpenetration depth.
+void Recognizer::Impl::measure_conflicts(const Hypothesis& h, const Recognition& out) {
+  const std::size_t n = out.objects.size();
+  conflict_cells.assign(n, 0);
+  conflict_faces.assign(n, 0);
+  conflict_depth.assign(n, 0.0);
+  conflict_share.assign(n, 0.0);
+  for (std::uint32_t c : h.inlier_cells)
+    if (cell_owner[c] >= 0) ++conflict_cells[static_cast<std::size_t>(cell_owner[c])];
+  const ModelGeometry& gh = geometry[static_cast<std::size_t>(h.model)];
+  for (std::size_t k = 0; k < n; ++k) {
+    const Hypothesis& o = out.objects[k];
+    for (const FaceMatch& m : h.matches)
+      for (const FaceMatch& om : o.matches) conflict_faces[k] += om.scene == m.scene ? 1 : 0;
+    const Interpenetration ip =
+        interpenetration(gh, h.R, h.t, geometry[static_cast<std::size_t>(o.model)], o.R, o.t);
+    conflict_share[k] = ip.volume_share;
+    conflict_depth[k] = ip.depth_mm;
+  }
+}
+
 bool Recognizer::Impl::accept_objects(Recognizer& rz, Scan& scan, int round, Recognition& out) {
   const RecognizeParams& params = rz.params_;
   out.stats.incompatible_pairs +=
       count_incompatible_pairs(std::span<const Hypothesis>(hyps.data(), nhyp), order);
   const std::size_t accepted_before = out.objects.size();
+  const int replaced_before = out.stats.replaced;
   for (std::size_t i : order) {
     Hypothesis& h = hyps[i];
     if (h.verify.confidence < params.min_confidence) {
@@ -52,34 +89,77 @@ bool Recognizer::Impl::accept_objects(Recognizer& rz, Scan& scan, int round, Rec
       }
       continue;
     }
-    bool clash = false;
-    for (const FaceMatch& m : h.matches)
-      if (node_used[static_cast<std::size_t>(m.scene)]) clash = true;
-    if (!clash && !h.inlier_cells.empty()) {
-      std::size_t shared = 0;
-      for (std::uint32_t c : h.inlier_cells) shared += cell_owner[c] >= 0 ? 1 : 0;
-      clash = static_cast<double>(shared) >
-              params.max_shared_inliers * static_cast<double>(h.inlier_cells.size());
+    // Conflicts with the accepted objects (thesis ch. 9's incompatibility, and a physically possible world):
+    // a shared scene face, too many shared inliers, or solids that interpenetrate.
+    measure_conflicts(h, out);
+    bool clash = false, solid_clash = false;
+    std::size_t shared = 0;
+    for (std::size_t k = 0; k < out.objects.size(); ++k) {
+      shared += static_cast<std::size_t>(conflict_cells[k]);
+      clash = clash || conflict_faces[k] > 0;
+      solid_clash = solid_clash || interpenetrates(params, k);
     }
-    if (clash) continue;
+    clash =
+        clash || solid_clash ||
+        static_cast<double>(shared) > params.max_shared_inliers * static_cast<double>(h.inlier_cells.size());
+    if (clash) {
+      // One model that explains the points of the objects it conflicts with, and more, at least as well
+      // replaces them (a larger model over a region that smaller ones split; the points decide).
+      double replaced_inliers = 0.0;
+      bool replace = true;
+      int conflicts = 0;
+      for (std::size_t k = 0; k < out.objects.size() && replace; ++k) {
+        const Hypothesis& o = out.objects[k];
+        const double own = static_cast<double>(o.inlier_cells.size());
+        const bool conflicting = conflict_faces[k] > 0 || interpenetrates(params, k) ||
+                                 static_cast<double>(conflict_cells[k]) > 0.1 * own;
+        if (!conflicting) continue;
+        ++conflicts;
+        replace = h.verify.confidence >= o.verify.confidence - params.alternative_confidence &&
+                  static_cast<double>(conflict_cells[k]) >= params.replace_cover * own;
+        // The points the objects explain together (a cell counts once: for its owner).
+        for (std::uint32_t c : o.inlier_cells)
+          replaced_inliers += cell_owner[c] == static_cast<std::int32_t>(k);
+      }
+      replace = replace && conflicts > 0 &&
+                static_cast<double>(h.inlier_cells.size()) >= params.replace_gain * replaced_inliers;
+      if (!replace) {
+        out.stats.interpenetrating += solid_clash ? 1 : 0;
+        continue;
+      }
+      for (std::size_t k = out.objects.size(); k-- > 0;) {
+        const Hypothesis& o = out.objects[k];
+        const bool conflicting =
+            conflict_faces[k] > 0 || interpenetrates(params, k) ||
+            static_cast<double>(conflict_cells[k]) > 0.1 * static_cast<double>(o.inlier_cells.size());
+        if (conflicting) {
+          remove_object(out, k);
+          ++out.stats.replaced;
+        }
+      }
+    }
     if (static_cast<int>(out.objects.size()) >= params.max_objects) break;
     for (const FaceMatch& m : h.matches) node_used[static_cast<std::size_t>(m.scene)] = 1;
     const auto obj_index = static_cast<std::int32_t>(out.objects.size());
     for (std::uint32_t c : h.inlier_cells) cell_owner[c] = obj_index;
-    int instance = 0;
-    for (const Hypothesis& o : out.objects) instance += o.model == h.model ? 1 : 0;
-    h.instance = instance;
     find_alternatives(*this, i, params, h);
     canonical_pose(rz.library_.models[static_cast<std::size_t>(h.model)], h.R, h.t);
     out.objects.emplace_back();
     std::swap(out.objects.back(), spare_objects[out.objects.size() - 1]);
     copy_hypothesis(h, out.objects.back());
   }
+  // Instances: the k-th accepted object of a model is its instance k (replacements may have removed some).
+  for (std::size_t k = 0; k < out.objects.size(); ++k) {
+    int instance = 0;
+    for (std::size_t j = 0; j < k; ++j) instance += out.objects[j].model == out.objects[k].model ? 1 : 0;
+    out.objects[k].instance = instance;
+  }
   // Give the inlier buffers back to their slots (the next round reuses the hypotheses).
   for (std::size_t k = 0; k < slot_owner.size(); ++k)
     std::swap(hyps[slot_owner[k]].inlier_cells, slot_cells[k]);
   slot_owner.clear();
-  if (out.objects.size() == accepted_before && round > 0) return false;
+  if (out.objects.size() == accepted_before && out.stats.replaced == replaced_before && round > 0)
+    return false;
   if (static_cast<int>(out.objects.size()) >= params.max_objects) return false;
   return true;
 }

@@ -73,6 +73,8 @@ nlohmann::json to_json(const Recognition& r, const Library& library) {
                           {"expanded_faces", s.expanded_faces},
                           {"single_face", s.single_face},
                           {"rounds", s.rounds},
+                          {"replaced", s.replaced},
+                          {"interpenetrating", s.interpenetrating},
                           {"rejected", s.rejected},
                           {"incompatible_pairs", s.incompatible_pairs}};
   nlohmann::json j = {{"objects", objects}, {"stats", stats}};

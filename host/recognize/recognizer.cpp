@@ -100,6 +100,10 @@ Recognizer::Recognizer(const Library& library, const RecognizeParams& params, st
     h.inlier_cells.reserve(max_samples);
   }
   result_.note.reserve(512);
+  impl_->conflict_cells.reserve(result_.objects.capacity());
+  impl_->conflict_faces.reserve(result_.objects.capacity());
+  impl_->conflict_depth.reserve(result_.objects.capacity());
+  impl_->conflict_share.reserve(result_.objects.capacity());
 }
 
 Recognizer::~Recognizer() = default;

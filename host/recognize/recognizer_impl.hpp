@@ -77,6 +77,17 @@ struct Recognizer::Impl {
   std::vector<std::size_t> slot_owner;
   std::vector<std::size_t> picked;  // scratch of select_covering
   std::vector<int> face_cover;      // by scene node id
+  // Conflicts of one hypothesis with each accepted object (accept.cpp): shared inlier cells, shared scene
+  // faces, interpenetration depth (mm).
+  std::vector<int> conflict_cells, conflict_faces;
+  std::vector<double> conflict_depth, conflict_share;
+  void measure_conflicts(const Hypothesis& h, const Recognition& out);
+  // The measured hypothesis and accepted object k would interpenetrate (RecognizeParams::interpenetration_*).
+  bool interpenetrates(const RecognizeParams& p, std::size_t k) const {
+    return conflict_depth[k] > p.interpenetration_mm && conflict_share[k] > p.interpenetration_share;
+  }
+  // Removes accepted object k (its cells and faces are free again; its buffers go back to the spare pool).
+  void remove_object(Recognition& out, std::size_t k);
   // Matching context.
   const Pfrg* scene = nullptr;
   const Library* library = nullptr;

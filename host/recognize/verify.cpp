@@ -56,6 +56,68 @@ ModelGeometry::ModelGeometry(const Model& model)
     for (const ModelFace& mf : model.faces)
       for (const auto& loop : mf.loops)
         for (const Vec3& p : loop) convex_ = convex_ && f.n.dot(p) <= f.offset + 1e-6 * (1.0 + radius_);
+  sample_surface();
+  sample_volume();
+}
+
+void ModelGeometry::sample_surface() {
+  const double spacing = std::max(1.0, radius_ / 12.0);
+  for (std::size_t i = 0; i < faces_.size(); ++i) {
+    const Face& f = faces_[i];
+    const ModelFace& mf = model_->faces[i];
+    surface_.push_back(mf.centroid);
+    for (const auto& loop : mf.loops)
+      for (const Vec3& p : loop) surface_.push_back(p);
+    for (double x = f.lo.x() + 0.5 * spacing; x < f.hi.x(); x += spacing)
+      for (double y = f.lo.y() + 0.5 * spacing; y < f.hi.y(); y += spacing)
+        if (inside(f, Eigen::Vector2d(x, y))) surface_.push_back(x * f.u + y * f.v + f.offset * f.n);
+  }
+}
+
+void ModelGeometry::sample_volume() {
+  if (!convex_ || faces_.empty()) return;
+  Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+  for (const ModelFace& mf : model_->faces)
+    for (const auto& loop : mf.loops)
+      for (const Vec3& p : loop) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+  const double spacing = std::max(0.5, (hi - lo).maxCoeff() / 14.0);
+  for (double x = lo.x() + 0.5 * spacing; x < hi.x(); x += spacing)
+    for (double y = lo.y() + 0.5 * spacing; y < hi.y(); y += spacing)
+      for (double z = lo.z() + 0.5 * spacing; z < hi.z(); z += spacing)
+        if (depth_inside(Vec3(x, y, z)) > 0.0) volume_.emplace_back(x, y, z);
+}
+
+double ModelGeometry::depth_inside(const Vec3& p) const {
+  if (!convex_) return 0.0;
+  double depth = std::numeric_limits<double>::infinity();
+  for (const Face& f : faces_) depth = std::min(depth, f.offset - f.n.dot(p));
+  return depth;
+}
+
+Interpenetration interpenetration(const ModelGeometry& a, const Mat3& Ra, const Vec3& ta,
+                                  const ModelGeometry& b, const Mat3& Rb, const Vec3& tb) {
+  Interpenetration r;
+  const Vec3 ca = Ra * a.center() + ta, cb = Rb * b.center() + tb;
+  if ((ca - cb).norm() >= a.radius() + b.radius() || !a.convex() || !b.convex()) return r;
+  // Points of `from` in the frame of `into`: x_into = Rinto^T (Rfrom s + tfrom - tinto).
+  auto to_frame = [](const Mat3& Rf, const Vec3& tf, const Mat3& Ri, const Vec3& ti) {
+    return std::pair<Mat3, Vec3>(Ri.transpose() * Rf, Ri.transpose() * (tf - ti));
+  };
+  const auto [Rab, tab] = to_frame(Ra, ta, Rb, tb);
+  const auto [Rba, tba] = to_frame(Rb, tb, Ra, ta);
+  for (const Vec3& s : a.surface_samples()) r.depth_mm = std::max(r.depth_mm, b.depth_inside(Rab * s + tab));
+  for (const Vec3& s : b.surface_samples()) r.depth_mm = std::max(r.depth_mm, a.depth_inside(Rba * s + tba));
+  // The smaller solid's volume samples inside the other.
+  const bool a_small = a.model().volume <= b.model().volume;
+  const ModelGeometry& small = a_small ? a : b;
+  const ModelGeometry& large = a_small ? b : a;
+  const Mat3& R = a_small ? Rab : Rba;
+  const Vec3& t = a_small ? tab : tba;
+  std::size_t in = 0;
+  for (const Vec3& s : small.volume_samples()) in += large.depth_inside(R * s + t) > 0.0 ? 1 : 0;
+  if (!small.volume_samples().empty())
+    r.volume_share = static_cast<double>(in) / static_cast<double>(small.volume_samples().size());
+  return r;
 }
 
 bool ModelGeometry::inside(const Face& f, const Eigen::Vector2d& q) const {

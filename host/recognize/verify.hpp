@@ -54,6 +54,14 @@ class ModelGeometry {
   double radius() const { return radius_; }
   const Vec3& center() const { return center_; }
   bool convex() const { return convex_; }
+  // Points on the model's surface (model frame): every face's vertices, centroid and a grid over it about
+  // radius / 12 apart (the interpenetration test of two posed models samples one against the other).
+  const std::vector<Vec3>& surface_samples() const { return surface_; }
+  // How deep a point (model frame) lies inside a convex model: the smallest distance to a face plane,
+  // negative outside. 0 for a non-convex model (not tested).
+  double depth_inside(const Vec3& p) const;
+  // Points filling a convex model's volume on a grid (model frame), empty for a non-convex model.
+  const std::vector<Vec3>& volume_samples() const { return volume_; }
 
  private:
   struct Face {
@@ -67,6 +75,9 @@ class ModelGeometry {
     std::vector<Eigen::Vector3d> edges;  // (inward normal x, y, offset) per edge
   };
   bool inside(const Face& f, const Eigen::Vector2d& q) const;
+  void sample_surface();
+  void sample_volume();
+  std::vector<Vec3> surface_, volume_;
   const Model* model_;
   std::vector<Face> faces_;
   std::vector<std::uint32_t> all_faces_;  // 0 .. faces - 1
@@ -110,6 +121,16 @@ class SampleSet {
   std::vector<Block> blocks_;
   Vec3 viewpoint_ = Vec3::Zero();
 };
+
+// How two posed models (x_world = R x + t) interpenetrate: the share of the smaller one's volume inside the
+// other (0..1) and the deepest surface point of one inside the other (mm). Both 0 when they do not overlap;
+// measured against convex models only (0 when a non-convex one is involved).
+struct Interpenetration {
+  double volume_share = 0.0;
+  double depth_mm = 0.0;
+};
+Interpenetration interpenetration(const ModelGeometry& a, const Mat3& Ra, const Vec3& ta,
+                                  const ModelGeometry& b, const Mat3& Rb, const Vec3& tb);
 
 class Verifier {
  public:
