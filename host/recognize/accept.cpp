@@ -106,6 +106,7 @@ bool Recognizer::Impl::accept_objects(Recognizer& rz, Scan& scan, int round, Rec
       // One model that explains the points of the objects it conflicts with, and more, at least as well
       // replaces them (a larger model over a region that smaller ones split; the points decide).
       double replaced_inliers = 0.0;
+      int replaced_violations = 0;
       bool replace = true;
       int conflicts = 0;
       for (std::size_t k = 0; k < out.objects.size() && replace; ++k) {
@@ -117,12 +118,15 @@ bool Recognizer::Impl::accept_objects(Recognizer& rz, Scan& scan, int round, Rec
         ++conflicts;
         replace = h.verify.confidence >= o.verify.confidence - params.alternative_confidence &&
                   static_cast<double>(conflict_cells[k]) >= params.replace_cover * own;
+        replaced_violations += o.verify.violations;
         // The points the objects explain together (a cell counts once: for its owner).
         for (std::uint32_t c : o.inlier_cells)
           replaced_inliers += cell_owner[c] == static_cast<std::int32_t>(k);
       }
-      replace = replace && conflicts > 0 &&
-                static_cast<double>(h.inlier_cells.size()) >= params.replace_gain * replaced_inliers;
+      // ... unless the measured points contradict it more than they contradict the objects it replaces.
+      const double h_cells = static_cast<double>(h.inlier_cells.size());
+      replace = replace && conflicts > 0 && h_cells >= params.replace_gain * replaced_inliers &&
+                h.verify.violations <= replaced_violations + params.replace_violations * h_cells;
       if (!replace) {
         out.stats.interpenetrating += solid_clash ? 1 : 0;
         continue;

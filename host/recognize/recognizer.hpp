@@ -88,9 +88,11 @@ struct RecognizeParams {
   double interpenetration_share = 0.05;
   // Replacement: a hypothesis in conflict with accepted objects replaces them when, for each, its confidence
   // is within alternative_confidence of theirs and it explains at least replace_cover of their inlier
-  // points, and its inliers number at least replace_gain x theirs together.
+  // points, and its inliers number at least replace_gain x theirs together, with no more violations (free
+  // space seen where it claims matter) than theirs + replace_violations x its inliers.
   double replace_cover = 0.5;
   double replace_gain = 1.1;
+  double replace_violations = 0.01;
   // Faces one searched part of the scene graph may hold; a connected part with more is searched in
   // overlapping windows of this many faces. 0 = the matcher's limit (match::kMaxNodes minus the supernodes);
   // a larger value is clamped to it.

@@ -37,6 +37,7 @@
 #include "host/pfrg/pfrg.hpp"
 #include "host/recognize/pose.hpp"
 #include "host/recognize/recognizer.hpp"
+#include "host/recognize/verify.hpp"
 #include "hw-sim/scene/ground_truth_grid.hpp"
 #include "hw-sim/scene/random_scene.hpp"
 #include "support/test_paths.hpp"
@@ -64,6 +65,7 @@ struct CategoryStats {
   int scenes = 0, objects = 0, found = 0, identity_ok = 0, reported = 0, extra = 0, scenes_with_fp = 0;
   int truth_is_alternative = 0;  // confusions whose reported object lists the true model as an alternative
   int objects_with_alternatives = 0;
+  int interpenetrating_pairs = 0;  // accepted pairs whose solids interpenetrate (must stay 0)
   std::vector<double> rot_err, trans_err, cpu, wall, allocs, seg_ms, match_ms, verify_ms;
 };
 
@@ -334,6 +336,21 @@ int run(const Args& args) {
                       rs.resting_face[oi], static_cast<int>(truth.faces.size()), got.c_str(), note.c_str());
       }
     }
+    // A physically possible answer: no two reported solids interpenetrate.
+    for (std::size_t a = 0; a < found_objects.size(); ++a)
+      for (std::size_t b = a + 1; b < found_objects.size(); ++b) {
+        const auto& oa = found_objects[a];
+        const auto& ob = found_objects[b];
+        const auto ip = fs::host::rec::interpenetration(
+            fs::host::rec::ModelGeometry(library.models[static_cast<std::size_t>(oa.model)]), oa.R, oa.t,
+            fs::host::rec::ModelGeometry(library.models[static_cast<std::size_t>(ob.model)]), ob.R, ob.t);
+        if (ip.depth_mm > args.params.interpenetration_mm &&
+            ip.volume_share > args.params.interpenetration_share) {
+          ++s.interpenetrating_pairs;
+          std::printf("INTERPENETRATING seed %llu: objects %zu and %zu (%.1f %%, %.1f mm)\n",
+                      static_cast<unsigned long long>(seed), a, b, 100 * ip.volume_share, ip.depth_mm);
+        }
+      }
     int extra = 0;
     for (std::size_t j = 0; j < found_objects.size(); ++j) extra += used[j] ? 0 : 1;
     s.extra += extra;
@@ -392,7 +409,10 @@ int run(const Args& args) {
     std::printf(" %s %d of %d objects, %d confusions;", fs::sim::to_string(cat), s.objects_with_alternatives,
                 s.reported, s.truth_is_alternative);
   std::printf("\n");
-  return 0;
+  int interpenetrating = 0;
+  for (const auto& [cat, s] : stats) interpenetrating += s.interpenetrating_pairs;
+  std::printf("interpenetrating pairs of reported objects: %d\n", interpenetrating);
+  return interpenetrating > 0 ? 1 : 0;
 }
 
 }  // namespace
