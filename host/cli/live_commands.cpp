@@ -1,5 +1,6 @@
 #include "host/cli/live_commands.hpp"
 
+#include <malloc.h>
 #include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -15,6 +16,7 @@
 #include <fstream>
 #include <functional>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <thread>
@@ -24,9 +26,13 @@
 #include <fmt/ranges.h>
 #include <nlohmann/json.hpp>
 
+#include "common/byte_size.hpp"
 #include "common/error.hpp"
+#include "host/cli/memory_budget.hpp"
 #include "host/cli/progress.hpp"
 #include "host/io/scan.hpp"
+#include "host/io/scan_limits.hpp"
+#include "host/io/scan_writer.hpp"
 #include "host/io/stream_server.hpp"
 #include "host/io/triangulate.hpp"
 #include "host/library/mesh_files.hpp"
@@ -43,6 +49,15 @@ namespace {
 
 namespace stdfs = std::filesystem;
 
+// serve prints from two threads (the stream's notices, the processing thread's results): each message is
+// written whole, then flushed (a log file or pipe sees it at once).
+std::mutex g_out_mutex;
+void emit(std::FILE* f, const std::string& text) {
+  std::lock_guard lock(g_out_mutex);
+  std::fputs(text.c_str(), f);
+  std::fflush(f);
+}
+
 // The scanner's state for the web view (--http): sampled from the stream server by the serve / demo loop and
 // published at most every 100 ms (and at once on a scan's start / end). Publishing never waits for a client.
 class LiveTracker {
@@ -52,6 +67,7 @@ class LiveTracker {
 
   void update(const StreamServer& server, bool force = false) {
     if (!web_) return;
+    std::lock_guard lock(mu_);
     const auto now = std::chrono::steady_clock::now();
     const Scan& cur = server.current_scan();
     const bool scanning = cur.started() && cur.status() == ScanStatus::InProgress;
@@ -81,6 +97,7 @@ class LiveTracker {
   // A scan was delivered and is being recognized / was recognized.
   void recognizing(const Scan& scan, bool on) {
     if (!web_) return;
+    std::lock_guard lock(mu_);
     s_.recognizing = on;
     s_.scanning = false;
     s_.scan_id = scan.scan_id();
@@ -96,17 +113,33 @@ class LiveTracker {
 
  private:
   web::WebServer* web_;
+  std::mutex mu_;  // serve: update() in the stream's thread, recognizing() in the processing thread
   web::LiveStatus s_;
   std::chrono::steady_clock::time_point last_{};
   std::deque<std::pair<std::chrono::steady_clock::time_point, std::uint32_t>> samples_;
 };
 
+// What serve and demo do with scans besides recognizing them.
+struct HandlerOptions {
+  ScanLimits limits;         // the memory budget: the triangulator refuses a camera / grid beyond it
+  bool keep_scans = false;   // scan.fscan in every scan's folder (failed scans always get one)
+  WorkingSize working_size;  // storage kept warm; a larger scan's memory is returned after it
+};
+
 // Recognizes scans as they are delivered: triangulation -> recognition -> table, JSON and report (and the
-// web view's record of the scan with --http).
+// web view's record of the scan with --http). serve runs it in its processing thread (ScanJobs), demo in the
+// stream's thread.
 class ScanHandler {
  public:
-  ScanHandler(const Library& library, rec::RecognizeParams params, std::string out_dir, bool quiet)
-      : library_(library), params_(std::move(params)), out_dir_(std::move(out_dir)), quiet_(quiet) {}
+  ScanHandler(const Library& library, rec::RecognizeParams params, std::string out_dir, bool quiet,
+              HandlerOptions options = {})
+      : library_(library),
+        params_(std::move(params)),
+        out_dir_(std::move(out_dir)),
+        quiet_(quiet),
+        options_(std::move(options)) {
+    topt_.limits = options_.limits;
+  }
 
   // Called before a scan's result is printed (the demo ends its progress bar there).
   void set_before_result(std::function<void(const Scan&)> f) { before_result_ = std::move(f); }
@@ -116,25 +149,64 @@ class ScanHandler {
     tracker_ = tracker;
     recording_ = std::move(recording);
   }
+  // Test hook (serve --test-pause-file): before processing a scan, wait while this file exists.
+  void set_pause_file(std::string path) { pause_file_ = std::move(path); }
   // Recognition times of the scans so far (ms), for measurements.
   const std::vector<double>& recognition_ms() const { return recognition_ms_; }
 
   // Every scan delivered ends in exactly one result: recognized, or failed (a calibration the triangulation
-  // refuses, a scene the matcher cannot take, ...) with the reason logged and written to result.json.
+  // refuses, a scene the matcher cannot take, ...) with the reason logged and written to result.json, and
+  // the scan kept as scan.fscan beside it.
   void operator()(const Scan& scan) {
     ++scans_;
+    pause_for_test(scan.scan_id());
     try {
       if (before_result_) before_result_(scan);
       if (tracker_) tracker_->recognizing(scan, true);
+      if (options_.keep_scans && !out_dir_.empty()) keep_scan(scan);
       process(scan);
     } catch (const std::exception& e) {
       fail(scan, e.what());
     }
     if (tracker_) tracker_->recognizing(scan, false);
-    std::fflush(stdout);  // a log file or pipe sees each scan's result as it is recognized
+  }
+  // serve's processing thread: a queued job. A ScanBegin the limits refused is a failed result; with
+  // `stopping` (serve is shutting down) a scan is not recognized but written as a failed "server stopped"
+  // result with its scan.fscan, to be recognized offline.
+  void operator()(const ScanJob& job, bool stopping) {
+    if (!job.scan) {
+      refused(job);
+    } else if (stopping) {
+      ++scans_;
+      ++stopped_;
+      fail(*job.scan,
+           "server stopped before the scan was processed (its scan.fscan can be recognized offline)");
+    } else {
+      (*this)(*job.scan);
+    }
+  }
+  // After a scan larger than the working size: frees the cloud, the triangulator's tables, the recognizer
+  // and `scan`'s storage beyond the working size, and returns the pages to the system (malloc_trim).
+  // Returns the bytes freed (0 after a normal scan: nothing is freed or reallocated).
+  std::uint64_t release_memory(Scan& scan) {
+    const WorkingSize& w = options_.working_size;
+    const std::uint64_t cells = std::uint64_t(w.steps) * w.rows;
+    std::uint64_t freed = 0;
+    if (recognizer_ && recognizer_cells_ > cells) {
+      freed += ScanLimits::recognizer_bytes(recognizer_cells_, options_.limits.threads);
+      recognizer_.reset();
+      recognizer_cells_ = 0;
+    }
+    const std::uint64_t rest = release_scan_memory(scan, triangulator_, &cloud_, w);
+    if (freed > 0 && rest == 0) malloc_trim(0);
+    return freed + rest;
   }
   int scans() const { return scans_; }
   int failed() const { return failed_; }
+  int refused_count() const { return refused_; }
+  int stopped() const { return stopped_; }
+  // Stripe points triangulated but not kept in the depth map (another point of the stripe in the same row).
+  std::uint64_t shared_cell_points() const { return shared_cell_; }
   int last_objects() const { return last_objects_; }
   const stdfs::path& last_dir() const { return last_dir_; }
 
@@ -148,38 +220,75 @@ class ScanHandler {
             {"steps", scan.slot_count()}};
   }
 
-  stdfs::path scan_dir(const Scan& scan) const {
-    return stdfs::path(out_dir_) / fmt::format("scan-{:03}-id{}", scans_, scan.scan_id());
+  stdfs::path scan_dir(std::uint64_t scan_id) const {
+    return stdfs::path(out_dir_) / fmt::format("scan-{:03}-id{}", scans_.load(), scan_id);
   }
 
-  // A scan that could not be processed: "scan N (...): FAILED: reason" on stdout (also with -q) and
-  // {"failed": true, "error": reason, "scan": {...}} as its result.json.
-  void fail(const Scan& scan, const std::string& reason) {
+  void pause_for_test(std::uint64_t scan_id) const {
+    if (pause_file_.empty() || !stdfs::exists(pause_file_)) return;
+    emit(stdout, fmt::format("test: processing of scan {} paused while {} exists\n", scan_id, pause_file_));
+    while (stdfs::exists(pause_file_)) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+
+  void keep_scan(const Scan& scan) {
+    const stdfs::path dir = scan_dir(scan.scan_id());
+    stdfs::create_directories(dir);
+    write_scan_file(dir / "scan.fscan", scan);
+  }
+
+  // A failed result: "scan N (...): FAILED: reason" on stdout (also with -q), and in the scan's folder
+  // {"failed": true, "error": reason, "scan": {...}} as result.json and the scan as scan.fscan.
+  void write_failed(std::uint64_t scan_id, const std::string& head, const std::string& reason,
+                    const nlohmann::json& scan, const std::function<void(const stdfs::path&)>& write_fscan) {
     ++failed_;
     last_objects_ = -1;
-    fmt::print("\nscan {} ({} of {} stripes{}): FAILED: {}\n", scan.scan_id(), scan.stripes_received(),
-               scan.slot_count(),
-               scan.complete() ? "" : fmt::format(", PARTIAL: {}", to_string(scan.status())), reason);
-    if (out_dir_.empty()) return;
-    try {
-      const stdfs::path dir = scan_dir(scan);
-      stdfs::create_directories(dir);
-      const nlohmann::json j = {{"failed", true}, {"error", reason}, {"scan", scan_json(scan)}};
-      std::ofstream f(dir / "result.json");
-      f << j.dump(2) << "\n";
-      if (!f) throw Error((dir / "result.json").string() + ": cannot write");
-      last_dir_ = dir;
-      fmt::print("result: {}\n", (dir / "result.json").string());
-    } catch (const std::exception& e) {
-      fmt::print(stderr, "facetscan: scan {}: cannot write the failed result: {}\n", scan.scan_id(),
-                 e.what());
+    std::string text = fmt::format("\n{}: FAILED: {}\n", head, reason);
+    if (!out_dir_.empty()) {
+      const stdfs::path dir = scan_dir(scan_id);
+      try {
+        stdfs::create_directories(dir);
+        const nlohmann::json j = {{"failed", true}, {"error", reason}, {"scan", scan}};
+        std::ofstream f(dir / "result.json");
+        f << j.dump(2) << "\n";
+        if (!f) throw Error((dir / "result.json").string() + ": cannot write");
+        last_dir_ = dir;
+        text += fmt::format("result: {}\n", (dir / "result.json").string());
+        write_fscan(dir / "scan.fscan");
+        text += fmt::format("scan kept: {}\n", (dir / "scan.fscan").string());
+      } catch (const std::exception& e) {
+        text += fmt::format("facetscan: scan {}: cannot write the failed result: {}\n", scan_id, e.what());
+      }
     }
+    emit(stdout, text);
+  }
+
+  void fail(const Scan& scan, const std::string& reason) {
+    write_failed(scan.scan_id(),
+                 fmt::format("scan {} ({} of {} stripes{})", scan.scan_id(), scan.stripes_received(),
+                             scan.slot_count(),
+                             scan.complete() ? "" : fmt::format(", PARTIAL: {}", to_string(scan.status()))),
+                 reason, scan_json(scan), [&](const stdfs::path& p) { write_scan_file(p, scan); });
+  }
+
+  // A ScanBegin the limits refused (the memory budget): one failed result; its .fscan holds the ScanBegin.
+  void refused(const ScanJob& job) {
+    ++scans_;
+    ++refused_;
+    const msg::ScanBegin& b = job.refused_begin;
+    const nlohmann::json scan = {
+        {"scan_id", b.scan_id}, {"status", "refused at ScanBegin"},  {"partial", true},
+        {"stripes", 0},         {"steps", b.calibration.step_count}, {"peer", job.peer}};
+    write_failed(b.scan_id, fmt::format("scan {} from {} (REFUSED at ScanBegin)", b.scan_id, job.peer),
+                 job.refusal, scan, [&](const stdfs::path& p) { write_scan_file(p, b); });
   }
 
   void process(const Scan& scan) {
     const bool partial = !scan.complete();
-    triangulator_.triangulate(scan, cloud_);
+    if (!triangulator_.configured()) triangulator_.configure(scan.begin_message().calibration, topt_);
+    const TriangulationStats ts = triangulator_.triangulate(scan, cloud_);
+    shared_cell_ += ts.shared_cell;
     if (!recognizer_ || recognizer_cells_ < cloud_.points.size()) {
+      recognizer_.reset();  // the old one's memory goes before the new one's comes
       recognizer_ = std::make_unique<rec::Recognizer>(library_, params_, cloud_.points.size());
       recognizer_cells_ = cloud_.points.size();
     }
@@ -188,19 +297,22 @@ class ScanHandler {
     const auto result_time = std::chrono::system_clock::now();
     last_objects_ = static_cast<int>(r.objects.size());
     recognition_ms_.push_back(r.stats.total_ms);
+    std::string text;
     if (!quiet_) {
-      fmt::print("\nscan {} ({} of {} stripes{}): {} object(s)\n", scan.scan_id(), scan.stripes_received(),
-                 scan.slot_count(), partial ? fmt::format(", PARTIAL: {}", to_string(scan.status())) : "",
-                 r.objects.size());
-      fmt::print("{}", rec::result_table(r, library_));
-      fmt::print("recognition: {:.0f} ms (segmentation {:.0f}, matching {:.0f}, verification {:.0f})\n",
-                 r.stats.total_ms, r.stats.segment_ms, r.stats.match_ms, r.stats.verify_ms);
+      text += fmt::format("\nscan {} ({} of {} stripes{}): {} object(s)\n", scan.scan_id(),
+                          scan.stripes_received(), scan.slot_count(),
+                          partial ? fmt::format(", PARTIAL: {}", to_string(scan.status())) : "",
+                          r.objects.size());
+      text += rec::result_table(r, library_);
+      text +=
+          fmt::format("recognition: {:.0f} ms (segmentation {:.0f}, matching {:.0f}, verification {:.0f})\n",
+                      r.stats.total_ms, r.stats.segment_ms, r.stats.match_ms, r.stats.verify_ms);
     }
     // The web view first (its 3D view needs no report), then again with the report's links once it exists.
     web::ScanInfo info;
     std::shared_ptr<web::ScanRecord> published;  // the first record: its points serve the second one too
     if (web_) {
-      info.id = static_cast<std::uint64_t>(scans_);
+      info.id = static_cast<std::uint64_t>(scans_.load());
       info.scan_id = scan.scan_id();
       info.title = fmt::format("scan {}", scan.scan_id());
       info.status = to_string(scan.status());
@@ -215,14 +327,14 @@ class ScanHandler {
       web_->publish_scan(published);
     }
     if (!out_dir_.empty()) {
-      const stdfs::path dir = scan_dir(scan);
+      const stdfs::path dir = scan_dir(scan.scan_id());
       web::write_report(dir / "report", fmt::format("scan {}", scan.scan_id()), cloud_, *recognizer_, r,
                         &table);
       nlohmann::json j = rec::to_json(r, library_);
       j["scan"] = scan_json(scan);
       std::ofstream(dir / "result.json") << j.dump(2) << "\n";
       last_dir_ = dir;
-      if (!quiet_) fmt::print("report: {}\n", (dir / "report" / "index.html").string());
+      if (!quiet_) text += fmt::format("report: {}\n", (dir / "report" / "index.html").string());
       if (web_) {
         info.has_report = info.has_result = true;
         auto record = web::make_record(info, *published, cloud_, *recognizer_, r, &table);
@@ -230,12 +342,15 @@ class ScanHandler {
         web_->publish_scan(std::move(record));
       }
     }
+    if (!text.empty()) emit(stdout, text);
   }
 
   const Library& library_;
   rec::RecognizeParams params_;
   std::string out_dir_;
   bool quiet_;
+  HandlerOptions options_;
+  TriangulationOptions topt_;
   Triangulator triangulator_;
   OrganizedCloud cloud_;
   std::unique_ptr<rec::Recognizer> recognizer_;
@@ -244,15 +359,21 @@ class ScanHandler {
   web::WebServer* web_ = nullptr;
   LiveTracker* tracker_ = nullptr;
   std::string recording_;
+  std::string pause_file_;
   std::vector<double> recognition_ms_;
-  int scans_ = 0;
-  int failed_ = 0;
+  // Read by serve's stream thread (--max-scans, the summary) while the processing thread counts.
+  std::atomic<int> scans_{0}, failed_{0}, refused_{0}, stopped_{0};
+  std::uint64_t shared_cell_ = 0;
   int last_objects_ = -1;
   stdfs::path last_dir_;
 };
 
 std::atomic<StreamServer*> g_server{nullptr};
-extern "C" void on_signal(int) {
+std::atomic<bool> g_signalled{false};
+// SIGINT / SIGTERM: the first stops the stream server's loop (serve then shuts down in order), a second one
+// exits at once (async-signal-safe: _exit).
+extern "C" void on_signal(int sig) {
+  if (g_signalled.exchange(true)) ::_exit(128 + sig);
   if (StreamServer* s = g_server.load()) s->stop();
 }
 
@@ -297,6 +418,10 @@ struct ServeOptions {
   std::string params = "t9.3";
   int max_scans = 0;
   std::int64_t reconnect_grace_ms = StreamServerOptions{}.reconnect_grace_ms;
+  std::string memory_budget;  // empty = the default budget (2 GiB)
+  int max_clients = StreamServerOptions{}.max_clients;
+  bool keep_scans = false;
+  std::string test_pause_file;  // hidden test hook, see ScanHandler::set_pause_file
   bool quiet = false;
   WebCliOptions web;
 };
@@ -317,38 +442,115 @@ void prepare_out_dir(const std::string& dir) {
 // A malformed frame from the scanner (bad magic / CRC, oversize frame, absurd stripe): logged on stdout with
 // the peer; serve closes that connection and goes on.
 void log_protocol_error(const std::string& peer, const std::string& reason) {
-  fmt::print("facetscan serve: protocol error from {}: {}; connection closed\n", peer, reason);
-  std::fflush(stdout);
+  emit(stdout, fmt::format("facetscan serve: protocol error from {}: {}; connection closed\n", peer, reason));
 }
 
+void log_notice(const std::string& peer, const std::string& what) {
+  emit(stdout, fmt::format("facetscan serve: {}: {}\n", peer, what));
+}
+
+// serve: the stream server's loop in this thread (accepting, reading, heartbeats, signals), recognition in a
+// processing thread fed through a bounded queue. When the queue is full the stream server holds the frame
+// that would deliver another scan (back-pressure, see stream_server.hpp). The queue takes at most 2 scans and
+// at most a quarter of the memory budget of them (an empty queue always takes one).
 void run_serve(const ServeOptions& o) {
   prepare_out_dir(o.out_dir);
-  const Library library = load_or_build_library(o.library);
   rec::RecognizeParams params;
   params.match = match::read_params(o.params);
-  ScanHandler handler(library, params, o.out_dir, o.quiet);
+  const ScanLimits limits = memory_budget_limits(o.memory_budget, params.threads);
+  const Library library = load_or_build_library(o.library);
+  HandlerOptions ho;
+  ho.limits = limits;
+  ho.keep_scans = o.keep_scans;
+  ScanHandler handler(library, params, o.out_dir, o.quiet, ho);
+  handler.set_pause_file(o.test_pause_file);
   const auto web = start_web(o.web, o.quiet);
   LiveTracker tracker(web.get(), "serve");
   if (web) handler.set_web(web.get(), &tracker);
+
+  ScanQueue queue(2, limits.budget_bytes / 4);
+  std::atomic<int> delivered{0};  // scans (and refused ScanBegins) handed to the processing thread
+  std::atomic<int> processed{0};  // of them, done
+  const auto taken_all = [&] { return o.max_scans > 0 && delivered.load() >= o.max_scans; };
   StreamServerOptions so;
   so.listen = o.listen;
   so.reconnect_grace_ms = o.reconnect_grace_ms;
+  so.max_clients = o.max_clients;
+  so.limits = limits;
+  so.release_large_scans = true;
   so.on_protocol_error = log_protocol_error;
-  StreamServer server(so, [&](const Scan& s) { handler(s); });
+  so.on_notice = log_notice;
+  so.can_deliver = [&] { return queue.has_room() && !taken_all(); };
+  so.on_refused = [&](const std::string& peer, const msg::ScanBegin& begin, const std::string& reason) {
+    ++delivered;
+    ScanJob job;
+    job.refused_begin = begin;
+    job.refusal = reason;
+    job.peer = peer;
+    queue.push(std::move(job));
+  };
+  StreamServer* server_ptr = nullptr;
+  StreamServer server(so, [&](const Scan& s) {
+    if (taken_all()) {  // --max-scans reached: only the shutdown's partial scan can come here
+      log_notice(server_ptr->peer(),
+                 fmt::format("scan {} not taken (--max-scans {} reached)", s.scan_id(), o.max_scans));
+      return;
+    }
+    const int ahead = delivered.load() - processed.load();  // being processed or queued
+    ++delivered;
+    ScanJob job;
+    job.scan = std::make_unique<Scan>(s);  // the assembler reuses its Scan
+    job.bytes = scan_copy_bytes(s);
+    job.peer = server_ptr->peer();
+    queue.push(std::move(job));
+    if (ahead > 0 && !o.quiet)
+      log_notice(server_ptr->peer(),
+                 fmt::format("scan {} received, queued behind {} scan(s)", s.scan_id(), ahead));
+  });
+  server_ptr = &server;
   server.start();
+
+  std::atomic<bool> stopping{false};
+  std::thread worker([&] {
+    ScanJob job;
+    while (queue.pop(job)) {
+      handler(job, stopping.load());
+      Scan empty;
+      handler.release_memory(job.scan ? *job.scan : empty);
+      job = ScanJob{};
+      ++processed;
+      server.wake();  // the stream server may have held a frame for room in the queue
+    }
+  });
+
   g_server = &server;
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
   if (!o.quiet)
-    fmt::print("facetscan serve: listening on {} (port {}), {} models; Ctrl-C stops\n", o.listen,
-               server.port(), library.models.size());
-  std::fflush(stdout);
+    emit(stdout,
+         fmt::format("facetscan serve: listening on {} (port {}), {} models, memory budget {}, up to {} "
+                     "connections; Ctrl-C stops\n",
+                     o.listen, server.port(), library.models.size(), format_byte_size(limits.budget_bytes),
+                     o.max_clients));
   tracker.update(server, true);
   while (server.poll_once(200)) {
     tracker.update(server);
-    if (o.max_scans > 0 && handler.scans() >= o.max_scans) break;
+    if (taken_all()) break;
+  }
+  if (g_signalled) {
+    // Stop listening at once; the scan in progress is delivered as partial; the scan being recognized is
+    // finished (its work is bounded: the memory budget, the matcher's state budgets); what is queued is
+    // written as failed "server stopped" results with its scan.fscan. A second signal exits at once.
+    stopping = true;
+    emit(stdout,
+         fmt::format("facetscan serve: stopping: {} queued scan(s) and the scan in progress are written "
+                     "as failed results (scan.fscan kept); the scan being recognized is finished (a "
+                     "second signal exits at once)\n",
+                     queue.size()));
   }
   server.close_all();
+  queue.close();
+  worker.join();
   if (web) web->stop();
   g_server = nullptr;
   if (!o.quiet) {
@@ -356,13 +558,28 @@ void run_serve(const ServeOptions& o) {
     // Failures and protocol errors only when there were any: a clean run's summary stays as it was.
     std::string problems;
     if (handler.failed() > 0) problems += fmt::format(", {} failed", handler.failed());
+    if (handler.stopped() > 0)
+      problems += fmt::format(", {} not processed (server stopped)", handler.stopped());
     if (st.protocol_errors > 0)
       problems += fmt::format(", {} protocol error(s) (last: {})", st.protocol_errors, st.last_error);
     if (st.scan_errors > 0)
       problems += fmt::format(", {} scan error(s) (last: {})", st.scan_errors, st.last_scan_error);
-    fmt::print("facetscan serve: {} scan(s), {} connection(s), {} disconnect(s){}\n", handler.scans(),
-               st.connections, st.disconnects, problems);
-    if (web) fmt::print("recognition ms per scan: {:.1f}\n", fmt::join(handler.recognition_ms(), " "));
+    if (handler.refused_count() > 0)
+      problems += fmt::format(", {} ScanBegin(s) refused (memory budget / limits)", handler.refused_count());
+    if (st.refused_connections > 0)
+      problems += fmt::format(", {} connection(s) refused", st.refused_connections);
+    if (st.idle_closed > 0) problems += fmt::format(", {} idle connection(s) closed", st.idle_closed);
+    if (st.waited_scans > 0)
+      problems += fmt::format(", {} scan(s) waited for another scanner", st.waited_scans);
+    if (st.resumed > 0) problems += fmt::format(", {} scan(s) resumed on a new connection", st.resumed);
+    if (handler.shared_cell_points() > 0)
+      problems += fmt::format(", {} stripe point(s) not in the depth map (a brighter point shared the cell)",
+                              handler.shared_cell_points());
+    emit(stdout, fmt::format("facetscan serve: {} scan(s), {} connection(s), {} disconnect(s){}\n",
+                             handler.scans(), st.connections, st.disconnects, problems));
+    if (web)
+      emit(stdout,
+           fmt::format("recognition ms per scan: {:.1f}\n", fmt::join(handler.recognition_ms(), " ")));
   }
 }
 
@@ -554,6 +771,15 @@ void add_live_commands(CLI::App& app) {
           "the scan is recognized as PARTIAL")
       ->capture_default_str()
       ->check(CLI::Range(std::int64_t{0}, std::int64_t{3'600'000}));
+  add_memory_budget_option(serve, so->memory_budget);
+  serve
+      ->add_option("--max-clients", so->max_clients,
+                   "Connections open at once (the scanner, a re-dial, probes); more are refused")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 64));
+  serve->add_flag("--keep-scans", so->keep_scans,
+                  "With -o: keep every scan as scan.fscan in its folder (failed scans always keep theirs)");
+  serve->add_option("--test-pause-file", so->test_pause_file)->group("");  // tests: hold processing
   serve->add_flag("-q,--quiet", so->quiet, "Print nothing per scan");
   add_web_options(serve, so->web);
   serve->callback([so] { run_serve(*so); });

@@ -15,6 +15,7 @@
 #include "common/file_list.hpp"
 #include "host/cli/commands.hpp"
 #include "host/cli/live_commands.hpp"
+#include "host/cli/memory_budget.hpp"
 #include "host/cli/progress.hpp"
 #include "host/io/load.hpp"
 #include "host/library/mesh_files.hpp"
@@ -41,6 +42,7 @@ struct RecognizeOptions {
   double min_confidence = -1.0;
   long long max_solutions = -1;
   double scale = 0.0;
+  std::string memory_budget;  // --memory-budget (empty = default)
   int threads = 0;
   bool quiet = false;
 };
@@ -94,6 +96,7 @@ void run_recognize(const RecognizeOptions& o) {
   OrganizedCloud cloud;
   LoadOptions lo;
   lo.scale = o.scale;
+  lo.limits = memory_budget_limits(o.memory_budget, o.threads);
   // A directory is a batch even when it holds one input (its summary tables are written as for more).
   bool any_directory = false;
   for (const auto& in : o.inputs) any_directory = any_directory || stdfs::is_directory(in);
@@ -150,8 +153,22 @@ void run_recognize(const RecognizeOptions& o) {
                     {"valid_points", info.valid_points},
                     {"complete_scan", info.complete_scan}};
       if (!info.complete_scan) j["input"]["scan_status"] = info.scan_status;
+      if (info.format == "fscan") {
+        j["input"]["stripe_points"] = info.stripe_points;
+        j["input"]["shared_cell"] = info.triangulation.shared_cell;
+        j["input"]["stripes_over_budget"] = info.stripes_over_budget;
+      }
       if (!batch && !o.quiet) {
         if (!info.complete_scan) fmt::print("note: partial scan ({})\n", info.scan_status);
+        if (info.stripes_over_budget > 0)
+          fmt::print(
+              "note: {} stripe(s) refused: their points exceed the memory budget of {} (--memory-budget)\n",
+              info.stripes_over_budget, format_byte_size(lo.limits.budget_bytes));
+        if (info.triangulation.shared_cell > 0)
+          fmt::print(
+              "note: {} of {} stripe points shared an image row with a brighter point of the same stripe "
+              "(one point per row and step is kept)\n",
+              info.triangulation.shared_cell, info.stripe_points);
         fmt::print("{}", rec::result_table(r, library));
       }
       if (!o.report_dir.empty()) {
@@ -230,6 +247,7 @@ void add_recognize_commands(CLI::App& app) {
       ->check(CLI::Range(0.0, 1.0));
   rc->add_option("--scale", o->scale, "PCD/PLY: millimetres per file unit (default: auto)");
   rc->add_option("--threads", o->threads, "Matching threads (0 = all cores)");
+  add_memory_budget_option(rc, o->memory_budget);
   rc->add_option(
         "--max-solutions", o->max_solutions,
         "Stop each search after N solutions (TH_solutions; default 1, 0 = the match parameters' own)")

@@ -60,13 +60,21 @@ LoadInfo load_cloud(const std::string& path, OrganizedCloud& out, const LoadOpti
     scale_cloud(out, info.scale);
   } else if (ext == ".fscan") {
     Scan scan;
-    load_scan(path, scan);
+    load_scan(path, scan, options.limits);
+    TriangulationOptions to = options.triangulation;
+    to.limits = options.limits;
     Triangulator tri;
-    tri.configure(scan.begin_message().calibration, options.triangulation);
+    try {
+      tri.configure(scan.begin_message().calibration, to);
+    } catch (const Error& e) {
+      throw Error(path + ": " + e.what());
+    }
     info.triangulation = tri.triangulate(scan, out);
     info.format = "fscan";
     info.complete_scan = scan.complete();
     info.scan_status = to_string(scan.status());
+    info.stripe_points = scan.points_stored();
+    info.stripes_over_budget = scan.stripes_over_budget();
   } else {
     throw Error(path + ": unknown point-cloud format '" + ext + "' (expected .pcd, .ply or .fscan)");
   }

@@ -22,7 +22,10 @@ struct LoadOptions {
   double scale = 0.0;       // > 0: mm per file unit, overrides units
   bool load_labels = true;  // dataset labels ("label" field) into OrganizedCloud::labels
   std::uint64_t max_points = std::uint64_t(1) << 26;
-  TriangulationOptions triangulation;  // .fscan input
+  TriangulationOptions triangulation;  // .fscan input (its limits are replaced by `limits`)
+  // .fscan input: the memory budget of the scan (ScanLimits::for_budget; `--memory-budget`). A ScanBegin
+  // whose scan does not fit is refused ("<file>: at byte N: ScanBegin of scan ..."), before allocating.
+  ScanLimits limits;
   static constexpr double kAutoMetresBelow = 20.0;
 };
 
@@ -30,9 +33,11 @@ struct LoadInfo {
   std::string format;  // "pcd", "ply" or "fscan"
   double scale = 1.0;  // applied: mm per file unit
   std::size_t valid_points = 0;
-  bool complete_scan = true;         // .fscan: false for a partial (aborted / disconnected) scan
-  std::string scan_status;           // .fscan: to_string(ScanStatus)
-  TriangulationStats triangulation;  // .fscan
+  bool complete_scan = true;              // .fscan: false for a partial (aborted / disconnected) scan
+  std::string scan_status;                // .fscan: to_string(ScanStatus)
+  TriangulationStats triangulation;       // .fscan (shared_cell: stripe points that shared a cell, not kept)
+  std::uint64_t stripe_points = 0;        // .fscan: stripe points stored
+  std::uint32_t stripes_over_budget = 0;  // .fscan: stripes rejected for the memory budget
 };
 
 // Throws fs::Error naming the file (and byte offset) for unreadable or malformed input.

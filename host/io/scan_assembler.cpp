@@ -79,12 +79,9 @@ void ScanAssembler::end_of_stream(ScanStatus why) {
   }
 }
 
-std::size_t read_scan_file(const std::string& path, const ScanAssembler::Callback& on_scan) {
-  std::size_t n = 0;
-  ScanAssembler assembler([&](const Scan& s) {
-    ++n;
-    on_scan(s);
-  });
+namespace {
+
+void feed_scan_file(const std::string& path, ScanAssembler& assembler) {
   ScanFileReader reader{std::filesystem::path(path)};
   wire::DecodedMessage m;
   while (reader.next(m)) {
@@ -95,18 +92,39 @@ std::size_t read_scan_file(const std::string& path, const ScanAssembler::Callbac
     }
   }
   assembler.end_of_stream();
+}
+
+}  // namespace
+
+std::size_t read_scan_file(const std::string& path, const ScanAssembler::Callback& on_scan,
+                           const ScanLimits& limits) {
+  std::size_t n = 0;
+  ScanAssembler assembler(
+      [&](const Scan& s) {
+        ++n;
+        on_scan(s);
+      },
+      limits);
+  feed_scan_file(path, assembler);
   return n;
 }
 
-void load_scan(const std::string& path, Scan& out) {
-  bool got = false;
-  // Copy the first scan; later scans in the file are read (validated) but not kept.
-  read_scan_file(path, [&](const Scan& s) {
-    if (got) return;
-    got = true;
-    out = s;
-  });
-  if (!got) throw Error(path + ": no scan in the file (no ScanBegin)");
+void load_scan(const std::string& path, Scan& out, const ScanLimits& limits) {
+  // The first scan is moved out of the assembler when it is delivered (no second copy of its points; the
+  // assembler goes on with a fresh Scan); later scans in the file are read (validated) but not kept.
+  bool kept = false;
+  ScanAssembler* self = nullptr;
+  ScanAssembler assembler(
+      [&](const Scan&) {
+        if (kept) return;
+        out = std::move(self->storage());
+        self->storage() = Scan();
+        kept = true;
+      },
+      limits);
+  self = &assembler;
+  feed_scan_file(path, assembler);
+  if (!kept) throw Error(path + ": no scan in the file (no ScanBegin)");
 }
 
 }  // namespace fs::host

@@ -50,9 +50,11 @@ class ScanAssembler {
 };
 
 // Reads every scan of a .fscan file through an assembler; returns the number of scans delivered. Errors in
-// the file are fs::Error "<path>: at byte N: ..." (a scan in progress at a clean end of file is partial).
-std::size_t read_scan_file(const std::string& path, const ScanAssembler::Callback& on_scan);
-// The first scan of a .fscan file into `out` (copied); throws when the file has no scan.
-void load_scan(const std::string& path, Scan& out);
+// the file are fs::Error "<path>: at byte N: ..." (a scan in progress at a clean end of file is partial),
+// among them a ScanBegin whose scan exceeds `limits` (the memory budget), refused before any allocation.
+std::size_t read_scan_file(const std::string& path, const ScanAssembler::Callback& on_scan,
+                           const ScanLimits& limits = {});
+// The first scan of a .fscan file into `out` (moved, not copied); throws when the file has no scan.
+void load_scan(const std::string& path, Scan& out, const ScanLimits& limits = {});
 
 }  // namespace fs::host

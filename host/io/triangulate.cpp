@@ -1,5 +1,6 @@
 #include "host/io/triangulate.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 #include "common/error.hpp"
@@ -24,11 +25,9 @@ bool same_calibration(const ScannerCalibration& a, const ScannerCalibration& b) 
 
 void Triangulator::configure(const ScannerCalibration& c, const TriangulationOptions& options) {
   const auto& cam = c.camera;
-  if (cam.width == 0 || cam.height == 0 || cam.width > 16384 || cam.height > 16384)
-    throw Error("calibration: camera size " + std::to_string(cam.width) + " x " + std::to_string(cam.height) +
-                " is out of range");
-  if (c.step_count == 0 || c.step_count > 65536)
-    throw Error("calibration: step_count " + std::to_string(c.step_count) + " is out of range (1..65536)");
+  static_assert(sizeof(Ray) == ScanLimits::kRayBytes && sizeof(StepPlane) == ScanLimits::kPlaneBytes,
+                "the memory model's bytes per ray and per plane");
+  options.limits.check_camera(c, "calibration");  // before anything is allocated
   if (!(cam.fx > 0) || !(cam.fy > 0)) throw Error("calibration: focal lengths must be positive");
   const bool camera_changed = !configured_ || !same_camera(cam, calib_.camera);
   calib_ = c;
@@ -41,6 +40,9 @@ void Triangulator::configure(const ScannerCalibration& c, const TriangulationOpt
     rows_ = cam.height;
     cols_ = cam.width;
     rays_.resize(std::size_t(rows_) * (cols_ + 1));
+    row_stamp_.assign(rows_, 0);
+    row_peak_.assign(rows_, 0);
+    stamp_ = 0;
     const Mat3& R = cam.R_world_cam;
     const double k1 = cam.k1, k2 = cam.k2, k3 = cam.k3, p1 = cam.p1, p2 = cam.p2;
     for (std::uint32_t r = 0; r < rows_; ++r) {
@@ -104,6 +106,14 @@ void Triangulator::add_stripe(const msg::StripeHeader& header, std::span<const m
   const std::size_t width = out.width;
   std::uint64_t ok = 0, outside = 0, grazing = 0, range = 0;
   const float* cols = smooth_columns(points);
+  if (++stamp_ == 0) {  // wrapped: forget every row's owner
+    std::fill(row_stamp_.begin(), row_stamp_.end(), 0u);
+    stamp_ = 1;
+  }
+  const std::uint32_t stamp = stamp_;
+  std::uint32_t* row_stamp = row_stamp_.data();
+  std::uint16_t* row_peak = row_peak_.data();
+  std::uint64_t shared = 0;
   for (std::size_t i = 0; i < points.size(); ++i) {
     const msg::StripePoint& sp = points[i];
     const float col = cols ? cols[i] : sp.col;
@@ -127,13 +137,21 @@ void Triangulator::add_stripe(const msg::StripeHeader& header, std::span<const m
       ++range;
       continue;
     }
+    if (row_stamp[sp.row] == stamp) {  // the row's cell already holds a point of this stripe
+      ++shared;
+      if (sp.peak <= row_peak[sp.row]) continue;  // the brightest stays (the first on a tie)
+    } else {
+      ++ok;
+    }
+    row_stamp[sp.row] = stamp;
+    row_peak[sp.row] = sp.peak;
     dst[sp.row * width] = Eigen::Vector3f(centre_.x() + s * dx, centre_.y() + s * dy, centre_.z() + s * dz);
-    ++ok;
   }
   stats.points += ok;
   stats.out_of_image += outside;
   stats.grazing += grazing;
   stats.out_of_range += range;
+  stats.shared_cell += shared;
 }
 
 const float* Triangulator::smooth_columns(std::span<const msg::StripePoint> points) const {
@@ -181,6 +199,23 @@ const float* Triangulator::smooth_columns(std::span<const msg::StripePoint> poin
     smoothed_[static_cast<std::size_t>(i)] = (sn >= 3 && det > 0.5f) ? ci + (sdd * sc - sd * scd) / det : ci;
   }
   return smoothed_.data();
+}
+
+void Triangulator::release() {
+  rays_ = std::vector<Ray>();
+  planes_ = std::vector<StepPlane>();
+  smoothed_ = std::vector<float>();
+  row_stamp_ = std::vector<std::uint32_t>();
+  row_peak_ = std::vector<std::uint16_t>();
+  stamp_ = 0;
+  rows_ = cols_ = 0;
+  configured_ = false;
+}
+
+std::uint64_t Triangulator::table_bytes() const {
+  return rays_.capacity() * sizeof(Ray) + planes_.capacity() * sizeof(StepPlane) +
+         smoothed_.capacity() * sizeof(float) + row_stamp_.capacity() * sizeof(std::uint32_t) +
+         row_peak_.capacity() * sizeof(std::uint16_t);
 }
 
 TriangulationStats Triangulator::triangulate(const Scan& scan, OrganizedCloud& out) {

@@ -7,8 +7,15 @@
 // undistorted ray R_world_cam * (x_n, y_n, 1) (linear in the pixel apart from distortion, so linear
 // interpolation between neighbouring columns is accurate to ~1e-9 rad), and per galvo step the plane normal
 // n_k and e_k = d_k - n_k . C. A point then costs an interpolation, two dot products and a division.
-// Memory: rows x (cols + 1) x 12 bytes (16 MB for 1280 x 1024), allocated by configure(); triangulating a
-// scan into a cloud whose capacity suffices allocates nothing.
+// Memory: rows x (cols + 1) x 12 bytes (16 MB for 1280 x 1024), allocated by configure() after checking the
+// camera and the grid against TriangulationOptions::limits (the memory budget: a camera whose ray table or a
+// scan whose grid does not fit is refused with fs::Error before anything is allocated); triangulating a scan
+// into a cloud whose capacity suffices allocates nothing. release() frees the tables (after a scan with an
+// unusually large camera).
+//
+// One cell per (row, step): when several points of a stripe fall in the same image row, the cell keeps the
+// brightest (highest peak; on a tie the first) of those that triangulate, and the others are counted in
+// TriangulationStats::shared_cell.
 //
 // A Triangulator is not thread-safe (one per thread: add_stripe uses a scratch buffer).
 //
@@ -22,10 +29,9 @@
 #include "common/calibration.hpp"
 #include "common/messages.hpp"
 #include "host/io/organized_cloud.hpp"
+#include "host/io/scan.hpp"
 
 namespace fs::host {
-
-class Scan;
 
 struct TriangulationOptions {
   double min_ray_plane_angle_deg = 3.0;  // grazing rejection: angle between viewing ray and laser plane
@@ -37,6 +43,8 @@ struct TriangulationOptions {
   // (hw-sim default noise: 0.12 -> ~0.06 mm RMS); at creases it biases a few rows slightly. 0 = off.
   std::uint32_t smooth_half_window = 2;
   float smooth_max_jump_px = 1.0f;
+  // What configure() may allocate: camera size (ray table), step count and grid (ScanLimits::check_camera).
+  ScanLimits limits;
 };
 
 struct TriangulationStats {
@@ -44,6 +52,10 @@ struct TriangulationStats {
   std::uint64_t out_of_image = 0;  // row/column outside the sensor, or a step outside the scan
   std::uint64_t grazing = 0;       // ray nearly parallel to the laser plane
   std::uint64_t out_of_range = 0;  // behind the camera or beyond max_range_mm
+  // Triangulated but not kept: another point of the same stripe in the same image row (one cell per row and
+  // step) was brighter, or as bright and earlier. points + out_of_image + grazing + out_of_range +
+  // shared_cell = the stripe points.
+  std::uint64_t shared_cell = 0;
 };
 
 class Triangulator {
@@ -53,9 +65,17 @@ class Triangulator {
     configure(calibration, options);
   }
   // Precomputes the ray table and step planes (allocates; call once per calibration). Reconfiguring with the
-  // same camera model only recomputes the planes.
+  // same camera model only recomputes the planes. Throws fs::Error ("calibration: camera W x H needs a ray
+  // table of ~N, above the memory budget ...") when options.limits refuse the camera or the grid.
   void configure(const ScannerCalibration& calibration, const TriangulationOptions& options = {});
   const ScannerCalibration& calibration() const { return calib_; }
+  const TriangulationOptions& options() const { return options_; }
+  bool configured() const { return configured_; }
+  // Frees the ray table, the planes and the scratch buffers; the next triangulate() configures again (call
+  // after a scan whose camera was larger than the usual one, then malloc_trim(0): release_scan_memory).
+  void release();
+  // Heap bytes held by the tables and scratch buffers.
+  std::uint64_t table_bytes() const;
 
   // Sizes `out` to step_count x camera.height, all NaN, viewpoint = camera centre.
   void begin(OrganizedCloud& out) const;
@@ -87,6 +107,10 @@ class Triangulator {
   std::vector<Ray> rays_;                // rows_ x (cols_ + 1)
   std::vector<StepPlane> planes_;        // step_count
   mutable std::vector<float> smoothed_;  // per-stripe scratch (kMaxStripePoints, grown if ever needed)
+  // Per image row: the stripe (stamp) whose point the row's cell holds, and that point's peak.
+  mutable std::vector<std::uint32_t> row_stamp_;
+  mutable std::vector<std::uint16_t> row_peak_;
+  mutable std::uint32_t stamp_ = 0;
   float sin2_min_ = 0.0f;
   float max_range2_ = 0.0f;
   Eigen::Vector3f centre_ = Eigen::Vector3f::Zero();

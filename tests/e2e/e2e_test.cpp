@@ -596,8 +596,8 @@ std::string with_bad_calibration(const std::string& frames, bool begin_only) {
   return std::string(sink.data.begin(), sink.data.end());
 }
 
-// Scans that cannot be processed end as failed results and serve goes on: (a) a ScanBegin with a calibration
-// triangulation refuses, then a disconnect; (b) a whole scan with that calibration followed, on the same
+// Scans that cannot be processed end as failed results and serve goes on: (a) a ScanBegin with a camera the
+// limits refuse, then a disconnect; (b) a whole scan with that calibration followed, on the same
 // connection, by a good scan (recognized: the processing error did not drop the connection); (c) a frame with
 // a bad CRC mid-scan is a protocol error, logged with the peer and counted, and the cut scan says so.
 TEST(EndToEndServe, FailedScansAreResultsAndProtocolErrorsAreLogged) {
@@ -632,8 +632,9 @@ TEST(EndToEndServe, FailedScansAreResultsAndProtocolErrorsAreLogged) {
   ASSERT_TRUE(a) << text;
   ASSERT_TRUE(b) << text;
   ASSERT_EQ(served.code, 0) << served.out << text;
-  EXPECT_NE(text.find("FAILED: calibration: camera size 65536 x 1024 is out of range"), std::string::npos)
-      << text;
+  // The limits (memory budget) refuse that camera at ScanBegin: a failed result, the connection goes on.
+  EXPECT_NE(text.find("(REFUSED at ScanBegin): FAILED: ScanBegin of scan "), std::string::npos) << text;
+  EXPECT_NE(text.find("camera 65536 x 1024 outside 1..16384 pixels per side"), std::string::npos) << text;
   EXPECT_NE(text.find("protocol error from 127.0.0.1:"), std::string::npos) << text;
   EXPECT_EQ(text.find("superseded"), std::string::npos) << text;
   EXPECT_NE(text.find("4 scan(s), 3 connection(s)"), std::string::npos) << text;
@@ -643,11 +644,11 @@ TEST(EndToEndServe, FailedScansAreResultsAndProtocolErrorsAreLogged) {
   ASSERT_EQ(results.size(), 4u) << text;
   const nlohmann::json first = read_json(results[0]);
   EXPECT_TRUE(first["failed"].get<bool>()) << first.dump(1);
-  EXPECT_NE(first["error"].get<std::string>().find("camera size 65536"), std::string::npos);
-  EXPECT_EQ(first["scan"]["status"], "disconnected before ScanEnd");
+  EXPECT_NE(first["error"].get<std::string>().find("camera 65536 x 1024"), std::string::npos);
+  EXPECT_EQ(first["scan"]["status"], "refused at ScanBegin");
   const nlohmann::json second = read_json(results[1]);
   EXPECT_TRUE(second["failed"].get<bool>()) << second.dump(1);
-  EXPECT_EQ(second["scan"]["status"], "complete");
+  EXPECT_EQ(second["scan"]["status"], "refused at ScanBegin");
   const nlohmann::json third = read_json(results[2]);
   EXPECT_FALSE(third.contains("failed")) << third.dump(1);
   EXPECT_EQ(third["scan"]["status"], "complete");
