@@ -1,12 +1,11 @@
 #include "common/mesh_io.hpp"
 
-#include <fstream>
-#include <iterator>
 #include <map>
 
 #include "common/error.hpp"
 #include "common/formats/mesh_formats.hpp"
 #include "common/formats/tokenizer.hpp"
+#include "common/input_file.hpp"
 
 namespace fs {
 
@@ -44,13 +43,7 @@ Mesh parse_mesh(std::string_view bytes, MeshFormat format, const std::string& so
 
 Mesh read_mesh(const std::filesystem::path& path) {
   const MeshFormat fmt = mesh_format_from_path(path);
-  std::error_code ec;
-  if (std::filesystem::exists(path, ec) && !std::filesystem::is_regular_file(path, ec))
-    throw Error(path.string() + ": not a regular file");
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw Error(path.string() + ": cannot open mesh file");
-  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  if (in.bad()) throw Error(path.string() + ": read error");
+  const std::string bytes = read_input_file(path, kMaxMeshFileBytes, "mesh file");
   return parse_mesh(bytes, fmt, path.string(), path.stem().string());
 }
 

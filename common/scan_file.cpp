@@ -1,10 +1,14 @@
 #include "common/scan_file.hpp"
 
+#include <unistd.h>
+
 #include <algorithm>
 #include <cerrno>
+#include <cstdint>
 #include <cstring>
 
 #include "common/byte_io.hpp"
+#include "common/input_file.hpp"
 
 namespace fs {
 
@@ -85,8 +89,15 @@ constexpr std::size_t kChunk = 64 * 1024;
 
 ScanFileReader::ScanFileReader(const std::filesystem::path& path, wire::FrameDecoder::Limits limits)
     : name_(path.string()), chunk_(kChunk), dec_(name_, limits) {
-  f_ = std::fopen(path.c_str(), "rb");
-  if (!f_) throw Error(name_ + ": cannot open .fscan file: " + std::strerror(errno));
+  // A device or FIFO is refused (no size cap here: the scan limits bound what is kept of a file).
+  std::uint64_t size = 0;
+  const int fd = open_input_file(path, UINT64_MAX, ".fscan file", size);
+  f_ = ::fdopen(fd, "rb");
+  if (!f_) {
+    const int e = errno;
+    ::close(fd);
+    throw Error(name_ + ": cannot open .fscan file: " + std::strerror(e));
+  }
   try {
     open_header();
   } catch (...) {

@@ -1,11 +1,9 @@
 #include "firmware/fw_config.hpp"
 
-#include <fstream>
-#include <sstream>
-
 #include <nlohmann/json.hpp>
 
 #include "common/error.hpp"
+#include "common/input_file.hpp"
 #include "common/json_text.hpp"
 #include "firmware/extract/along_stripe.hpp"
 
@@ -166,11 +164,7 @@ void apply_config_json(FwConfig& c, const std::string& text, const std::string& 
 }
 
 void load_config_file(FwConfig& cfg, const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw Error(path + ": cannot open config file");
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  apply_config_json(cfg, ss.str(), path);
+  apply_config_json(cfg, read_input_file(path, kMaxConfigFileBytes, "firmware configuration"), path);
 }
 
 }  // namespace fs::fw

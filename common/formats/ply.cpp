@@ -75,6 +75,13 @@ double ply_decode(const char* p, PlyType t, bool swap) {
   return 0.0;
 }
 
+std::uint64_t ply_min_instance_bytes(const PlyElement& e, PlyFormat format) {
+  std::uint64_t n = 0;
+  for (const auto& p : e.props)
+    n += format == PlyFormat::Ascii ? 2 : ply_size(p.is_list ? p.count_type : p.type);
+  return n;
+}
+
 PlyHeader parse_ply_header(std::string_view bytes, const std::string& file, const PlyHeaderRules& rules) {
   TextLines in(bytes, file, rules.style);
   const auto fail = [&](PlyIssue issue, std::string_view token = {}) {

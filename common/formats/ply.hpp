@@ -83,6 +83,11 @@ struct PlyHeader {
   std::uint64_t end_offset = 0;  // byte offset just past end_header
 };
 
+// The fewest bytes one instance of `e` takes in the body: binary, the sizes of its scalars and of its lists'
+// counts (empty lists); ascii, 2 per property (a digit and a separator). Readers check the declared counts
+// against the body with it before allocating anything for them.
+std::uint64_t ply_min_instance_bytes(const PlyElement& e, PlyFormat format);
+
 PlyHeader parse_ply_header(std::string_view bytes, const std::string& file, const PlyHeaderRules& rules);
 
 // Reads scalars from an element body in order: binary by bytes (either byte order), ascii by tokens. Never

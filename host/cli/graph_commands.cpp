@@ -36,13 +36,20 @@ void run_graph(const GraphOptions& o) {
   limits.max_cells = cloud.points.size();
   seg::Segmenter segmenter(params, limits);
   seg::Segmentation s;
-  segmenter.prepare(s);
-  segmenter.segment(cloud, s);
-  seg::ScenePfrgBuilder builder(limits.max_regions, limits.max_borders);
   Pfrg g;
   g.name = std::filesystem::path(o.input).stem().string();
   seg::PreprocessStats st;
-  builder.build(s, g, &st);
+  seg::ScenePfrgBuilder builder(limits.max_regions, limits.max_borders);
+  try {
+    segmenter.prepare(s);
+    segmenter.segment(cloud, s);
+    builder.build(s, g, &st);
+  } catch (const Error& e) {
+    // Segmentation and graph errors ("segment: viewpoint is not finite") name the input.
+    const std::string what = e.what();
+    if (what.rfind(o.input + ":", 0) == 0) throw;
+    throw Error(o.input + ": " + what);
+  }
   if (o.output == "-") {
     std::printf("%s\n", to_json(g).dump(1).c_str());
   } else {

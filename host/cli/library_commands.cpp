@@ -74,7 +74,7 @@ void add_library_commands(CLI::App& app) {
       progress.update(i, files[i].filename().string());
       Mesh mesh = read_mesh(files[i]);
       mesh.name = files[i].stem().string();
-      Model m = build_model(mesh, b->options);
+      Model m = build_model(mesh, b->options, files[i].string());
       // A model the matcher cannot take would fail every scan matched against it: refused here, by default.
       if (m.face_count() > static_cast<std::size_t>(match::kMaxNodes)) {
         const std::string msg = fmt::format("{}: {} faces; the matcher takes models of at most {} faces",

@@ -1,13 +1,16 @@
 // facetscan isomorphisms / match (thesis ch. 5.3, 6, 7).
 #include <cstdio>
 #include <iostream>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include "common/error.hpp"
 #include "host/cli/commands.hpp"
+#include "host/match/compact_graph.hpp"
 #include "host/match/inexact.hpp"
 #include "host/match/parallel.hpp"
 #include "host/match/params.hpp"
@@ -36,9 +39,22 @@ struct MatchOptions {
   bool show_params = false;
 };
 
+// A graph file the matchers cannot take (more nodes than they hold: match::CompactGraph::load refuses it) is
+// refused when it is read, the error naming the file.
+Pfrg read_graph(const std::string& path, bool include_supernodes) {
+  Pfrg g = read_pfrg_json(path);
+  const auto check = std::make_unique<match::CompactGraph>();
+  try {
+    check->load(g, include_supernodes);
+  } catch (const Error& e) {
+    throw Error(path + ": " + e.what());
+  }
+  return g;
+}
+
 void run_isomorphisms(const IsoOptions& o) {
-  const Pfrg t = read_pfrg_json(o.test);
-  const Pfrg r = read_pfrg_json(o.ref);
+  const Pfrg t = read_graph(o.test, false);
+  const Pfrg r = read_graph(o.ref, false);
   const auto mode = o.mono ? match::ExactMode::kMonomorphism : match::ExactMode::kInduced;
   match::ExactMappingFn fn;
   if (o.list) {
@@ -59,9 +75,9 @@ void run_match(const MatchOptions& o) {
   match::MatchParams p = match::read_params(o.params);
   if (o.max_states > 0) p.max_states = o.max_states;
   if (o.max_time_ms > 0) p.max_time_ms = o.max_time_ms;
-  const Pfrg scene = read_pfrg_json(o.scene);
+  const Pfrg scene = read_graph(o.scene, true);
   std::vector<Pfrg> refs;
-  for (const auto& f : o.refs) refs.push_back(read_pfrg_json(f));
+  for (const auto& f : o.refs) refs.push_back(read_graph(f, true));
   match::MatcherLimits limits;
   limits.max_states = std::max<long long>(p.max_states, 1);
   limits.max_reported = std::max(o.solutions, 1);

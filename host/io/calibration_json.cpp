@@ -2,9 +2,9 @@
 
 #include <cmath>
 #include <fstream>
-#include <sstream>
 
 #include "common/error.hpp"
+#include "common/input_file.hpp"
 #include "common/json_text.hpp"
 
 namespace fs::host {
@@ -159,11 +159,8 @@ ScannerCalibration calibration_from_json(const nlohmann::json& j, const std::str
 }
 
 ScannerCalibration read_calibration_file(const std::string& path) {
-  std::ifstream f(path);
-  if (!f) throw Error(path + ": cannot open for reading");
-  std::stringstream ss;
-  ss << f.rdbuf();
-  return calibration_from_json(parse_json_text(ss.str(), path), path);
+  return calibration_from_json(
+      parse_json_text(read_input_file(path, kMaxConfigFileBytes, "calibration file"), path), path);
 }
 
 void write_calibration_file(const std::string& path, const ScannerCalibration& c,

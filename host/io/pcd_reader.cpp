@@ -3,12 +3,12 @@
 
 #include <cmath>
 #include <cstring>
-#include <fstream>
 #include <limits>
 #include <string_view>
 
 #include "common/error.hpp"
 #include "common/formats/tokenizer.hpp"
+#include "common/input_file.hpp"
 #include "host/io/cloud_readers.hpp"
 #include "host/io/scalar_field.hpp"
 
@@ -22,6 +22,7 @@ using io_detail::ScalarType;
 constexpr std::uint64_t kMaxFields = 256;
 constexpr std::uint64_t kMaxCount = 1u << 16;       // elements of one field (e.g. a 308-bin descriptor)
 constexpr std::uint64_t kMaxPointBytes = 1u << 20;  // one record
+constexpr std::uint64_t kLzfMaxExpansion = 88;      // 3 compressed bytes -> at most 264
 
 struct PcdField {
   std::string name;
@@ -250,7 +251,16 @@ void read_pcd(std::span<const std::byte> data, const std::string& name, Organize
   const std::uint64_t payload = h.points * h.point_size;  // <= 2^26 * 2^20, no overflow
   const std::byte* records = nullptr;
   std::vector<std::byte> inflated;
-  if (h.data == PcdData::Binary) {
+  const std::uint64_t left = data.size() - h.data_offset;
+  if (h.data == PcdData::Ascii) {
+    // Every value takes at least 2 bytes (a digit and a separator; the last one none): a POINTS count the
+    // rest of the file cannot hold is refused before the cloud is allocated.
+    std::uint64_t values_per_point = 0;
+    for (const auto& f : h.fields) values_per_point += f.count;
+    if (h.points * values_per_point * 2 > left + 1)
+      check_declared(name, "POINTS", h.points, values_per_point * 2, left,
+                     "after the header (ascii: at least 2 bytes a value)");
+  } else if (h.data == PcdData::Binary) {
     if (data.size() - h.data_offset < payload)
       throw error_at_offset(name, data.size(),
                             "truncated binary data: need " + std::to_string(payload) +
@@ -272,6 +282,14 @@ void read_pcd(std::span<const std::byte> data, const std::string& name, Organize
                             "truncated binary_compressed data: compressed size " + std::to_string(csize) +
                                 " but only " + std::to_string(data.size() - h.data_offset - 8) +
                                 " bytes follow");
+    // LZF turns 3 bytes into at most 264 (a back reference of the longest length): a larger uncompressed
+    // size cannot come from csize bytes, and is refused before the buffer is allocated.
+    if (payload > std::uint64_t(csize) * kLzfMaxExpansion)
+      throw error_at_offset(name, h.data_offset + 4,
+                            "binary_compressed: uncompressed size " + std::to_string(payload) + " (" +
+                                format_bytes(payload) + ") cannot come from " + std::to_string(csize) +
+                                " compressed bytes (LZF expands at most " + std::to_string(kLzfMaxExpansion) +
+                                "x)");
     inflated.resize(payload);
     const unsigned got = payload == 0 ? 0
                                       : lzf_decompress(data.data() + h.data_offset + 8, csize,
@@ -294,14 +312,7 @@ void read_pcd(std::span<const std::byte> data, const std::string& name, Organize
 }
 
 std::vector<std::byte> read_file_bytes(const std::string& path) {
-  std::ifstream f(path, std::ios::binary | std::ios::ate);
-  if (!f) throw Error(path + ": cannot open for reading");
-  const std::streamoff size = f.tellg();
-  if (size < 0) throw Error(path + ": cannot determine the file size");
-  std::vector<std::byte> bytes(static_cast<std::size_t>(size));
-  f.seekg(0);
-  if (size > 0 && !f.read(reinterpret_cast<char*>(bytes.data()), size)) throw Error(path + ": read error");
-  return bytes;
+  return read_input_bytes(path, kMaxCloudFileBytes, "point-cloud file");
 }
 
 }  // namespace fs::host

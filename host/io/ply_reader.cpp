@@ -9,6 +9,7 @@
 
 #include "common/error.hpp"
 #include "common/formats/ply.hpp"
+#include "common/input_file.hpp"
 #include "host/io/cloud_readers.hpp"
 
 namespace fs::host {
@@ -179,6 +180,24 @@ void read_ply(std::span<const std::byte> data, const std::string& name, Organize
     throw error_at_offset(name, header.end_offset,
                           std::to_string(vertex->count) + " vertices exceed the limit of " +
                               std::to_string(options.max_points));
+  // Every declared instance takes bytes of the body (ply_min_instance_bytes): counts the file cannot hold
+  // are refused before anything is allocated for them.
+  {
+    const bool ascii = header.format == formats::PlyFormat::Ascii;
+    const std::uint64_t slack = ascii ? 1 : 0;  // the last ascii value needs no separator
+    std::uint64_t left = data.size() - header.body_offset;
+    bool first = true;
+    for (const auto& e : elements) {
+      const std::uint64_t min = formats::ply_min_instance_bytes(e, header.format);
+      if (min > 0 && e.count > (left + slack) / min)
+        check_declared(
+            name, "element '" + e.name + "'", e.count, min, left,
+            std::string(first ? "after the header" : "after the header and the elements before it") +
+                (ascii ? " (ascii: at least 2 bytes a value)" : ""));
+      left -= std::min(left, e.count * min);
+      first = false;
+    }
+  }
   const bool want_labels = options.load_labels && ilabel >= 0;
   // A PCL "camera" element (pcl::PLYWriter): its view_px/py/pz give the sensor origin.
   const PlyElement* camera = nullptr;

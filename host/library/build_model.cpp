@@ -223,8 +223,8 @@ double Model::total_border() const {
   return s;
 }
 
-Model build_model(const Mesh& mesh, const BuildOptions& options) {
-  const std::string src = mesh.name.empty() ? std::string("mesh") : mesh.name;
+Model build_model(const Mesh& mesh, const BuildOptions& options, const std::string& source) {
+  const std::string src = !source.empty() ? source : mesh.name.empty() ? std::string("mesh") : mesh.name;
   if (mesh.vertices.empty() || mesh.faces.empty())
     throw Error(
         fmt::format("{}: empty mesh ({} vertices, {} faces)", src, mesh.vertices.size(), mesh.faces.size()));

@@ -4,12 +4,12 @@
 #include <cmath>
 #include <cstring>
 #include <fstream>
-#include <iterator>
 #include <set>
 
 #include <fmt/format.h>
 
 #include "common/error.hpp"
+#include "common/input_file.hpp"
 #include "host/library/library.hpp"
 
 namespace fs::host {
@@ -261,10 +261,9 @@ Library Library::from_bytes(std::span<const std::uint8_t> bytes, const std::stri
 }
 
 Library Library::load(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw Error(fmt::format("{}: cannot open library file", path.string()));
-  std::vector<std::uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  return from_bytes(bytes, path.string());
+  const std::vector<std::byte> bytes = read_input_bytes(path, kMaxLibraryFileBytes, "model library");
+  return from_bytes(std::span(reinterpret_cast<const std::uint8_t*>(bytes.data()), bytes.size()),
+                    path.string());
 }
 
 }  // namespace fs::host

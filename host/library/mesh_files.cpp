@@ -25,12 +25,24 @@ std::vector<stdfs::path> collect_mesh_files(const std::vector<std::string>& inpu
 Library load_or_build_library(
     const std::vector<std::string>& inputs, const BuildOptions& options,
     const std::function<void(std::size_t, std::size_t, const std::string&)>& progress) {
-  if (inputs.size() == 1 && stdfs::path(inputs[0]).extension() == ".fslib") return Library::load(inputs[0]);
-  const auto files = collect_mesh_files(inputs);
   Library lib;
-  for (std::size_t i = 0; i < files.size(); ++i) {
-    if (progress) progress(i, files.size(), files[i].stem().string());
-    lib.add(build_model(read_mesh(files[i]), options));
+  if (inputs.size() == 1 && stdfs::path(inputs[0]).extension() == ".fslib") {
+    lib = Library::load(inputs[0]);
+  } else {
+    const auto files = collect_mesh_files(inputs);
+    for (std::size_t i = 0; i < files.size(); ++i) {
+      if (progress) progress(i, files.size(), files[i].stem().string());
+      Model m = build_model(read_mesh(files[i]), options, files[i].string());
+      if (lib.find(m.name))
+        throw Error(files[i].string() + ": a model named '" + m.name +
+                    "' is already in the library (names are file stems)");
+      lib.add(std::move(m));
+    }
+  }
+  if (lib.models.empty()) {
+    std::string names;
+    for (const auto& in : inputs) names += (names.empty() ? "" : ", ") + in;
+    throw Error((names.empty() ? std::string("library") : names) + ": the library has no models");
   }
   return lib;
 }

@@ -15,7 +15,8 @@ bool is_mesh_file(const std::filesystem::path& p);
 std::vector<std::filesystem::path> collect_mesh_files(const std::vector<std::string>& inputs);
 
 // One .fslib file -> Library::load; otherwise meshes / directories -> build_model for each (progress(i, name)
-// is called before each model).
+// is called before each model). A library without models is an error naming the inputs
+// ("lib.fslib: the library has no models"); mesh errors name the mesh file's path.
 Library load_or_build_library(
     const std::vector<std::string>& inputs, const BuildOptions& options = {},
     const std::function<void(std::size_t, std::size_t, const std::string&)>& progress = {});

@@ -56,7 +56,8 @@ struct Model {
 // Builds a model from a polygon mesh (any winding, triangulated or not). Coplanar adjacent facets are merged
 // into faces, the winding is made consistent and outward. Throws fs::Error naming mesh.name for empty,
 // degenerate, open (unless allow_open), non-manifold or non-orientable meshes.
-Model build_model(const Mesh& mesh, const BuildOptions& options = {});
+// Errors name `source` (the mesh file's path), or the mesh's name when it is empty.
+Model build_model(const Mesh& mesh, const BuildOptions& options = {}, const std::string& source = {});
 
 // Fills graph, center, totals and (when with_symmetries) symmetries from name + faces + arcs (used by
 // build_model, the polycube generator and the library reader). `arcs` are (a, b, border) with a < b.

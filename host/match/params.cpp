@@ -2,12 +2,11 @@
 
 #include <cmath>
 #include <filesystem>
-#include <fstream>
-#include <sstream>
 
 #include <nlohmann/json.hpp>
 
 #include "common/error.hpp"
+#include "common/input_file.hpp"
 #include "common/json_text.hpp"
 
 namespace fs::host::match {
@@ -184,11 +183,8 @@ MatchParams params_from_json(const nlohmann::json& j, const std::string& source)
 
 MatchParams read_params(const std::string& preset_or_file) {
   if (!std::filesystem::exists(preset_or_file)) return preset(preset_or_file);
-  std::ifstream in(preset_or_file, std::ios::binary);
-  if (!in) throw Error(preset_or_file + ": cannot open");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return params_from_json(parse_json_text(ss.str(), preset_or_file), preset_or_file);
+  const std::string text = read_input_file(preset_or_file, kMaxConfigFileBytes, "match parameter file");
+  return params_from_json(parse_json_text(text, preset_or_file), preset_or_file);
 }
 
 nlohmann::json to_json(const MatchParams& p) {

@@ -5,13 +5,13 @@
 #include <cmath>
 #include <fstream>
 #include <set>
-#include <sstream>
 #include <unordered_set>
 #include <utility>
 
 #include <nlohmann/json.hpp>
 
 #include "common/error.hpp"
+#include "common/input_file.hpp"
 #include "common/json_text.hpp"
 
 namespace fs::host {
@@ -171,11 +171,7 @@ Pfrg pfrg_from_json(const json& j, const std::string& source) {
 }
 
 Pfrg read_pfrg_json(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw Error(path.string() + ": cannot open");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  const json j = parse_json_text(ss.str(), path.string());
+  const json j = parse_json_text(read_input_file(path, kMaxGraphFileBytes, "PFRG JSON file"), path.string());
   Pfrg g = pfrg_from_json(j, path.string());
   if (g.name.empty()) g.name = path.stem().string();
   return g;

@@ -1,10 +1,9 @@
 #include "hw-sim/scene/scene.hpp"
 
 #include <cmath>
-#include <fstream>
-#include <sstream>
 
 #include "common/error.hpp"
+#include "common/input_file.hpp"
 #include "common/json_text.hpp"
 #include "common/mesh_io.hpp"
 
@@ -245,14 +244,8 @@ Scene parse_scene(const json& doc, const std::filesystem::path& base_dir, const 
 }
 
 Scene load_scene(const std::filesystem::path& path) {
-  std::error_code ec;
-  if (std::filesystem::exists(path, ec) && !std::filesystem::is_regular_file(path, ec))
-    throw Error(path.string() + ": not a regular file");
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw Error(path.string() + ": cannot open scene file");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return parse_scene(parse_json_text(ss.str(), path.string()), path.parent_path(), path.string());
+  return parse_scene(parse_json_text(read_input_file(path, kMaxConfigFileBytes, "scene file"), path.string()),
+                     path.parent_path(), path.string());
 }
 
 }  // namespace fs::sim

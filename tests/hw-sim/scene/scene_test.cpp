@@ -2,13 +2,17 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 
 #include "common/error.hpp"
+#include "common/input_file.hpp"
 #include "common/mesh_io.hpp"
 #include "hw-sim/scene/scene.hpp"
+#include "support/error_of.hpp"
 #include "support/test_paths.hpp"
 
 namespace {
@@ -204,6 +208,21 @@ TEST(Scene, ErrorsNameFileAndField) {
   }
   fsys::remove(p);
   EXPECT_THROW(fs::sim::load_scene("/nonexistent/scene.json"), fs::Error);
+}
+
+TEST(SceneJson, LinksToDevicesAndOversizedFilesAreRefused) {
+  const auto dir = fsys::temp_directory_path() / ("fs_scene_inputs_" + std::to_string(::getpid()));
+  fsys::remove_all(dir);
+  fsys::create_directories(dir);
+  fsys::create_symlink("/dev/zero", dir / "zero.json");
+  EXPECT_EQ(fs::test::error_of([&] { fs::sim::load_scene(dir / "zero.json"); }),
+            (dir / "zero.json").string() + ": not a regular file (character device)");
+  const auto big = dir / "big.json";
+  { std::ofstream(big) << "{}"; }
+  fsys::resize_file(big, fs::kMaxConfigFileBytes + 1);  // sparse
+  EXPECT_EQ(fs::test::error_of([&] { fs::sim::load_scene(big); }),
+            big.string() + ": 1.0 MB, more than the 1 MiB a scene file may have");
+  fsys::remove_all(dir);
 }
 
 }  // namespace
