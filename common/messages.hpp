@@ -61,8 +61,12 @@ struct ScanEnd {
   std::uint64_t scan_id = 0;
   std::uint32_t stripes_sent = 0;
   std::uint32_t frames_captured = 0;
-  std::uint32_t frames_dropped = 0;   // camera sequence gaps + timeouts
-  std::uint32_t stripes_dropped = 0;  // lost while the host was disconnected (bounded buffer overflow)
+  std::uint32_t frames_dropped = 0;  // camera sequence gaps + timeouts
+  // Stripes that did not reach the host: on the stream, those known lost when the scan ended (queue and link
+  // buffer overflow, lost in flight on a dropped connection); in a recording made while streaming, the final
+  // count of stripes the host did not acknowledge (the recording's ScanEnd is written after the stream was
+  // drained; docs/firmware.md, "Undelivered stripes").
+  std::uint32_t stripes_dropped = 0;
   std::uint32_t fault_count = 0;
   std::uint32_t last_fault_code = 0;
   std::uint8_t completed = 0;  // 1 = all steps scanned, 0 = aborted

@@ -13,8 +13,11 @@
 #include <fmt/core.h>
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <cstdio>
 #include <memory>
+#include <string>
+#include <vector>
 
 #include "common/error.hpp"
 #include "common/scan_file.hpp"
@@ -31,15 +34,69 @@ namespace {
 
 using namespace fs;
 
+// Exit status of a scan (also documented in docs/firmware.md): 0 complete, 1 bad input, 2 fatal fault,
+// 3 --check found a device missing, 4 streaming was requested and stripes did not reach the host (the scan
+// itself completed; a fatal fault takes precedence: 2).
+constexpr int kExitUndelivered = 4;
+
 class NullSink final : public wire::FrameSink {
  public:
   void write(std::span<const std::uint8_t> b) override { bytes += b.size(); }
   std::uint64_t bytes = 0;
 };
 
+// The recording's sink while streaming: every frame goes to the file except ScanEnd, which is held back and
+// written last (finish_recording) with the final count of stripes the host did not get, known only once the
+// stream has been drained. Runs on the publisher's output thread.
+class HoldEndSink final : public wire::FrameSink {
+ public:
+  explicit HoldEndSink(wire::FrameSink& file) : file_(file) { held_.reserve(wire::kMaxFrameSize); }
+  void write(std::span<const std::uint8_t> b) override {
+    if (b.size() > 6 && b[6] == static_cast<std::uint8_t>(msg::Type::ScanEnd)) {
+      held_.assign(b.begin(), b.end());
+      return;
+    }
+    file_.write(b);
+  }
+  // Writes the held ScanEnd with stripes_dropped = `undelivered`, preceded by a Fault 102 message `text`
+  // when there were undelivered stripes; keeps the frame sequence continuous.
+  void finish_recording(std::uint32_t undelivered, const std::string& text) {
+    if (held_.empty()) return;
+    wire::FrameDecoder dec("recording");
+    std::span<const std::uint8_t> in(held_);
+    in = in.subspan(dec.feed(in));
+    wire::FrameView f;
+    if (!dec.next(f)) return;
+    wire::DecodedMessage m;
+    wire::decode(f, m, "recording");
+    msg::ScanEnd e = m.scan_end;
+    e.stripes_dropped = std::max(e.stripes_dropped, undelivered);
+    wire::FrameWriter w(file_, f.header.sequence);
+    if (undelivered > 0) {
+      msg::Fault fm;
+      fm.code = static_cast<std::uint32_t>(fw::FaultCode::StripesDropped);
+      fm.text = text.substr(0, msg::kMaxFaultText);
+      w.send(fm);
+      ++e.fault_count;
+    }
+    w.send(e);
+  }
+
+ private:
+  wire::FrameSink& file_;
+  std::vector<std::uint8_t> held_;
+};
+
+// What reached the host (streaming only).
+struct StreamOutcome {
+  bool requested = false;
+  std::uint32_t produced = 0, undelivered = 0, connections = 0;
+  std::string error;  // the last link error, or why the end was not delivered
+};
+
 // The end-of-scan summary on stderr.
 void print_report(const fw::LoopReport& rep, const fw::FwConfig& cfg, bool virtual_time,
-                  const ScanFileWriter* file) {
+                  const ScanFileWriter* file, const StreamOutcome& so) {
   const msg::LoopStats s = rep.stats();
   std::fprintf(
       stderr,
@@ -49,11 +106,44 @@ void print_report(const fw::LoopReport& rep, const fw::FwConfig& cfg, bool virtu
       "  extraction: mean %.1f us, max %.1f us per frame (%u frames)\n",
       fw::program_name(), fw::to_string(rep.state), rep.fault != fw::FaultCode::None ? ": " : "",
       rep.fault != fw::FaultCode::None ? fw::to_string(rep.fault) : "", rep.stripes_sent, cfg.loop.steps,
-      rep.frames_captured, rep.frames_dropped, rep.frames_stale, rep.stripes_dropped,
+      rep.frames_captured, rep.frames_dropped, rep.frames_stale,
+      so.requested ? std::max(rep.stripes_dropped, so.undelivered) : rep.stripes_dropped,
       virtual_time ? "virtual" : "real", cfg.loop.period / 1e3, static_cast<unsigned long long>(rep.ticks),
       s.lateness_min_ns / 1e3, s.lateness_median_ns / 1e3, s.lateness_p99_ns / 1e3, s.lateness_p999_ns / 1e3,
       s.lateness_max_ns / 1e3, s.overruns, s.extraction_mean_ns / 1e3, s.extraction_max_ns / 1e3,
       rep.extractions);
+  if (!virtual_time)
+    std::fprintf(
+        stderr,
+        "  wake-ups (slept until the deadline): %llu, lateness median %.1f us, p99 %.1f us, p99.9 %.1f us, "
+        "max %.1f us; %llu ticks started late without sleeping (the previous tick overran)\n",
+        static_cast<unsigned long long>(rep.wakeup.count()), rep.wakeup.quantile(0.5) / 1e3,
+        rep.wakeup.quantile(0.99) / 1e3, rep.wakeup.quantile(0.999) / 1e3, rep.wakeup.max() / 1e3,
+        static_cast<unsigned long long>(rep.ticks_without_sleep));
+  // Every fault with its step and, for the fatal ones, the laser-off latency the loop measured.
+  char lat[160];
+  for (std::uint32_t i = 0; i < rep.fault_events_n; ++i) {
+    const fw::FaultEvent& e = rep.fault_events[i];
+    if (fw::is_fatal(e.code)) {
+      fw::format_laser_off(lat, sizeof lat, e, cfg.loop.period);
+      std::fprintf(stderr, "  fault %u %s at step %u (state %s): %s\n", static_cast<unsigned>(e.code),
+                   fw::to_string(e.code), e.step, fw::to_string(e.state), lat);
+    } else {
+      std::fprintf(stderr, "  warning %u %s at step %u\n", static_cast<unsigned>(e.code),
+                   fw::to_string(e.code), e.step);
+    }
+  }
+  if (rep.max_laser_off_latency_ns >= 0)
+    std::fprintf(stderr, "  laser-off latency max %.2f ms (period %.2f ms)\n",
+                 rep.max_laser_off_latency_ns / 1e6, cfg.loop.period / 1e6);
+  if (so.requested) {
+    if (so.undelivered == 0)
+      std::fprintf(stderr, "  stream %s: all %u stripes delivered (%u connection(s))\n", cfg.stream.c_str(),
+                   so.produced, so.connections);
+    else
+      std::fprintf(stderr, "%s: error: %u of %u stripes undelivered to %s: %s\n", fw::program_name(),
+                   so.undelivered, so.produced, cfg.stream.c_str(), so.error.c_str());
+  }
   if (file)
     std::fprintf(stderr, "  recorded %s (%llu bytes)\n", cfg.record.c_str(),
                  static_cast<unsigned long long>(file->bytes_written()));
@@ -68,6 +158,7 @@ int run_scan(fw::FwConfig& cfg) {
   // Output: recording and/or stream.
   std::unique_ptr<ScanFileWriter> file;
   std::unique_ptr<fw::TcpSink> tcp;
+  std::unique_ptr<HoldEndSink> hold;
   NullSink null_sink;
   wire::FrameSink* sink = &null_sink;
   if (!cfg.record.empty()) file = std::make_unique<ScanFileWriter>(cfg.record);
@@ -76,10 +167,18 @@ int run_scan(fw::FwConfig& cfg) {
     tc.buffer_bytes = static_cast<std::size_t>(cfg.stream_buffer_kb) * 1024;
     tc.host_heartbeat_timeout = static_cast<fw::Nanos>(cfg.host_heartbeat_timeout_ms) * 1'000'000;
     tcp = std::make_unique<fw::TcpSink>(cfg.stream, tc);
+    // Resolve once at start: a name that does not resolve is reported now, not only at the end. The scan
+    // goes on and the sink keeps retrying (a board may boot before its network or DNS is up); its stripes
+    // count as undelivered until the host takes them (exit status 4 when some never do).
+    const std::string rerr = fw::resolve_error(tcp->host(), tcp->port());
+    if (!rerr.empty())
+      std::fprintf(stderr, "%s: warning: stream: %s (retrying in the background)\n", fw::program_name(),
+                   rerr.c_str());
   }
   std::unique_ptr<wire::TeeSink> tee;
   if (file && tcp) {
-    tee = std::make_unique<wire::TeeSink>(*file, *tcp);
+    hold = std::make_unique<HoldEndSink>(*file);
+    tee = std::make_unique<wire::TeeSink>(*hold, *tcp);
     sink = tee.get();
   } else if (file) {
     sink = file.get();
@@ -103,14 +202,37 @@ int run_scan(fw::FwConfig& cfg) {
   }
   const fw::LoopReport& rep = ctl.run();
   pub.flush();
+  StreamOutcome so;
+  if (tcp) {
+    // Hand the last frames (the final stripes and ScanEnd) to the host before the process exits; what the
+    // host has not acknowledged after 2 s is undelivered.
+    const bool drained = tcp->drain(2'000'000'000);
+    const std::size_t left = tcp->buffered_bytes();
+    const bool connected = tcp->connected();
+    tcp->close();
+    so.requested = true;
+    so.produced = rep.stripes_sent + pub.ring_dropped();
+    so.undelivered = so.produced - std::min(so.produced, tcp->stripes_delivered());
+    so.connections = tcp->connections();
+    so.error = tcp->last_error();
+    if (so.undelivered > 0 && connected && !drained)  // connected, but the host stopped reading
+      so.error = "the host did not take the stream (" + std::to_string(left) +
+                 " bytes still queued after 2 s, stripes unacknowledged)";
+    else if (so.undelivered > 0 && so.error.empty())
+      so.error = "not connected";
+    if (hold) {
+      char text[msg::kMaxFaultText];
+      std::snprintf(text, sizeof text, "%s: %u of %u stripes undelivered to %s: %s",
+                    fw::to_string(fw::FaultCode::StripesDropped), so.undelivered, so.produced,
+                    cfg.stream.c_str(), so.error.c_str());
+      hold->finish_recording(so.undelivered, text);
+    }
+  }
   if (file) file->close();
-  // Hand the last frames (the final stripes and ScanEnd) to the host before the process exits.
-  if (tcp && !tcp->drain(2'000'000'000))
-    std::fprintf(stderr, "%s: warning: the host did not take the last frames within 2 s\n",
-                 fw::program_name());
 
-  print_report(rep, cfg, virtual_time, file.get());
-  return rep.state == fw::State::Done ? 0 : 2;
+  print_report(rep, cfg, virtual_time, file.get(), so);
+  if (rep.state != fw::State::Done) return 2;
+  return so.undelivered > 0 ? kExitUndelivered : 0;
 }
 
 }  // namespace

@@ -61,6 +61,8 @@ void Controller::start() {
   started_ = true;
   finished_ = false;
   report_ = LoopReport{};
+  prev_tick_ = last_tick_ = now;
+  line_on_at_tick_ = false;
   dev_.laser.force_off();
   msg::ScanBegin b;
   b.scan_id = cfg_.scan_id;
@@ -91,25 +93,66 @@ void Controller::set_laser(bool on, Nanos now) {
   }
 }
 
-void Controller::warn(FaultCode code, Nanos now, const char* detail) {
-  (void)now;
+int format_laser_off(char* buf, std::size_t n, const FaultEvent& e, Nanos period) {
+  if (e.laser_still_emitting)
+    return std::snprintf(buf, n, "laser line still emitting after the off command (period %.2f ms)",
+                         static_cast<double>(period) / 1e6);
+  if (e.laser_already_off)
+    return std::snprintf(buf, n, "laser already off (period %.2f ms)", static_cast<double>(period) / 1e6);
+  return std::snprintf(buf, n, "laser off after %.2f ms (period %.2f ms)",
+                       static_cast<double>(e.latency_ns) / 1e6, static_cast<double>(period) / 1e6);
+}
+
+bool Controller::line_emitting() const {
+  bool emitting = false;
+  if (dev_.laser.monitor(emitting)) return emitting;
+  return dev_.laser.is_on();
+}
+
+FaultEvent* Controller::new_event(FaultCode code, Nanos now) {
   ++report_.fault_count;
+  if (report_.fault_events_n >= report_.fault_events.size()) return nullptr;
+  FaultEvent& e = report_.fault_events[report_.fault_events_n++];
+  e = FaultEvent{};
+  e.code = code;
+  e.time = now;
+  e.onset = now;
+  e.step = step_;
+  e.state = report_.state;
+  return &e;
+}
+
+void Controller::warn(FaultCode code, Nanos now, const char* detail) {
+  new_event(code, now);
   std::snprintf(text_.data(), text_.size(), "%s: %s", to_string(code), detail);
   pub_.fault(static_cast<std::uint32_t>(code), text_.data());
 }
 
-void Controller::fault(FaultCode code, Nanos now) {
+void Controller::fault(FaultCode code, Nanos now, Nanos onset) {
   if (report_.state == State::Fault) return;
+  // The line's state at the start of this tick (the interlock may have switched it off already) or now.
+  const bool was_on = line_on_at_tick_ || line_emitting();
   dev_.laser.set(false, now);
   dev_.laser.force_off();
   laser_on_at_ = -1;
+  const Nanos t_off = dev_.clock.now();
+  const bool still = line_emitting();
   dev_.galvo.disable();
   dev_.camera.stop();
   report_.fault = code;
   report_.fault_time = now;
-  ++report_.fault_count;
-  std::snprintf(text_.data(), text_.size(), "%s (state %s, step %u)", to_string(code),
-                to_string(report_.state), step_);
+  FaultEvent scratch;
+  FaultEvent* e = new_event(code, now);
+  if (!e) e = &scratch;
+  e->onset = onset >= 0 ? std::min(onset, now) : prev_tick_;
+  e->laser_still_emitting = still;
+  e->laser_already_off = !still && !was_on;
+  e->latency_ns = still ? -1 : (was_on ? std::max<Nanos>(0, t_off - e->onset) : 0);
+  if (!still) report_.max_laser_off_latency_ns = std::max(report_.max_laser_off_latency_ns, e->latency_ns);
+  const int n = std::snprintf(text_.data(), text_.size(), "%s (state %s, step %u): ", to_string(code),
+                              to_string(report_.state), step_);
+  if (n > 0 && static_cast<std::size_t>(n) < text_.size())
+    format_laser_off(text_.data() + n, text_.size() - static_cast<std::size_t>(n), *e, cfg_.period);
   pub_.fault(static_cast<std::uint32_t>(code), text_.data());
   report_.state = State::Fault;
   state_since_ = now;
@@ -197,13 +240,17 @@ void Controller::tick(Nanos now) {
   ++report_.ticks;
   const State st = report_.state;
   if (st == State::Done || st == State::Fault || st == State::Idle) return;
+  prev_tick_ = last_tick_;
+  last_tick_ = now;
+  line_on_at_tick_ = line_emitting();
   const GalvoStatus gs = dev_.galvo.poll(now);
 
   // ---- interlock -------------------------------------------------------------------------------------
   const bool host_ok = pub_.host_connected();
   if (!host_ok && host_lost_since_ < 0) host_lost_since_ = now;
   if (host_ok) host_lost_since_ = -1;
-  const bool dwell_exceeded = laser_on_at_ >= 0 && now - laser_on_at_ > cfg_.max_dwell;
+  const Nanos laser_on_at = laser_on_at_;  // before the interlock may switch the laser off
+  const bool dwell_exceeded = laser_on_at >= 0 && now - laser_on_at > cfg_.max_dwell;
   const bool late = consecutive_late_ > cfg_.max_consecutive_late;
   const bool host_fault =
       cfg_.require_host && host_lost_since_ >= 0 && now - host_lost_since_ >= cfg_.host_grace;
@@ -218,11 +265,12 @@ void Controller::tick(Nanos now) {
     return fault(FaultCode::LaserMonitorMismatch, now);
   if (stop_requested_.load(std::memory_order_relaxed)) return fault(FaultCode::Stopped, now);
   if (gs.fault != GalvoFault::None) return fault(fault_code_for(gs.fault), now);
-  if (late) return fault(FaultCode::DeadlineMissed, now);
-  if (dwell_exceeded) return fault(FaultCode::DwellOverrun, now);
-  if (host_fault) return fault(FaultCode::HostLost, now);
+  // The deadline limit was crossed at this tick's deadline + late_limit.
+  if (late) return fault(FaultCode::DeadlineMissed, now, deadline_ + cfg_.late_limit);
+  if (dwell_exceeded) return fault(FaultCode::DwellOverrun, now, laser_on_at + cfg_.max_dwell);
+  if (host_fault) return fault(FaultCode::HostLost, now, host_lost_since_ + cfg_.host_grace);
   if (st == State::Scanning && now - last_frame_at_ > cfg_.camera_timeout)
-    return fault(FaultCode::CameraTimeout, now);
+    return fault(FaultCode::CameraTimeout, now, last_frame_at_ + cfg_.camera_timeout);
 
   if (now - last_heartbeat_ >= cfg_.heartbeat_period) {
     last_heartbeat_ = now;
@@ -262,7 +310,7 @@ void Controller::tick(Nanos now) {
         report_.state = State::Ready;
         state_since_ = now;
       } else if (now - state_since_ > cfg_.homing_timeout) {
-        fault(FaultCode::HomeNotFound, now);
+        fault(FaultCode::HomeNotFound, now, state_since_ + cfg_.homing_timeout);
       }
       break;
     case State::Ready:
@@ -289,7 +337,7 @@ void Controller::tick(Nanos now) {
               set_laser(true, now);
             }
           } else if (now - phase_since_ > cfg_.move_timeout) {
-            fault(FaultCode::MoveTimeout, now);
+            fault(FaultCode::MoveTimeout, now, phase_since_ + cfg_.move_timeout);
           }
           break;
         case Phase::Expose:
@@ -316,10 +364,15 @@ void Controller::loop() {
 bool Controller::run_one() {
   if (report_.state == State::Done || report_.state == State::Fault) return false;
   deadline_ += cfg_.period;
+  const bool sleeps = dev_.clock.now() < deadline_;
   dev_.clock.sleep_until(deadline_);
   const Nanos now = dev_.clock.now();
   const Nanos lateness = now - deadline_;
   record_lateness(lateness);
+  if (sleeps)
+    report_.wakeup.add(lateness);
+  else
+    ++report_.ticks_without_sleep;
   if (lateness >= cfg_.period) deadline_ += (lateness / cfg_.period) * cfg_.period;  // skip missed periods
   tick(now);
   return report_.state != State::Done && report_.state != State::Fault;
@@ -329,6 +382,14 @@ void Controller::finish() {
   if (finished_) return;
   finished_ = true;
   const Nanos now = dev_.clock.now();
+  // A line that stuck on at the last switch-on is not seen by a later tick (the scan went Done in the tick
+  // that switched it off): check the line once more, the scan ends in the fault then.
+  bool emitting = false;
+  if (report_.state != State::Fault && dev_.laser.monitor(emitting) && emitting) {
+    prev_tick_ = last_tick_;
+    line_on_at_tick_ = true;
+    fault(FaultCode::LaserMonitorMismatch, now);
+  }
   dev_.laser.set(false, now);
   dev_.laser.force_off();
   dev_.galvo.disable();

@@ -62,6 +62,23 @@ struct Devices {
   Camera& camera;
 };
 
+// One fault as the loop saw it. For a fatal fault, the laser-off latency is measured against the laser line's
+// state (its emission monitor when the laser has one, else the commanded level): from the fault's onset (the
+// moment the condition arose when the loop knows it: dwell limit, camera silence, host grace, move / homing
+// timeout, deadline limit; otherwise the previous tick, the last time the loop found no fault) to the clock
+// reading after the line was read back off.
+struct FaultEvent {
+  FaultCode code = FaultCode::None;
+  Nanos time = 0;   // tick that raised it
+  Nanos onset = 0;  // see above
+  std::uint32_t step = 0;
+  State state = State::Idle;  // state when raised
+  // Fatal faults: the line was already off at the onset / still emitting after the off command (stuck) /
+  // otherwise off after latency_ns. Warnings do not touch the laser (latency_ns = -1).
+  bool laser_already_off = false, laser_still_emitting = false;
+  Nanos latency_ns = -1;
+};
+
 // Everything the loop measured, also sent in ScanEnd.
 struct LoopReport {
   State state = State::Idle;
@@ -73,10 +90,25 @@ struct LoopReport {
   std::uint32_t overruns = 0;
   std::uint64_t ticks = 0;
   LatenessHistogram lateness;
+  // The ticks whose thread slept until the deadline (the previous tick had finished before it): their
+  // lateness is the wake-up latency alone, what cyclictest measures. The others started late because the
+  // previous tick's work ran past the deadline (counted in ticks_without_sleep, included in `lateness`).
+  LatenessHistogram wakeup;
+  std::uint64_t ticks_without_sleep = 0;
   Nanos extract_total_ns = 0, extract_max_ns = 0;
   std::uint32_t extractions = 0;
+  // The first kMaxFaultEvents faults (fatal and warnings); fault_count counts them all.
+  static constexpr std::size_t kMaxFaultEvents = 16;
+  std::array<FaultEvent, kMaxFaultEvents> fault_events{};
+  std::uint32_t fault_events_n = 0;
+  // Largest laser-off latency of the fatal faults (-1: none measured).
+  Nanos max_laser_off_latency_ns = -1;
   msg::LoopStats stats() const;
 };
+
+// "laser off after 0.50 ms (period 0.50 ms)", "laser already off", "laser line still emitting after the off
+// command": the latency part of the Fault message and the summary.
+int format_laser_off(char* buf, std::size_t n, const FaultEvent& e, Nanos period);
 
 class Controller {
  public:
@@ -105,7 +137,10 @@ class Controller {
 
  private:
   enum class Phase : std::uint8_t { Move, WaitInPosition, Expose };
-  void fault(FaultCode code, Nanos now);
+  // onset < 0: the previous tick (see FaultEvent).
+  void fault(FaultCode code, Nanos now, Nanos onset = -1);
+  bool line_emitting() const;  // the laser line's state: emission monitor, else the commanded level
+  FaultEvent* new_event(FaultCode code, Nanos now);
   void warn(FaultCode code, Nanos now, const char* detail);
   void set_laser(bool on, Nanos now);
   void account_frame(const FrameView& f, Nanos now);  // sequence gaps, camera liveness
@@ -123,6 +158,8 @@ class Controller {
   Nanos t0_ = 0, state_since_ = 0, phase_since_ = 0, laser_on_at_ = -1, last_frame_at_ = 0,
         last_heartbeat_ = 0;
   Nanos host_lost_since_ = -1;
+  Nanos prev_tick_ = 0, last_tick_ = 0;
+  bool line_on_at_tick_ = false;
   Nanos deadline_ = 0;
   Nanos homing_requested_at_ = 0;
   std::uint32_t consecutive_late_ = 0;

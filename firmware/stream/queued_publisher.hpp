@@ -49,6 +49,8 @@ class QueuedPublisher final : public Publisher {
   // Waits until everything queued has been written (or the sink failed). Rethrows a sink error.
   void flush();
   std::uint64_t frames_written() const { return written_.load(); }
+  // Stripes dropped because the ring was full (never handed to the sink).
+  std::uint32_t ring_dropped() const { return dropped_.load(); }
 
  private:
   struct Slot {

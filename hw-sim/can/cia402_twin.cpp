@@ -545,6 +545,7 @@ void Cia402Twin::advance(Nanos now) {
       const double dv = std::min(std::abs(vel_), dec * dt);
       vel_ -= std::copysign(dv, vel_);
       pos_ += vel_ * dt;
+      if (on_position_ && vel_ != 0.0) on_position_(pos_, t_);
       if (vel_ == 0.0 && state_ == DriveState::QuickStopActive) state_ = DriveState::SwitchOnDisabled;
       if (state_ != DriveState::OperationEnabled && state_ != DriveState::QuickStopActive) break;
       continue;
@@ -576,6 +577,9 @@ void Cia402Twin::advance(Nanos now) {
       vel_ = 0.0;
       reached_ = true;
     }
+    // The mirror follows the motor along its trajectory (each sub-step at its own time), not only at the
+    // polls: a poll long after the landing must not look like a jump of the motor at the poll's time.
+    if (on_position_) on_position_(pos_, t_);
   }
 }
 

@@ -42,6 +42,8 @@ class Cia402Twin {
   Cia402Twin(int fd, fw::Clock& clock, const Cia402TwinConfig& cfg = {});
 
   void poll();
+  // Called with the motor position at every motion sub-step while it moves (at the sub-step's own time, so a
+  // mirror fed from it follows the trajectory even when polls are far apart) and at the end of every poll().
   void set_position_callback(PositionCallback cb) { on_position_ = std::move(cb); }
 
   // --- fault injection ---

@@ -153,6 +153,93 @@ TEST(TcpSink, HostHeartbeatTimeout) {
   }
 }
 
+// Waits (bounded) until pred() holds; the assertions are on the state, not on the time taken.
+template <class P>
+bool eventually(P pred) {
+  for (int i = 0; i < 1000 && !pred(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  return pred();
+}
+
+TEST(TcpSink, CountsStripesTheHostAcknowledged) {
+  Listener l;
+  TcpSink sink(l.address(), fast());
+  const int c = l.accept_within(3000);
+  ASSERT_GE(c, 0);
+  for (std::uint32_t i = 0; i < 20; ++i) sink.write(stripe_frame(i));
+  sink.write(heartbeat_frame(0));  // not a stripe: not counted
+  // The host reads everything.
+  std::vector<std::uint8_t> buf(1 << 16);
+  std::size_t got = 0;
+  const std::size_t want = 20 * stripe_frame(0).size() + heartbeat_frame(0).size();
+  while (got < want) {
+    const ssize_t n = recv(c, buf.data(), buf.size(), 0);
+    ASSERT_GT(n, 0);
+    got += static_cast<std::size_t>(n);
+  }
+  EXPECT_TRUE(sink.drain(2'000'000'000));
+  sink.close();
+  EXPECT_EQ(sink.stripes_written(), 20u);
+  EXPECT_EQ(sink.stripes_delivered(), 20u);
+  EXPECT_EQ(sink.stripes_lost_in_flight(), 0u);
+  EXPECT_EQ(sink.last_error(), "");
+  close(c);
+}
+
+TEST(TcpSink, HostThatNeverReadsDoesNotGetEveryStripe) {
+  Listener l;
+  TcpSink sink(l.address(), fast());
+  const int c = l.accept_within(3000);
+  ASSERT_GE(c, 0);
+  // 8 MB of stripes: more than the socket buffers on both sides hold.
+  const std::uint32_t n = static_cast<std::uint32_t>((8u << 20) / stripe_frame(0).size()) + 1;
+  for (std::uint32_t i = 0; i < n; ++i) sink.write(stripe_frame(i));
+  EXPECT_FALSE(sink.drain(300'000'000));
+  sink.close();
+  EXPECT_EQ(sink.stripes_written(), n);
+  EXPECT_LT(sink.stripes_delivered(), n);
+  EXPECT_GT(sink.buffered_bytes(), 0u);
+  close(c);
+}
+
+TEST(TcpSink, NamesTheLinkError) {
+  {  // nothing listens on the port: connection refused, naming HOST:PORT
+    std::uint16_t port = 0;
+    {
+      Listener l;
+      port = l.port;
+    }
+    const std::string addr = "127.0.0.1:" + std::to_string(port);
+    TcpSink sink(addr, fast());
+    sink.write(stripe_frame(0));
+    EXPECT_TRUE(eventually([&] { return !sink.last_error().empty(); }));
+    sink.close();
+    EXPECT_EQ(sink.last_error(), "cannot connect to " + addr + ": Connection refused");
+    EXPECT_EQ(sink.stripes_delivered(), 0u);
+    EXPECT_EQ(sink.stripes_written(), 1u);
+  }
+  {  // a name that does not resolve (RFC 6761: .invalid never does): the resolver's message, naming the host
+    EXPECT_EQ(resolve_error("127.0.0.1", 5555), "");
+    const std::string e = resolve_error("nosuchhost.invalid", 5555);
+    EXPECT_EQ(e.rfind("cannot resolve host 'nosuchhost.invalid': ", 0), 0u) << e;
+    TcpSink sink("nosuchhost.invalid:5555", fast());
+    EXPECT_TRUE(eventually([&] { return !sink.last_error().empty(); }));
+    sink.close();
+    EXPECT_EQ(sink.last_error().rfind("cannot resolve host 'nosuchhost.invalid': ", 0), 0u)
+        << sink.last_error();
+  }
+  {  // the host hangs up: the loss is named
+    Listener l;
+    TcpSink sink(l.address(), fast());
+    const int c = l.accept_within(3000);
+    ASSERT_GE(c, 0);
+    close(c);
+    EXPECT_TRUE(eventually([&] { return !sink.last_error().empty(); }));
+    sink.close();
+    EXPECT_EQ(sink.last_error().rfind("connection to " + l.address() + " lost: ", 0), 0u)
+        << sink.last_error();
+  }
+}
+
 TEST(TcpSink, RejectsBadAddress) {
   std::string h;
   std::uint16_t p = 0;
