@@ -9,5 +9,6 @@ void add_graph_commands(CLI::App& app);      // graph                        (ho
 void add_library_commands(CLI::App& app);    // library build|list|polycubes (host/cli/library_commands.cpp)
 void add_match_commands(CLI::App& app);      // isomorphisms, match          (host/cli/match_commands.cpp)
 void add_recognize_commands(CLI::App& app);  // recognize, serve, demo       (host/cli/recognize_commands.cpp)
+void add_fleet_commands(CLI::App& app);  // worker, results, submit, fleet-setup (host/cli/fleet_commands.cpp)
 
 }  // namespace fs::host::cli

@@ -17,6 +17,7 @@ int main(int argc, char** argv) {
   fs::host::cli::add_library_commands(app);
   fs::host::cli::add_match_commands(app);
   fs::host::cli::add_recognize_commands(app);
+  fs::host::cli::add_fleet_commands(app);
   if (app.get_subcommands({}).empty()) app.require_subcommand(0);
   try {
     app.parse(argc, argv);

@@ -1,0 +1,48 @@
+#pragma once
+// Names of the fleet: streams, subjects, message ids (docs/fleet.md#subjects-and-ids).
+#include <cstdint>
+#include <string>
+#include <string_view>
+
+namespace fs::host::fleet {
+
+inline constexpr const char* kScansStream = "SCANS";        // work queue of .fscan images
+inline constexpr const char* kResultsStream = "RESULTS";    // recognition results (JSON)
+inline constexpr const char* kDeadStream = "DEAD";          // scans that failed MaxDeliver times
+inline constexpr const char* kWorkersConsumer = "workers";  // the durable pull consumer all workers share
+inline constexpr const char* kScansPrefix = "facetscan.scans.";
+inline constexpr const char* kResultsPrefix = "facetscan.results.";
+inline constexpr const char* kDeadPrefix = "facetscan.dead.";
+
+// Message headers (besides JetStream's Nats-Msg-Id).
+inline constexpr const char* kHeaderScanId = "Facetscan-Scan-Id";
+inline constexpr const char* kHeaderScanner = "Facetscan-Scanner";
+inline constexpr const char* kHeaderStatus = "Facetscan-Scan-Status";  // complete | partial status name
+inline constexpr const char* kHeaderReason = "Facetscan-Reason";       // dead letters
+
+// A scanner id is one subject token (and one MQTT topic level): 1..64 of [A-Za-z0-9_-]. Throws fs::Error
+// naming `what` otherwise (ids are checked, never rewritten: two scanners must not map to one subject).
+void check_scanner_id(std::string_view id, const char* what = "scanner id");
+
+// The fleet-wide id of a scan: "<scanner-id>-<scan id>-<start time ns>-<CRC-32C of the image, 8 hex>" (the
+// ScanBegin's scan id and start time). It is the SCANS message id (a re-sent scan, byte for byte the same, is
+// stored once) and the RESULTS message id (a redelivered scan yields one result). The checksum keeps two
+// different scans with the same scan id and start time apart (a scanner whose counter and clock restarted;
+// every hw-sim recording on virtual time is scan 1 at t = 1 s): without it the second would be dropped as a
+// duplicate.
+std::string scan_message_id(std::string_view scanner_id, std::uint64_t scan_id, std::int64_t start_time_ns,
+                            std::uint32_t image_crc);
+
+inline std::string scans_subject(std::string_view scanner_id) {
+  return std::string(kScansPrefix) + std::string(scanner_id);
+}
+inline std::string results_subject(std::string_view scanner_id) {
+  return std::string(kResultsPrefix) + std::string(scanner_id);
+}
+inline std::string dead_subject(std::string_view scanner_id) {
+  return std::string(kDeadPrefix) + std::string(scanner_id);
+}
+// The scanner id of a subject "<prefix><id>", or "" when the subject does not start with prefix.
+std::string scanner_of_subject(std::string_view subject, std::string_view prefix);
+
+}  // namespace fs::host::fleet

@@ -1,0 +1,65 @@
+#pragma once
+// One connection to the NATS server (or cluster) and its JetStream context, with the transport policy:
+// TLS (tls://) on every non-loopback connection; plain nats:// to a non-loopback host is refused unless
+// `insecure` (--insecure) is set. The connection reconnects by itself (forever, every 250 ms); JetStream
+// calls made meanwhile fail with a timeout and the callers retry.
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <nats/nats.h>
+
+namespace fs::host::fleet {
+
+struct NatsOptions {
+  std::string url;  // nats://HOST:PORT or tls://HOST:PORT, comma-separated for a cluster; user:pass@ allowed
+  bool insecure = false;  // allow plain nats:// to a non-loopback host
+  std::string ca_file;    // TLS: CA certificate(s) that signed the server's certificate
+  std::string cert_file;  // TLS: client certificate (mutual TLS), with key_file
+  std::string key_file;
+  std::string user;      // empty: $FACETSCAN_NATS_USER (or the URL's user:pass@)
+  std::string password;  // empty: $FACETSCAN_NATS_PASSWORD
+  std::string name;      // client name shown by the server's monitoring
+  int connect_timeout_ms = 5000;
+  std::int64_t js_wait_ms = 10000;  // JetStream API / publish acknowledgement timeout
+};
+
+struct ServerUrl {
+  std::string raw;     // the entry as given (with user:pass@ when present)
+  std::string scheme;  // "nats" or "tls"
+  std::string host;    // without brackets
+  int port = 4222;
+};
+// Parses a URL list; throws fs::Error on a malformed entry.
+std::vector<ServerUrl> parse_server_urls(const std::string& urls);
+bool is_loopback_host(const std::string& host);
+// Throws fs::Error when a URL names a non-loopback host without tls:// and `insecure` is not set.
+void check_transport_policy(const std::string& urls, bool insecure);
+
+// The text of a failed NATS call: "<what>: <status text> (<last error>)" and the JetStream error code.
+std::string nats_error_text(natsStatus s, const std::string& what, jsErrCode err = static_cast<jsErrCode>(0));
+[[noreturn]] void throw_nats(natsStatus s, const std::string& what,
+                             jsErrCode err = static_cast<jsErrCode>(0));
+
+class NatsConnection {
+ public:
+  explicit NatsConnection(const NatsOptions& options);
+  ~NatsConnection();
+  NatsConnection(const NatsConnection&) = delete;
+  NatsConnection& operator=(const NatsConnection&) = delete;
+
+  natsConnection* get() const { return nc_; }
+  jsCtx* js() const { return js_; }
+  const NatsOptions& options() const { return options_; }
+  // The server's max_payload (bytes): the largest message it accepts.
+  std::int64_t max_payload() const;
+  bool connected() const;
+  std::string connected_url() const;
+
+ private:
+  NatsOptions options_;
+  natsConnection* nc_ = nullptr;
+  jsCtx* js_ = nullptr;
+};
+
+}  // namespace fs::host::fleet

@@ -1,0 +1,70 @@
+#include "host/fleet/results_client.hpp"
+
+#include <fmt/format.h>
+
+#include "common/error.hpp"
+#include "host/fleet/ids.hpp"
+
+namespace fs::host::fleet {
+
+namespace {
+
+std::string header(natsMsg* m, const char* key) {
+  const char* v = nullptr;
+  if (natsMsgHeader_Get(m, key, &v) != NATS_OK || v == nullptr) return {};
+  return v;
+}
+
+}  // namespace
+
+ResultsReader::ResultsReader(NatsConnection& connection, Source source, const std::string& scanner_id) {
+  const bool dead = source == Source::Dead;
+  const char* stream = dead ? kDeadStream : kResultsStream;
+  if (!scanner_id.empty()) check_scanner_id(scanner_id);
+  const std::string subject = scanner_id.empty()
+                                  ? std::string(dead ? kDeadPrefix : kResultsPrefix) + ">"
+                                  : (dead ? dead_subject(scanner_id) : results_subject(scanner_id));
+  jsStreamInfo* si = nullptr;
+  jsErrCode err = static_cast<jsErrCode>(0);
+  natsStatus st = js_GetStreamInfo(&si, connection.js(), stream, nullptr, &err);
+  if (st != NATS_OK) throw_nats(st, fmt::format("NATS stream {}", stream), err);
+  stored_at_start_ = si->State.Msgs;
+  jsStreamInfo_Destroy(si);
+  jsSubOptions so;
+  jsSubOptions_Init(&so);
+  so.Stream = stream;
+  so.Ordered = true;
+  so.Config.DeliverPolicy = js_DeliverAll;
+  st = js_SubscribeSync(&sub_, connection.js(), subject.c_str(), nullptr, &so, &err);
+  if (st != NATS_OK) throw_nats(st, fmt::format("read {} ({})", stream, subject), err);
+}
+
+ResultsReader::~ResultsReader() {
+  if (sub_ != nullptr) {
+    natsSubscription_Unsubscribe(sub_);
+    natsSubscription_Destroy(sub_);
+  }
+}
+
+std::optional<FleetResult> ResultsReader::next(std::int64_t timeout_ms) {
+  natsMsg* m = nullptr;
+  const natsStatus st = natsSubscription_NextMsg(&m, sub_, timeout_ms);
+  if (st == NATS_TIMEOUT) return std::nullopt;
+  if (st != NATS_OK) throw_nats(st, "read results");
+  FleetResult r;
+  r.subject = natsMsg_GetSubject(m);
+  r.scan_id = header(m, kHeaderScanId);
+  r.scanner_id = header(m, kHeaderScanner);
+  r.reason = header(m, kHeaderReason);
+  r.body.assign(natsMsg_GetData(m), static_cast<std::size_t>(natsMsg_GetDataLength(m)));
+  jsMsgMetaData* meta = nullptr;
+  if (natsMsg_GetMetaData(&meta, m) == NATS_OK) {
+    r.sequence = meta->Sequence.Stream;
+    r.pending = meta->NumPending;
+    jsMsgMetaData_Destroy(meta);
+  }
+  natsMsg_Destroy(m);
+  return r;
+}
+
+}  // namespace fs::host::fleet
