@@ -61,23 +61,31 @@ LoadInfo load_cloud(const std::string& path, OrganizedCloud& out, const LoadOpti
   } else if (ext == ".fscan") {
     Scan scan;
     load_scan(path, scan, options.limits);
-    TriangulationOptions to = options.triangulation;
-    to.limits = options.limits;
-    Triangulator tri;
-    try {
-      tri.configure(scan.begin_message().calibration, to);
-    } catch (const Error& e) {
-      throw Error(path + ": " + e.what());
-    }
-    info.triangulation = tri.triangulate(scan, out);
-    info.format = "fscan";
-    info.complete_scan = scan.complete();
-    info.scan_status = to_string(scan.status());
-    info.stripe_points = scan.points_stored();
-    info.stripes_over_budget = scan.stripes_over_budget();
+    return triangulate_loaded_scan(scan, path, options, out);
   } else {
     throw Error(path + ": unknown point-cloud format '" + ext + "' (expected .pcd, .ply or .fscan)");
   }
+  info.valid_points = out.valid_count();
+  return info;
+}
+
+LoadInfo triangulate_loaded_scan(const Scan& scan, const std::string& name, const LoadOptions& options,
+                                 OrganizedCloud& out) {
+  LoadInfo info;
+  TriangulationOptions to = options.triangulation;
+  to.limits = options.limits;
+  Triangulator tri;
+  try {
+    tri.configure(scan.begin_message().calibration, to);
+  } catch (const Error& e) {
+    throw Error(name + ": " + e.what());
+  }
+  info.triangulation = tri.triangulate(scan, out);
+  info.format = "fscan";
+  info.complete_scan = scan.complete();
+  info.scan_status = to_string(scan.status());
+  info.stripe_points = scan.points_stored();
+  info.stripes_over_budget = scan.stripes_over_budget();
   info.valid_points = out.valid_count();
   return info;
 }

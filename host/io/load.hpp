@@ -42,6 +42,10 @@ struct LoadInfo {
 
 // Throws fs::Error naming the file (and byte offset) for unreadable or malformed input.
 LoadInfo load_cloud(const std::string& path, OrganizedCloud& out, const LoadOptions& options = {});
+// The .fscan part of load_cloud: triangulates a scan already read (from a file or an image named `name`) with
+// its ScanBegin's calibration.
+LoadInfo triangulate_loaded_scan(const Scan& scan, const std::string& name, const LoadOptions& options,
+                                 OrganizedCloud& out);
 
 // The segmentation profile (seg::SegmentParams::by_name) that suits a loaded input: "laser" for scans and for
 // clouds in millimetres (e.g. a scan exported to PLY/PCD by `facetscan export`), "kinect" for clouds in

@@ -81,17 +81,21 @@ void ScanAssembler::end_of_stream(ScanStatus why) {
 
 namespace {
 
-void feed_scan_file(const std::string& path, ScanAssembler& assembler) {
-  ScanFileReader reader{std::filesystem::path(path)};
+void feed_scan_file(ScanFileReader& reader, const std::string& name, ScanAssembler& assembler) {
   wire::DecodedMessage m;
   while (reader.next(m)) {
     try {
       assembler.on_message(m);
     } catch (const Error& e) {
-      throw error_at_offset(path, m.offset, e.what());
+      throw error_at_offset(name, m.offset, e.what());
     }
   }
   assembler.end_of_stream();
+}
+
+void feed_scan_file(const std::string& path, ScanAssembler& assembler) {
+  ScanFileReader reader{std::filesystem::path(path)};
+  feed_scan_file(reader, path, assembler);
 }
 
 }  // namespace
@@ -109,7 +113,7 @@ std::size_t read_scan_file(const std::string& path, const ScanAssembler::Callbac
   return n;
 }
 
-void load_scan(const std::string& path, Scan& out, const ScanLimits& limits) {
+void load_first_scan(ScanFileReader& reader, const std::string& name, Scan& out, const ScanLimits& limits) {
   // The first scan is moved out of the assembler when it is delivered (no second copy of its points; the
   // assembler goes on with a fresh Scan); later scans in the file are read (validated) but not kept.
   bool kept = false;
@@ -123,8 +127,13 @@ void load_scan(const std::string& path, Scan& out, const ScanLimits& limits) {
       },
       limits);
   self = &assembler;
-  feed_scan_file(path, assembler);
-  if (!kept) throw Error(path + ": no scan in the file (no ScanBegin)");
+  feed_scan_file(reader, name, assembler);
+  if (!kept) throw Error(name + ": no scan in the file (no ScanBegin)");
+}
+
+void load_scan(const std::string& path, Scan& out, const ScanLimits& limits) {
+  ScanFileReader reader{std::filesystem::path(path)};
+  load_first_scan(reader, path, out, limits);
 }
 
 }  // namespace fs::host

@@ -10,6 +10,10 @@
 #include "common/wire.hpp"
 #include "host/io/scan.hpp"
 
+namespace fs {
+class ScanFileReader;
+}
+
 namespace fs::host {
 
 struct AssemblerStats {
@@ -56,5 +60,8 @@ std::size_t read_scan_file(const std::string& path, const ScanAssembler::Callbac
                            const ScanLimits& limits = {});
 // The first scan of a .fscan file into `out` (moved, not copied); throws when the file has no scan.
 void load_scan(const std::string& path, Scan& out, const ScanLimits& limits = {});
+// The same for any .fscan reader (a file or an image in memory); `name` labels its errors.
+void load_first_scan(ScanFileReader& reader, const std::string& name, Scan& out,
+                     const ScanLimits& limits = {});
 
 }  // namespace fs::host

@@ -5,9 +5,8 @@
 
 namespace fs::host {
 
-void write_scan_file(const std::filesystem::path& path, const Scan& scan) {
-  ScanFileWriter file(path);
-  wire::FrameWriter w(file);
+void write_scan_frames(wire::FrameSink& sink, const Scan& scan) {
+  wire::FrameWriter w(sink);
   w.send(scan.begin_message());
   for (std::uint32_t k = 0; k < scan.slot_count(); ++k) {
     if (!scan.has_stripe(k)) continue;
@@ -19,6 +18,11 @@ void write_scan_file(const std::filesystem::path& path, const Scan& scan) {
     w.send(m);
   }
   if (scan.has_end()) w.send(scan.end_message());
+}
+
+void write_scan_file(const std::filesystem::path& path, const Scan& scan) {
+  ScanFileWriter file(path);
+  write_scan_frames(file, scan);
   file.close();
 }
 

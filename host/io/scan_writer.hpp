@@ -6,9 +6,13 @@
 #include <filesystem>
 
 #include "common/messages.hpp"
+#include "common/wire.hpp"
 #include "host/io/scan.hpp"
 
 namespace fs::host {
+
+// The frames of a scan (ScanBegin, the kept stripes in step order, ScanEnd when it has one) into a sink.
+void write_scan_frames(wire::FrameSink& sink, const Scan& scan);
 
 // Writes `scan` to `path` (created / truncated). Throws fs::Error naming the path on I/O errors.
 void write_scan_file(const std::filesystem::path& path, const Scan& scan);
