@@ -41,8 +41,10 @@ rm -f "$out/server.csr"
 
 if [ ! -f "$out/passwords.env" ]; then
   {
+    # nats-server parses an environment variable's value as a config value: hex starting with a digit would be
+    # read as a number (and "1e5..." as a float), so every password starts with letters.
     for user in ADMIN GATEWAY WORKER SHOPFLOOR CLIENT; do
-      echo "FACETSCAN_${user}_PASSWORD=$(openssl rand -hex 16)"
+      echo "FACETSCAN_${user}_PASSWORD=pw$(openssl rand -hex 16)"
     done
   } >"$out/passwords.env"
 fi
