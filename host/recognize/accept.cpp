@@ -112,9 +112,7 @@ bool Recognizer::Impl::accept_objects(Recognizer& rz, Scan& scan, int round, Rec
       for (std::size_t k = 0; k < out.objects.size() && replace; ++k) {
         const Hypothesis& o = out.objects[k];
         const double own = static_cast<double>(o.inlier_cells.size());
-        const bool conflicting = conflict_faces[k] > 0 || interpenetrates(params, k) ||
-                                 static_cast<double>(conflict_cells[k]) > 0.1 * own;
-        if (!conflicting) continue;
+        if (!conflicts_with(params, k, out)) continue;
         ++conflicts;
         replace = h.verify.confidence >= o.verify.confidence - params.alternative_confidence &&
                   static_cast<double>(conflict_cells[k]) >= params.replace_cover * own;
@@ -132,11 +130,7 @@ bool Recognizer::Impl::accept_objects(Recognizer& rz, Scan& scan, int round, Rec
         continue;
       }
       for (std::size_t k = out.objects.size(); k-- > 0;) {
-        const Hypothesis& o = out.objects[k];
-        const bool conflicting =
-            conflict_faces[k] > 0 || interpenetrates(params, k) ||
-            static_cast<double>(conflict_cells[k]) > 0.1 * static_cast<double>(o.inlier_cells.size());
-        if (conflicting) {
+        if (conflicts_with(params, k, out)) {
           remove_object(out, k);
           ++out.stats.replaced;
         }

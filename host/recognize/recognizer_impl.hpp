@@ -86,6 +86,13 @@ struct Recognizer::Impl {
   bool interpenetrates(const RecognizeParams& p, std::size_t k) const {
     return conflict_depth[k] > p.interpenetration_mm && conflict_share[k] > p.interpenetration_share;
   }
+  // The measured hypothesis conflicts with accepted object k: a shared scene face, interpenetrating solids,
+  // or more than a tenth of k's inlier points (the objects a replacement would replace).
+  bool conflicts_with(const RecognizeParams& p, std::size_t k, const Recognition& out) const {
+    return conflict_faces[k] > 0 || interpenetrates(p, k) ||
+           static_cast<double>(conflict_cells[k]) >
+               0.1 * static_cast<double>(out.objects[k].inlier_cells.size());
+  }
   // Removes accepted object k (its cells and faces are free again; its buffers go back to the spare pool).
   void remove_object(Recognition& out, std::size_t k);
   // Matching context.
