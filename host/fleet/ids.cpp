@@ -1,5 +1,9 @@
 #include "host/fleet/ids.hpp"
 
+#include <zlib.h>
+
+#include <algorithm>
+
 #include <fmt/format.h>
 
 #include "common/error.hpp"
@@ -20,9 +24,20 @@ void check_scanner_id(std::string_view id, const char* what) {
   }
 }
 
+std::uint32_t image_digest(std::span<const std::uint8_t> image) {
+  uLong crc = crc32(0L, Z_NULL, 0);
+  // zlib takes at most UINT_MAX bytes per call.
+  for (std::size_t at = 0; at < image.size();) {
+    const auto n = static_cast<uInt>(std::min<std::size_t>(image.size() - at, 1u << 30));
+    crc = crc32(crc, image.data() + at, n);
+    at += n;
+  }
+  return static_cast<std::uint32_t>(crc);
+}
+
 std::string scan_message_id(std::string_view scanner_id, std::uint64_t scan_id, std::int64_t start_time_ns,
-                            std::uint32_t image_crc) {
-  return fmt::format("{}-{}-{}-{:08x}", scanner_id, scan_id, start_time_ns, image_crc);
+                            std::span<const std::uint8_t> image) {
+  return fmt::format("{}-{}-{}-{:08x}", scanner_id, scan_id, start_time_ns, image_digest(image));
 }
 
 std::string scanner_of_subject(std::string_view subject, std::string_view prefix) {

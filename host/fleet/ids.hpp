@@ -1,6 +1,7 @@
 #pragma once
 // Names of the fleet: streams, subjects, message ids (docs/fleet.md#subjects-and-ids).
 #include <cstdint>
+#include <span>
 #include <string>
 #include <string_view>
 
@@ -24,14 +25,18 @@ inline constexpr const char* kHeaderReason = "Facetscan-Reason";       // dead l
 // naming `what` otherwise (ids are checked, never rewritten: two scanners must not map to one subject).
 void check_scanner_id(std::string_view id, const char* what = "scanner id");
 
-// The fleet-wide id of a scan: "<scanner-id>-<scan id>-<start time ns>-<CRC-32C of the image, 8 hex>" (the
-// ScanBegin's scan id and start time). It is the SCANS message id (a re-sent scan, byte for byte the same, is
-// stored once) and the RESULTS message id (a redelivered scan yields one result). The checksum keeps two
-// different scans with the same scan id and start time apart (a scanner whose counter and clock restarted;
-// every hw-sim recording on virtual time is scan 1 at t = 1 s): without it the second would be dropped as a
-// duplicate.
+// The fleet-wide id of a scan: "<scanner-id>-<scan id>-<start time ns>-<digest, 8 hex>" (the ScanBegin's scan
+// id and start time; image_digest of the .fscan image). It is the SCANS message id (a re-sent scan, byte for
+// byte the same, is stored once) and the RESULTS message id (a redelivered scan yields one result). The
+// digest keeps two different scans with the same scan id and start time apart (a scanner whose counter and
+// clock restarted; every hw-sim recording on virtual time is scan 1 at t = 1 s): without it the second would
+// be dropped as a duplicate.
 std::string scan_message_id(std::string_view scanner_id, std::uint64_t scan_id, std::int64_t start_time_ns,
-                            std::uint32_t image_crc);
+                            std::span<const std::uint8_t> image);
+// The digest of a .fscan image in scan ids: CRC-32 (zlib, ISO-HDLC polynomial). Not CRC-32C: every frame of
+// an image ends with the CRC-32C of its bytes, and a CRC-32C over such frames depends only on their lengths
+// (the CRC residue), so two different scans with equal frame sizes would get the same CRC-32C.
+std::uint32_t image_digest(std::span<const std::uint8_t> image);
 
 inline std::string scans_subject(std::string_view scanner_id) {
   return std::string(kScansPrefix) + std::string(scanner_id);

@@ -5,7 +5,6 @@
 
 #include <fmt/format.h>
 
-#include "common/crc32c.hpp"
 #include "common/error.hpp"
 #include "host/fleet/ids.hpp"
 #include "host/io/scan_bytes.hpp"
@@ -24,7 +23,7 @@ PublishedScan ScanPublisher::publish(std::span<const std::uint8_t> fscan, const 
                                      int retries) {
   const msg::ScanBegin begin = peek_scan_begin(fscan, "scan image");
   PublishedScan out;
-  out.message_id = scan_message_id(scanner_id_, begin.scan_id, begin.start_time_ns, crc32c(fscan));
+  out.message_id = scan_message_id(scanner_id_, begin.scan_id, begin.start_time_ns, fscan);
   out.subject = subject_;
   out.bytes = fscan.size();
   const std::int64_t max_payload = connection_.max_payload();

@@ -1,6 +1,6 @@
 #pragma once
 // Publishes completed scans (.fscan images) to the SCANS stream: subject facetscan.scans.<scanner-id>,
-// message id scan_message_id(scanner, scan id, start time, CRC-32C of the image) so that a re-sent scan is
+// message id scan_message_id(scanner, scan id, start time, digest of the image) so that a re-sent scan is
 // stored once. The gateway (`serve --nats`) calls publish() per completed scan; `facetscan submit` publishes
 // files the same way.
 //
