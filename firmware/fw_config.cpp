@@ -68,7 +68,9 @@ void apply_config_json(FwConfig& c, const std::string& text, const std::string& 
     else if (k == "steps") {
       c.loop.steps = get_num<std::uint32_t>(v, src, k, 1, 100000);
       c.steps_given = true;
-    } else if (k == "first_step")
+    } else if (k == "scan_id")
+      c.loop.scan_id = get_num<std::uint64_t>(v, src, k, 1, 4.6e18);
+    else if (k == "first_step")
       c.loop.first_step = get_num<std::int32_t>(v, src, k, -1e6, 1e6);
     else if (k == "stream_buffer_kb")
       c.stream_buffer_kb = get_num<std::uint32_t>(v, src, k, 64, 1 << 20);

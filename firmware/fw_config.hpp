@@ -3,7 +3,7 @@
 //   {
 //     "galvo": "sim" | "sim-can[:...]" | "gpio:..." | "can:...",   "camera": "sim" | "v4l2:...",
 //     "laser": "gpio:CHIP:line=L[,active_low=1]"   (a laser on its own GPIO line, e.g. with the CAN galvo)
-//     "scene": "hw-sim/scenes/cube.json",  "steps": 500,  "first_step": 0,
+//     "scene": "hw-sim/scenes/cube.json",  "steps": 500,  "first_step": 0,  "scan_id": 1,
 //     "stream": "HOST:PORT",  "record": "scan.fscan",  "rt": false,  "rt_priority": 80,  "rt_cpu": -1,
 //     "virtual_time": true,  "faults": ["galvo.stall@step=120"],
 //     "loop": {"period_us": 500, "max_dwell_ms": 40, "camera_timeout_ms": 25, "late_limit_us": 250,

@@ -263,6 +263,11 @@ int main(int argc, char** argv) {
                  "scene JSON for the simulated camera (default: the shipped default scene)")
       ->group(sim_group);
   app.add_option("--steps", steps, "number of galvo steps of the scan")->check(CLI::Range(1, 100000));
+  std::uint64_t scan_id = 1;
+  app.add_option("--scan-id", scan_id,
+                 "the scan's id in ScanBegin (default 1): a board numbers its scans, a simulated scanner "
+                 "repeating a scene gives each scan its own")
+      ->check(CLI::Range(std::uint64_t{1}, std::uint64_t{1} << 62));
   app.add_option("--stream", cfg.stream, "stream to the host HOST:PORT (reconnects with backoff)");
   app.add_option("--record", cfg.record, "record the scan to a .fscan file");
   app.add_flag("--rt", cfg.rt,
@@ -310,6 +315,7 @@ int main(int argc, char** argv) {
       cfg.loop.steps = steps;
       cfg.steps_given = true;
     }
+    if (app.count("--scan-id")) cfg.loop.scan_id = scan_id;
     if (realtime) cfg.virtual_time = false;
     if (virtual_time) cfg.virtual_time = true;
     if (check) {

@@ -41,4 +41,17 @@ TEST(FwConfigFile, DevicesLinksAndOversizedFilesAreRefused) {
   stdfs::remove_all(dir);
 }
 
+TEST(FwConfigFile, ScanIdIsTakenAndChecked) {
+  fs::fw::FwConfig cfg;
+  EXPECT_EQ(cfg.loop.scan_id, 1u);
+  fs::fw::apply_config_json(cfg, R"({"scan_id": 42})", "board.json");
+  EXPECT_EQ(cfg.loop.scan_id, 42u);
+  EXPECT_EQ(error_of([&] {
+              fs::fw::apply_config_json(cfg, R"({"scan_id": 0})", "board.json");
+            }).rfind("board.json: scan_id: out of range", 0),
+            0u);
+  EXPECT_EQ(error_of([&] { fs::fw::apply_config_json(cfg, R"({"scan_id": 2.5})", "board.json"); }),
+            "board.json: scan_id: expected an integer");
+}
+
 }  // namespace
