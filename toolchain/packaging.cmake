@@ -16,6 +16,10 @@ if(TARGET facetscan)
   install(TARGETS facetscan facetscan-fw-hil RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR} COMPONENT host)
   install(DIRECTORY ${PROJECT_SOURCE_DIR}/hw-sim/scenes/ DESTINATION ${CMAKE_INSTALL_DATAROOTDIR}/facetscan/scenes
           COMPONENT host OPTIONAL)
+  # The fleet's NATS configs, certificate script and units (docs/fleet.md): `facetscan demo --fleet` starts a
+  # nats-server from them.
+  install(DIRECTORY ${PROJECT_SOURCE_DIR}/toolchain/deploy/nats/ DESTINATION ${CMAKE_INSTALL_DATAROOTDIR}/facetscan/nats
+          COMPONENT host USE_SOURCE_PERMISSIONS)
 endif()
 
 set(CPACK_PACKAGE_NAME facetscan)

@@ -121,26 +121,6 @@ struct ResultsCli {
   bool json = false;
 };
 
-std::string summary_line(const fleet::FleetResult& r, bool dead) {
-  if (dead)
-    return fmt::format("{} {}: DEAD ({} bytes): {}", r.scanner_id, r.scan_id, r.body.size(), r.reason);
-  std::string line;
-  try {
-    const nlohmann::json j = nlohmann::json::parse(r.body);
-    line = fmt::format("{} {}: {} object(s)", r.scanner_id, r.scan_id, j.at("objects").size());
-    for (const auto& obj : j.at("objects")) {
-      const auto& t = obj.at("translation");
-      line += fmt::format("  {} ({:.1f}, {:.1f}, {:.1f}) {:.2f}", obj.at("model").get<std::string>(),
-                          t.at(0).get<double>(), t.at(1).get<double>(), t.at(2).get<double>(),
-                          obj.at("confidence").get<double>());
-    }
-    if (j.contains("worker")) line += fmt::format("  [worker {}]", j["worker"].value("id", std::string()));
-  } catch (const std::exception& e) {
-    line = fmt::format("{} {}: unreadable result ({})", r.scanner_id, r.scan_id, e.what());
-  }
-  return line;
-}
-
 void run_results(ResultsCli& o) {
   install_stop_signals();
   o.nats.name = "facetscan-results";
@@ -168,7 +148,7 @@ void run_results(ResultsCli& o) {
         std::printf("%s\n", r->body.c_str());
       }
     } else {
-      std::printf("%s\n", summary_line(*r, o.dead).c_str());
+      std::printf("%s\n", fleet::result_summary_line(*r, o.dead).c_str());
     }
     std::fflush(stdout);
     if (!o.follow && r->pending == 0) break;
@@ -231,7 +211,7 @@ void run_submit(SubmitCli& o) {
       if (it == waiting.end()) continue;  // an older result of this scanner
       const bool is_dead = reader == dead.get();
       failed += is_dead ? 1 : 0;
-      std::printf("%s: %s\n", it->second.c_str(), summary_line(*r, is_dead).c_str());
+      std::printf("%s: %s\n", it->second.c_str(), fleet::result_summary_line(*r, is_dead).c_str());
       std::fflush(stdout);
       waiting.erase(it);
       progress.update(total - waiting.size(), r->scan_id);

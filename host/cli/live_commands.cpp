@@ -28,8 +28,10 @@
 
 #include "common/byte_size.hpp"
 #include "common/error.hpp"
+#include "host/cli/fleet_demo.hpp"
 #include "host/cli/memory_budget.hpp"
 #include "host/cli/progress.hpp"
+#include "host/fleet/gateway.hpp"
 #include "host/io/scan.hpp"
 #include "host/io/scan_limits.hpp"
 #include "host/io/scan_writer.hpp"
@@ -205,6 +207,12 @@ class ScanHandler {
   int failed() const { return failed_; }
   int refused_count() const { return refused_; }
   int stopped() const { return stopped_; }
+  // A scan that could not be handled elsewhere (the gateway could not spool it): a failed result with its
+  // scan.fscan kept.
+  void failed(const Scan& scan, const std::string& reason) {
+    ++scans_;
+    fail(scan, reason);
+  }
   // Stripe points triangulated but not kept in the depth map (another point of the stripe in the same row).
   std::uint64_t shared_cell_points() const { return shared_cell_; }
   int last_objects() const { return last_objects_; }
@@ -424,6 +432,12 @@ struct ServeOptions {
   std::string test_pause_file;  // hidden test hook, see ScanHandler::set_pause_file
   bool quiet = false;
   WebCliOptions web;
+  // --nats: the gateway (docs/fleet.md#gateway) publishes every scan to the fleet instead of recognizing it.
+  fleet::NatsOptions nats;
+  std::string scanner;  // empty: one id per scanner address
+  std::string spool_dir = "facetscan-spool";
+  std::string spool_max = "2GiB";
+  double drain_s = 5.0;
 };
 
 // The output folder, checked before anything listens or scans: created when missing; a path that is a file
@@ -449,6 +463,45 @@ void log_notice(const std::string& peer, const std::string& what) {
   emit(stdout, fmt::format("facetscan serve: {}: {}\n", peer, what));
 }
 
+// serve --nats: the gateway's options (docs/fleet.md#gateway).
+void add_gateway_options(CLI::App* serve, ServeOptions& so) {
+  const char* group = "Gateway (--nats: publish every scan to the fleet instead of recognizing it)";
+  serve
+      ->add_option("--nats", so.nats.url,
+                   "NATS server URL(s) of the fleet: nats://HOST:4222 (loopback) or tls://HOST:4222, "
+                   "comma-separated for a cluster; user and password from $FACETSCAN_NATS_USER / "
+                   "$FACETSCAN_NATS_PASSWORD")
+      ->group(group);
+  serve->add_flag("--insecure", so.nats.insecure, "Allow plain-text nats:// to a non-loopback server")
+      ->group(group);
+  serve->add_option("--nats-ca", so.nats.ca_file, "TLS: CA certificate that signed the server's certificate")
+      ->group(group);
+  serve->add_option("--nats-cert", so.nats.cert_file, "TLS: client certificate (mutual TLS)")->group(group);
+  serve->add_option("--nats-key", so.nats.key_file, "TLS: client key (mutual TLS)")->group(group);
+  serve
+      ->add_option("--scanner", so.scanner,
+                   "Scanner id of every scan (subject facetscan.scans.ID); default: one id per scanner "
+                   "address, e.g. 10-0-3-17")
+      ->group(group);
+  serve
+      ->add_option(
+          "--spool", so.spool_dir,
+          "Disk spool: every scan is kept here until the stream has stored it (also across restarts)")
+      ->capture_default_str()
+      ->group(group);
+  serve
+      ->add_option("--spool-max", so.spool_max,
+                   "Spool bound; when full the scanners are held (TCP back-pressure), nothing is dropped")
+      ->capture_default_str()
+      ->group(group);
+  serve
+      ->add_option("--nats-drain", so.drain_s,
+                   "At exit, seconds to keep sending the spool (what is left is sent at the next start)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 3600.0))
+      ->group(group);
+}
+
 // serve: the stream server's loop in this thread (accepting, reading, heartbeats, signals), recognition in a
 // processing thread fed through a bounded queue. When the queue is full the stream server holds the frame
 // that would deliver another scan (back-pressure, see stream_server.hpp). The queue takes at most 2 scans and
@@ -458,7 +511,28 @@ void run_serve(const ServeOptions& o) {
   rec::RecognizeParams params;
   params.match = match::read_params(o.params);
   const ScanLimits limits = memory_budget_limits(o.memory_budget, params.threads);
-  const Library library = load_or_build_library(o.library);
+  const bool gateway_mode = !o.nats.url.empty();
+  if (gateway_mode && !o.library.empty())
+    throw Error(
+        "serve --nats: --library is not used (the fleet's workers recognize: `facetscan worker -l ...`)");
+  if (!gateway_mode && o.library.empty())
+    throw Error("serve: --library is required (or --nats URL: the gateway)");
+  const Library library = gateway_mode ? Library{} : load_or_build_library(o.library);
+  std::unique_ptr<fleet::Gateway> gateway;
+  if (gateway_mode) {
+    fleet::GatewayOptions go;
+    go.nats = o.nats;
+    go.scanner_id = o.scanner;
+    go.spool_dir = o.spool_dir;
+    try {
+      go.spool_max_bytes = parse_byte_size(o.spool_max);
+    } catch (const Error& e) {
+      throw Error(fmt::format("--spool-max: {}", e.what()));
+    }
+    go.quiet = o.quiet;
+    go.log = [](const std::string& line) { emit(stdout, "facetscan serve: " + line + "\n"); };
+    gateway = std::make_unique<fleet::Gateway>(go);
+  }
   HandlerOptions ho;
   ho.limits = limits;
   ho.keep_scans = o.keep_scans;
@@ -514,7 +588,15 @@ void run_serve(const ServeOptions& o) {
   std::thread worker([&] {
     ScanJob job;
     while (queue.pop(job)) {
-      handler(job, stopping.load());
+      if (gateway && job.scan) {
+        try {
+          gateway->submit(*job.scan, job.peer, stopping.load());
+        } catch (const std::exception& e) {
+          handler.failed(*job.scan, fmt::format("the gateway could not spool the scan: {}", e.what()));
+        }
+      } else {
+        handler(job, stopping.load());
+      }
       Scan empty;
       handler.release_memory(job.scan ? *job.scan : empty);
       job = ScanJob{};
@@ -528,10 +610,13 @@ void run_serve(const ServeOptions& o) {
   std::signal(SIGTERM, on_signal);
   if (!o.quiet)
     emit(stdout,
-         fmt::format("facetscan serve: listening on {} (port {}), {} models, memory budget {}, up to {} "
+         fmt::format("facetscan serve: listening on {} (port {}), {}, memory budget {}, up to {} "
                      "connections; Ctrl-C stops\n",
-                     o.listen, server.port(), library.models.size(), format_byte_size(limits.budget_bytes),
-                     o.max_clients));
+                     o.listen, server.port(),
+                     gateway ? fmt::format("gateway to {} (spool {}, at most {})", o.nats.url, o.spool_dir,
+                                           format_byte_size(gateway->spool().max_bytes()))
+                             : fmt::format("{} models", library.models.size()),
+                     format_byte_size(limits.budget_bytes), o.max_clients));
   tracker.update(server, true);
   while (server.poll_once(200)) {
     tracker.update(server);
@@ -553,6 +638,24 @@ void run_serve(const ServeOptions& o) {
   worker.join();
   if (web) web->stop();
   g_server = nullptr;
+  if (gateway) {
+    const std::size_t left =
+        gateway->stop(std::chrono::milliseconds(static_cast<std::int64_t>(o.drain_s * 1000)));
+    const fleet::GatewayStats gs = gateway->stats();
+    std::string text =
+        fmt::format("facetscan serve: gateway: {} scan(s) received, {} published", gs.received, gs.published);
+    if (gs.duplicates > 0) text += fmt::format(", {} already stored", gs.duplicates);
+    if (gs.outages > 0)
+      text += fmt::format(", {} outage(s) of the server (spool peak {})", gs.outages,
+                          format_byte_size(gs.spool_peak_bytes));
+    if (left > 0)
+      text += fmt::format("; {} scan(s) ({}) left in the spool {}, sent at the next start", left,
+                          format_byte_size(gateway->spool().bytes()), gateway->spool().dir().string());
+    if (gateway->spool().rejected() > 0)
+      text += fmt::format("; {} scan(s) in {} (never publishable, see their .reason)",
+                          gateway->spool().rejected(), (gateway->spool().dir() / "rejected").string());
+    emit(stdout, text + "\n");
+  }
   if (!o.quiet) {
     const StreamServerStats& st = server.stats();
     // Failures and protocol errors only when there were any: a clean run's summary stays as it was.
@@ -576,7 +679,9 @@ void run_serve(const ServeOptions& o) {
       problems += fmt::format(", {} stripe point(s) not in the depth map (a brighter point shared the cell)",
                               handler.shared_cell_points());
     emit(stdout, fmt::format("facetscan serve: {} scan(s), {} connection(s), {} disconnect(s){}\n",
-                             handler.scans(), st.connections, st.disconnects, problems));
+                             gateway ? static_cast<int>(gateway->stats().received) + handler.scans()
+                                     : handler.scans(),
+                             st.connections, st.disconnects, problems));
     if (web)
       emit(stdout,
            fmt::format("recognition ms per scan: {:.1f}\n", fmt::join(handler.recognition_ms(), " ")));
@@ -625,6 +730,9 @@ struct DemoOptions {
   int timeout_s = 120;
   bool quiet = false;
   WebCliOptions web;
+  int fleet = 0;  // --fleet N: the fleet demo (fleet_demo.hpp)
+  int workers = 2;
+  int fleet_scans = 1;
 };
 
 int run_demo(const DemoOptions& o) {
@@ -757,8 +865,9 @@ void add_live_commands(CLI::App& app) {
   auto so = std::make_shared<ServeOptions>();
   auto* serve = app.add_subcommand("serve", "Listen for scanners and recognize every scan they stream");
   serve->add_option("--listen", so->listen, "ADDR:PORT to listen on (default 127.0.0.1:7450)");
-  serve->add_option("-l,--library", so->library, "Library: a .fslib file, or mesh files / directories")
-      ->required()
+  serve
+      ->add_option("-l,--library", so->library,
+                   "Library: a .fslib file, or mesh files / directories (required, except with --nats)")
       ->expected(1, -1);
   serve->add_option("-o,--out", so->out_dir,
                     "Write result.json and an HTML report per scan into DIR/scan-<n>-id<scan id>/");
@@ -782,6 +891,7 @@ void add_live_commands(CLI::App& app) {
   serve->add_option("--test-pause-file", so->test_pause_file)->group("");  // tests: hold processing
   serve->add_flag("-q,--quiet", so->quiet, "Print nothing per scan");
   add_web_options(serve, so->web);
+  add_gateway_options(serve, *so);
   serve->callback([so] { run_serve(*so); });
 
   auto o = std::make_shared<DemoOptions>();
@@ -809,7 +919,30 @@ void add_live_commands(CLI::App& app) {
   add_web_options(demo, o->web);
   demo->add_option("--http-wait", o->web.wait_s,
                    "With --http: wait up to S seconds for a page to open before the scan starts");
+  demo->add_option("--fleet", o->fleet,
+                   "The fleet demo: a local nats-server (shipped config), N simulated scanners each with its "
+                   "gateway (serve --nats), --workers workers; prints each scanner's results as they arrive")
+      ->check(CLI::Range(1, 16));
+  demo->add_option("--workers", o->workers, "--fleet: workers (facetscan worker)")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 16));
+  demo->add_option("--fleet-scans", o->fleet_scans, "--fleet: scans per scanner")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 1000));
   demo->callback([o] {
+    if (o->fleet > 0) {
+      FleetDemoOptions f;
+      f.scanners = o->fleet;
+      f.workers = o->workers;
+      f.scans = o->fleet_scans;
+      f.steps = o->steps;
+      f.out_dir = o->out_dir;
+      f.library = o->library;
+      f.timeout_s = o->timeout_s;
+      f.quiet = o->quiet;
+      run_fleet_demo(f);
+      return;
+    }
     const int code = run_demo(*o);
     // With an injected fault the firmware is expected to stop in its fault state.
     if (code != 0 && o->faults.empty())

@@ -132,8 +132,15 @@ NatsConnection::NatsConnection(const NatsOptions& options) : options_(options) {
     // A scan published while the connection is down waits in the reconnect buffer (up to one 8 MB scan);
     // its publish acknowledgement then times out and the caller retries with the same message id.
     check(natsOptions_SetReconnectBufSize(o, 16 * 1024 * 1024), "NATS reconnect buffer");
+    if (options.connect_in_background)
+      // With a connected callback the library connects asynchronously (without one it would retry here,
+      // forever, with MaxReconnect -1).
+      check(natsOptions_SetRetryOnFailedConnect(
+                o, true, [](natsConnection*, void*) {}, nullptr),
+            "NATS connect in background");
     const natsStatus s = natsConnection_Connect(&nc_, o);
-    if (s != NATS_OK) throw_nats(s, "cannot connect to NATS at " + options.url);
+    if (s != NATS_OK && !(options.connect_in_background && s == NATS_NOT_YET_CONNECTED))
+      throw_nats(s, "cannot connect to NATS at " + options.url);
     natsOptions_Destroy(o);
     o = nullptr;
     jsOptions jo;

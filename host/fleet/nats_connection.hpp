@@ -21,6 +21,8 @@ struct NatsOptions {
   std::string password;  // empty: $FACETSCAN_NATS_PASSWORD
   std::string name;      // client name shown by the server's monitoring
   int connect_timeout_ms = 5000;
+  // Start while the server is unreachable (the gateway): the first connection is made in the background.
+  bool connect_in_background = false;
   std::int64_t js_wait_ms = 10000;  // JetStream API / publish acknowledgement timeout
 };
 

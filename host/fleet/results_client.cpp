@@ -1,6 +1,7 @@
 #include "host/fleet/results_client.hpp"
 
 #include <fmt/format.h>
+#include <nlohmann/json.hpp>
 
 #include "common/error.hpp"
 #include "host/fleet/ids.hpp"
@@ -65,6 +66,26 @@ std::optional<FleetResult> ResultsReader::next(std::int64_t timeout_ms) {
   }
   natsMsg_Destroy(m);
   return r;
+}
+
+std::string result_summary_line(const FleetResult& r, bool dead) {
+  if (dead)
+    return fmt::format("{} {}: DEAD ({} bytes): {}", r.scanner_id, r.scan_id, r.body.size(), r.reason);
+  std::string line;
+  try {
+    const nlohmann::json j = nlohmann::json::parse(r.body);
+    line = fmt::format("{} {}: {} object(s)", r.scanner_id, r.scan_id, j.at("objects").size());
+    for (const auto& obj : j.at("objects")) {
+      const auto& t = obj.at("translation");
+      line += fmt::format("  {} ({:.1f}, {:.1f}, {:.1f}) {:.2f}", obj.at("model").get<std::string>(),
+                          t.at(0).get<double>(), t.at(1).get<double>(), t.at(2).get<double>(),
+                          obj.at("confidence").get<double>());
+    }
+    if (j.contains("worker")) line += fmt::format("  [worker {}]", j["worker"].value("id", std::string()));
+  } catch (const std::exception& e) {
+    line = fmt::format("{} {}: unreadable result ({})", r.scanner_id, r.scan_id, e.what());
+  }
+  return line;
 }
 
 }  // namespace fs::host::fleet

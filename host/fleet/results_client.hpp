@@ -38,4 +38,8 @@ class ResultsReader {
   std::uint64_t stored_at_start_ = 0;
 };
 
+// One line per result: "<scanner> <scan id>: N object(s)  model (x, y, z) confidence ...  [worker W]", or for
+// a dead letter "<scanner> <scan id>: DEAD (N bytes): reason".
+std::string result_summary_line(const FleetResult& r, bool dead = false);
+
 }  // namespace fs::host::fleet
