@@ -22,6 +22,7 @@
 #include "common/error.hpp"
 #include "common/file_list.hpp"
 #include "host/cli/commands.hpp"
+#include "host/cli/fleet_submit.hpp"
 #include "host/cli/memory_budget.hpp"
 #include "host/cli/progress.hpp"
 #include "host/fleet/ids.hpp"
@@ -49,17 +50,6 @@ void install_stop_signals() {
   sigemptyset(&sa.sa_mask);
   sigaction(SIGINT, &sa, nullptr);
   sigaction(SIGTERM, &sa, nullptr);
-}
-
-void add_nats_options(CLI::App* cmd, fleet::NatsOptions& o) {
-  cmd->add_option("--nats", o.url,
-                  "NATS server URL(s): nats://HOST:4222 (loopback), tls://HOST:4222, comma-separated for a "
-                  "cluster; user and password from $FACETSCAN_NATS_USER / $FACETSCAN_NATS_PASSWORD")
-      ->required();
-  cmd->add_flag("--insecure", o.insecure, "Allow plain-text nats:// to a non-loopback server");
-  cmd->add_option("--nats-ca", o.ca_file, "TLS: CA certificate that signed the server's certificate");
-  cmd->add_option("--nats-cert", o.cert_file, "TLS: client certificate (mutual TLS)");
-  cmd->add_option("--nats-key", o.key_file, "TLS: client key (mutual TLS)");
 }
 
 std::vector<std::uint8_t> read_bytes(const stdfs::path& p) {
@@ -157,14 +147,7 @@ void run_results(ResultsCli& o) {
 
 // ---- submit
 
-struct SubmitCli {
-  fleet::NatsOptions nats;
-  std::vector<std::string> inputs;
-  std::string scanner = "offline";
-  bool wait = false;
-  bool quiet = false;
-  double timeout_s = 0;
-};
+}  // namespace
 
 void run_submit(SubmitCli& o) {
   install_stop_signals();
@@ -224,6 +207,8 @@ void run_submit(SubmitCli& o) {
   if (failed > 0) throw Error(fmt::format("{} of {} scan(s) failed (dead-lettered)", failed, total));
 }
 
+namespace {
+
 // ---- fleet-setup
 
 struct SetupCli {
@@ -258,6 +243,17 @@ void add_settings_options(CLI::App* cmd, fleet::FleetSettings& s, double* ack_wa
 }
 
 }  // namespace
+
+void add_nats_options(CLI::App* cmd, fleet::NatsOptions& o, bool required) {
+  cmd->add_option("--nats", o.url,
+                  "NATS server URL(s): nats://HOST:4222 (loopback), tls://HOST:4222, comma-separated for a "
+                  "cluster; user and password from $FACETSCAN_NATS_USER / $FACETSCAN_NATS_PASSWORD")
+      ->required(required);
+  cmd->add_flag("--insecure", o.insecure, "Allow plain-text nats:// to a non-loopback server");
+  cmd->add_option("--nats-ca", o.ca_file, "TLS: CA certificate that signed the server's certificate");
+  cmd->add_option("--nats-cert", o.cert_file, "TLS: client certificate (mutual TLS)");
+  cmd->add_option("--nats-key", o.key_file, "TLS: client key (mutual TLS)");
+}
 
 void add_fleet_commands(CLI::App& app) {
   auto w = std::make_shared<WorkerCli>();

@@ -29,6 +29,7 @@
 #include "common/byte_size.hpp"
 #include "common/error.hpp"
 #include "host/cli/fleet_demo.hpp"
+#include "host/cli/fleet_submit.hpp"
 #include "host/cli/memory_budget.hpp"
 #include "host/cli/progress.hpp"
 #include "host/fleet/gateway.hpp"
@@ -466,18 +467,7 @@ void log_notice(const std::string& peer, const std::string& what) {
 // serve --nats: the gateway's options (docs/fleet.md#gateway).
 void add_gateway_options(CLI::App* serve, ServeOptions& so) {
   const char* group = "Gateway (--nats: publish every scan to the fleet instead of recognizing it)";
-  serve
-      ->add_option("--nats", so.nats.url,
-                   "NATS server URL(s) of the fleet: nats://HOST:4222 (loopback) or tls://HOST:4222, "
-                   "comma-separated for a cluster; user and password from $FACETSCAN_NATS_USER / "
-                   "$FACETSCAN_NATS_PASSWORD")
-      ->group(group);
-  serve->add_flag("--insecure", so.nats.insecure, "Allow plain-text nats:// to a non-loopback server")
-      ->group(group);
-  serve->add_option("--nats-ca", so.nats.ca_file, "TLS: CA certificate that signed the server's certificate")
-      ->group(group);
-  serve->add_option("--nats-cert", so.nats.cert_file, "TLS: client certificate (mutual TLS)")->group(group);
-  serve->add_option("--nats-key", so.nats.key_file, "TLS: client key (mutual TLS)")->group(group);
+  add_nats_options(serve, so.nats, false);
   serve
       ->add_option("--scanner", so.scanner,
                    "Scanner id of every scan (subject facetscan.scans.ID); default: one id per scanner "

@@ -14,6 +14,7 @@
 #include "common/error.hpp"
 #include "common/file_list.hpp"
 #include "host/cli/commands.hpp"
+#include "host/cli/fleet_submit.hpp"
 #include "host/cli/live_commands.hpp"
 #include "host/cli/memory_budget.hpp"
 #include "host/cli/progress.hpp"
@@ -45,7 +46,26 @@ struct RecognizeOptions {
   std::string memory_budget;  // --memory-budget (empty = default)
   int threads = 0;
   bool quiet = false;
+  SubmitCli fleet;  // --nats: the fleet recognizes (fleet_submit.hpp)
 };
+
+// recognize --nats: the batch goes to the fleet (as `facetscan submit --wait`): workers recognize with their
+// library; the local options that shape recognition or its files do not apply.
+void run_recognize_on_fleet(const RecognizeOptions& o, const CLI::App& cmd) {
+  for (const char* local :
+       {"--library", "--json", "--report", "--params", "--segment", "--min-confidence", "--scale",
+        "--threads", "--memory-budget", "--max-solutions", "--summary-csv", "--summary-json"})
+    if (cmd.count(local) > 0)
+      throw Error(
+          fmt::format("recognize --nats: {} is not used (the fleet's workers recognize with their own "
+                      "library and parameters; `facetscan results --json` gives the result JSON)",
+                      local));
+  SubmitCli s = o.fleet;
+  s.inputs = o.inputs;
+  s.wait = true;
+  s.quiet = o.quiet;
+  run_submit(s);
+}
 
 bool is_input_file(const stdfs::path& p) {
   const std::string e = p.extension().string();
@@ -233,8 +253,8 @@ void add_recognize_commands(CLI::App& app) {
                          "Recognize the library's objects in scans (.fscan) or point clouds (.pcd, .ply); "
                          "a directory is a batch");
   rc->add_option("inputs", o->inputs, "Input files or directories")->required();
-  rc->add_option("-l,--library", o->library, "Library: a .fslib file, or mesh files / directories")
-      ->required()
+  rc->add_option("-l,--library", o->library,
+                 "Library: a .fslib file, or mesh files / directories (required, except with --nats)")
       ->expected(1, -1);
   rc->add_option("--json", o->json_out, "Write the recognition JSON to FILE ('-' = stdout)");
   rc->add_option("--report", o->report_dir,
@@ -255,7 +275,17 @@ void add_recognize_commands(CLI::App& app) {
   rc->add_option("--summary-csv", o->summary_csv, "Batch: summary table as CSV");
   rc->add_option("--summary-json", o->summary_json, "Batch: summary as JSON");
   rc->add_flag("-q,--quiet", o->quiet, "No table, no progress bar");
-  rc->callback([o] { run_recognize(*o); });
+  add_nats_options(rc, o->fleet.nats, false);
+  rc->add_option("--scanner", o->fleet.scanner,
+                 "--nats: scanner id of the submitted scans (subject facetscan.scans.ID)")
+      ->capture_default_str();
+  rc->add_option("--timeout", o->fleet.timeout_s, "--nats: give up after this many seconds (0 = never)");
+  rc->callback([o, rc] {
+    if (!o->fleet.nats.url.empty()) return run_recognize_on_fleet(*o, *rc);
+    if (o->library.empty())
+      throw Error("recognize: --library is required (or --nats URL: the fleet recognizes)");
+    run_recognize(*o);
+  });
   add_live_commands(app);
 }
 

@@ -8,6 +8,7 @@ import json
 import os
 import re
 import secrets
+import shutil
 import signal
 import subprocess
 import sys
@@ -106,6 +107,47 @@ class FleetTest(fs.FleetCase):
         results = self.results()
         self.assertEqual(len(results), 1)
         self.assert_matches_local(results[0], "cube-pyramid-separate")
+
+    def test_scan_whose_every_delivery_times_out_is_dead_lettered(self):
+        # Three workers in turn take the scan and die on it (SIGKILL while holding it): no worker reports a
+        # failure, the server's MAX_DELIVERIES advisory does. A fourth worker, connected when it comes, moves
+        # the scan to DEAD and deletes it from SCANS; a later scan is recognized as usual.
+        out = self.submit([fs.ENV.scans["corner"]], "cell-t").stdout
+        scan_id = re.search(r"as (\S+) \(", out).group(1)
+        for delivery in (1, 2, 3):
+            w = self.worker(f"doomed-{delivery}", "--test-hold-ms", "60000")
+            w.wait_line(re.escape(f"recognizing {scan_id} (delivery {delivery})"))
+            w.proc.send_signal(signal.SIGKILL)
+            w.proc.wait()
+        survivor = self.worker("survivor")  # before the third delivery's AckWait (2 s) ends
+        survivor.wait_line(re.escape(f"dead-lettered {scan_id}: delivered 3 time(s) without an acknowledgement"))
+        dead = self.results("--dead", user="client")
+        self.assertEqual([d["scan_id"] for d in dead], [scan_id])
+        self.assertIn("without an acknowledgement", dead[0]["reason"])
+        self.assertEqual(dead[0]["bytes"], os.path.getsize(fs.ENV.scans["corner"]))
+        self.assertFalse(any("recognizing " + scan_id in line for line in survivor.lines), survivor.lines)
+        self.assertEqual(self.results(), [])  # no result for it
+        out = self.submit([fs.ENV.scans["default"]], "cell-t").stdout
+        later = re.search(r"as (\S+) \(", out).group(1)
+        survivor.wait_line(re.escape(f"result {later}: 4 object(s)"))
+
+    def test_recognize_batch_on_the_fleet(self):
+        self.worker("w1")
+        batch = os.path.join(self.server.dir, "batch")
+        os.makedirs(batch)
+        for scene in ("default", "corner"):
+            shutil.copy(fs.ENV.scans[scene], os.path.join(batch, f"{scene}.fscan"))
+        p = run([fs.ARGS.facetscan, "recognize", batch, "--nats", self.server.url, *self.ca, "--scanner", "cell-r",
+                 "-q"], env=fs.ENV.user_env("client"))
+        for scene in ("default", "corner"):
+            self.assertRegex(p.stdout, re.escape(os.path.join(batch, f"{scene}.fscan")) +
+                             rf": cell-r \S+: {len(fs.ENV.expected[scene])} object\(s\)")
+        self.assertEqual(len(self.results("--scanner", "cell-r")), 2)
+        # Local options do not apply to the fleet: a clear error, nothing submitted.
+        p = run([fs.ARGS.facetscan, "recognize", batch, "--nats", self.server.url, *self.ca, "--report", "out"],
+                env=fs.ENV.user_env("client"), check=False)
+        self.assertEqual(p.returncode, 1)
+        self.assertIn("recognize --nats: --report is not used", p.stderr)
 
     def test_mqtt_subscriber_receives_result(self):
         sub = subprocess.Popen(
