@@ -625,6 +625,7 @@ void run_serve(const ServeOptions& o) {
   }
   server.close_all();
   queue.close();
+  if (gateway) gateway->release_waiters();  // a scan waiting for room in a full spool is spooled now
   worker.join();
   if (web) web->stop();
   g_server = nullptr;

@@ -72,12 +72,12 @@ void Gateway::submit(const Scan& scan, const std::string& peer, bool stopping) {
   {
     std::unique_lock lock(mu_);
     ++stats_.received;
-    if (!spool_.has_room(image.size()) && !stopping) {
+    if (!spool_.has_room(image.size()) && !stopping && !released_) {
       log(
           fmt::format("spool full ({}): scan {} from {} waits, the scanners are held until the server takes "
                       "scans",
                       spool_text(), scan.scan_id(), peer));
-      cv_.wait(lock, [&] { return stop_ || spool_.has_room(image.size()); });
+      cv_.wait(lock, [&] { return stop_ || released_ || spool_.has_room(image.size()); });
     }
   }
   const SpoolEntry e = spool_.put(image, scanner, scan.status());
@@ -182,6 +182,14 @@ void Gateway::send_loop() {
                    [&] { return stop_ && Clock::now() >= drain_deadline_; });
     }
   }
+}
+
+void Gateway::release_waiters() {
+  {
+    std::lock_guard lock(mu_);
+    released_ = true;
+  }
+  cv_.notify_all();
 }
 
 std::size_t Gateway::stop(std::chrono::milliseconds drain) {

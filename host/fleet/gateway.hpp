@@ -69,6 +69,9 @@ class Gateway {
   // (serve's shutdown: the scan is spooled over the bound rather than lost). Throws fs::Error when the scan
   // cannot be written (disk error): the caller reports it as failed.
   void submit(const Scan& scan, const std::string& peer, bool stopping);
+  // Shutting down: a submit() waiting for room in the spool goes ahead (over the bound) and later ones do not
+  // wait. Call before joining the thread that calls submit().
+  void release_waiters();
   // Waits up to `drain` for the spool to empty, then stops the sender; what is left stays on disk for the
   // next start. Returns the scans left.
   std::size_t stop(std::chrono::milliseconds drain);
@@ -89,6 +92,7 @@ class Gateway {
   mutable std::mutex mu_;
   std::condition_variable cv_;
   bool stop_ = false;
+  bool released_ = false;     // release_waiters()
   bool unreachable_ = false;  // sender: in an outage (logged once)
   std::chrono::steady_clock::time_point drain_deadline_{};
   GatewayStats stats_;

@@ -119,9 +119,15 @@ class GatewayTest(fs.FleetCase):
         gw.wait_line(r"spool full \(1 scan\(s\), .*\): scan 1 from \S+ waits")
         self.assertEqual(second.wait(timeout=HANG_GUARD_S), 0)  # its scan is taken, held in serve's queue
         self.assertEqual(len(spooled(spool)), 1)  # the bound holds
+        # SIGTERM while a scan waits for room: it is spooled (over the bound) and the gateway exits.
+        gw.stop()
+        self.assertEqual(gw.proc.returncode, 0, gw.lines)
+        self.assertTrue(any("2 scan(s) (" in line and "left in the spool" in line for line in gw.lines), gw.lines)
+        self.assertEqual(len(spooled(spool)), 2)
+        gw2 = self.gateway(spool, "--scanner", "cell-f", "--spool-max", "1")
         self.server.start()
         self.worker("w1")
-        ids = self.published_ids(gw, 2)
+        ids = self.published_ids(gw2, 2)
         self.assert_results(dict(zip(ids, ["corner", "default"])))
 
 
