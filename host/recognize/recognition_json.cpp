@@ -17,7 +17,11 @@ nlohmann::json to_json(const Recognition& r, const Library& library) {
                      {h.R(2, 0), h.R(2, 1), h.R(2, 2)}};
     o["translation"] = {h.t.x(), h.t.y(), h.t.z()};
     o["cost"] = h.cost;
-    o["confidence"] = h.verify.confidence;
+    // Ambiguity-aware (Hypothesis::confidence()): the fit when the view tells the model apart, its share of
+    // the candidates' when it does not.
+    o["confidence"] = h.confidence();
+    o["fit"] = h.fit();
+    o["ambiguous"] = h.ambiguous();
     int searched = 0;
     for (const FaceMatch& fm : h.matches) searched += fm.expanded ? 0 : 1;
     o["faces_matched"] = static_cast<int>(h.matches.size());
@@ -38,12 +42,21 @@ nlohmann::json to_json(const Recognition& r, const Library& library) {
       o["translation_underdetermined"] = {{"dims", h.free_dims},
                                           {"direction", {h.free_dir.x(), h.free_dir.y(), h.free_dir.z()}}};
     }
-    if (h.alternatives > 0) {
+    if (h.ambiguous()) {
+      // The candidates, the object's model first; "alternatives" = the others (as before this list).
+      auto candidate = [&](int model, double fit) {
+        return nlohmann::json{{"model", library.models[static_cast<std::size_t>(model)].name},
+                              {"confidence", h.candidate_confidence(fit)},
+                              {"fit", fit}};
+      };
+      nlohmann::json candidates = nlohmann::json::array({candidate(h.model, h.fit())});
       nlohmann::json alts = nlohmann::json::array();
-      for (const Hypothesis::Alternative& a : h.listed_alternatives())
-        alts.push_back({{"model", library.models[static_cast<std::size_t>(a.model)].name},
-                        {"confidence", a.confidence}});
-      o["alternatives"] = alts;
+      for (const Hypothesis::Alternative& a : h.listed_alternatives()) {
+        candidates.push_back(candidate(a.model, a.fit));
+        alts.push_back(candidate(a.model, a.fit));
+      }
+      o["candidates"] = std::move(candidates);
+      o["alternatives"] = std::move(alts);
     }
     o["verification"] = {{"inliers", h.verify.inliers},   {"violations", h.verify.violations},
                          {"occluded", h.verify.occluded}, {"hits", h.verify.hits},
@@ -75,6 +88,7 @@ nlohmann::json to_json(const Recognition& r, const Library& library) {
                           {"rounds", s.rounds},
                           {"replaced", s.replaced},
                           {"interpenetrating", s.interpenetrating},
+                          {"reseated", s.reseated},
                           {"rejected", s.rejected},
                           {"incompatible_pairs", s.incompatible_pairs}};
   nlohmann::json j = {{"objects", objects}, {"stats", stats}};

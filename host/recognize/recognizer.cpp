@@ -23,6 +23,14 @@ Recognizer::Impl::Impl(const Library& lib, const RecognizeParams& p, int threads
   }
   geometry.reserve(lib.models.size());
   for (const Model& m : lib.models) geometry.emplace_back(m);
+  near_sym.resize(lib.models.size());
+  if (p.near_symmetry_share > 0) {
+    NearSymmetryParams np;
+    np.min_share = p.near_symmetry_share;
+    for (std::size_t k = 0; k < lib.models.size(); ++k) near_sym[k] = near_symmetries(lib.models[k], np);
+  }
+  worker_pairs.resize(static_cast<std::size_t>(pool.threads()));
+  for (auto& w : worker_pairs) w.reserve(256);
   for (auto& pm : per_model) {
     pm.slots.resize(static_cast<std::size_t>(p.solutions_per_model));
     for (auto& s : pm.slots) {
@@ -40,6 +48,9 @@ Recognizer::Impl::Impl(const Library& lib, const RecognizeParams& p, int threads
     h.path.reserve(kMaxMatches);
   }
   order.reserve(max_h);
+  reseated.reserve(max_h);
+  dropped.reserve(max_h);
+  raw_confidence.reserve(max_h);
   picked.reserve(max_h);
   face_cover.reserve(kMaxNodeIds);
   alive.reserve(max_h);

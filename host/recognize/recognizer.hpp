@@ -97,6 +97,12 @@ struct RecognizeParams {
   // overlapping windows of this many faces. 0 = the matcher's limit (match::kMaxNodes minus the supernodes);
   // a larger value is clamped to it.
   int max_part_faces = 0;
+  // Look-alike placements (beyond the thesis, near_symmetry.hpp): a model whose surface a rigid motion maps
+  // onto itself for at least this share of its area, without a symmetry (the gyrate rhombicosidodecahedron
+  // and the rhombicosidodecahedron's rotations), fits the matched faces in several placements that differ
+  // elsewhere. A plausible hypothesis of such a model (coarse confidence >= min_confidence / 2) is checked in
+  // each of them and moves to the one the points fit best. 0 = off.
+  double near_symmetry_share = 0.5;
   int max_verified = 96;  // hypotheses checked against the cloud (highest prescore first)
   double prescore_area_slack =
       1.1;                   // a scene face may be this much larger than its model face (segmentation)
@@ -154,7 +160,7 @@ struct Hypothesis {
   // RecognizeParams::alternative_*): the parts where they differ are out of view. Accepted objects only.
   struct Alternative {
     int model = -1;
-    double confidence = 0.0;
+    double fit = 0.0;  // its verification confidence
   };
   static constexpr int kMaxAlternatives = 4;
   std::array<Alternative, kMaxAlternatives> alternative{};
@@ -162,6 +168,19 @@ struct Hypothesis {
   std::span<const Alternative> listed_alternatives() const {
     return {alternative.data(), static_cast<std::size_t>(alternatives)};
   }
+  // Ambiguity (issue #20): an object that lists an alternative is ambiguous, "this is X or Y": the view fits
+  // each candidate (the object's model and its alternatives). The fit of a candidate is its verification
+  // confidence (verify.confidence for the object's model); its confidence is its fit times its share of the
+  // candidates' fits, fit * fit / (sum of the candidates' fits). So an unambiguous object's confidence is its
+  // fit, and two models that fit alike get about half of it each.
+  bool ambiguous() const { return alternatives > 0; }
+  double fit() const { return verify.confidence; }
+  double candidate_confidence(double candidate_fit) const {
+    double sum = verify.confidence;
+    for (const Alternative& a : listed_alternatives()) sum += a.fit;
+    return sum > 0.0 ? candidate_fit * candidate_fit / sum : 0.0;
+  }
+  double confidence() const { return alternatives > 0 ? candidate_confidence(verify.confidence) : fit(); }
   std::vector<std::uint32_t> inlier_cells;
 };
 
@@ -180,6 +199,7 @@ struct RecognizeStats {
   int rounds = 0;            // matching + verification rounds run
   int replaced = 0;          // accepted objects replaced by one model explaining their points and more
   int interpenetrating = 0;  // hypotheses refused because their solid would interpenetrate an accepted one
+  int reseated = 0;          // hypotheses moved to a near-symmetric placement (RecognizeParams)
 };
 
 struct Recognition {
@@ -225,7 +245,8 @@ class Recognizer {
 };
 
 // Recognition JSON (DESIGN.md contract): {"objects":[{"model","rotation","translation","cost","confidence",
-// "faces_matched","faces_visible","matches",...}],"stats":{...}}.
+// "fit","ambiguous","faces_matched","faces_visible","matches",...}],"stats":{...}}; an ambiguous object adds
+// "candidates" and "alternatives" (Hypothesis::confidence()).
 nlohmann::json to_json(const Recognition& r, const Library& library);
 
 }  // namespace fs::host::rec

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "host/recognize/hypotheses.hpp"
+#include "host/recognize/near_symmetry.hpp"
 #include "host/recognize/pose.hpp"
 #include "host/recognize/recognizer.hpp"
 #include "host/recognize/verify.hpp"
@@ -59,6 +60,7 @@ struct Recognizer::Impl {
   std::vector<std::unique_ptr<match::InexactMatcher>> matchers;
   std::vector<Verifier> verifiers;
   std::vector<ModelGeometry> geometry;
+  std::vector<std::vector<NearSymmetry>> near_sym;  // by model (RecognizeParams::near_symmetry_share)
   std::vector<ModelSlots> per_model;
   std::vector<Hypothesis> hyps;  // pool; the first nhyp are live this scan
   std::size_t nhyp = 0;
@@ -206,6 +208,18 @@ struct Recognizer::Impl {
   // and fine verification; leaves the verified ones in order (best ordering key first).
   void verify_hypotheses(Recognizer& rz, const HypothesisContext& hc, const OrganizedCloud& cloud,
                          RecognizeStats& stats);
+  // Scales h's confidence by the share of its matched scene regions' samples among `cells` (its inliers).
+  void scale_by_explained(Hypothesis& h, const std::vector<std::uint32_t>& cells, bool fine_samples) const;
+  // reseat.cpp: after its coarse check (scaled by the explained share), hyps[index], a plausible hypothesis
+  // of a model with near symmetries, moves to the near-symmetric placement the points fit best, if one fits
+  // better (worker: the worker's verifier and plane scratch); then the duplicates this makes leave `order`.
+  const HypothesisContext* hctx = nullptr;
+  double reseat_min_confidence = 0.0;
+  std::vector<std::vector<PlanePair>> worker_pairs;  // by worker
+  std::vector<char> reseated, dropped;               // by hypothesis index
+  std::vector<double> raw_confidence;  // coarse, before the explained share; by hypothesis index
+  void reseat(std::size_t index, int worker);
+  void drop_reseated_duplicates(const RecognizeParams& params);
   void rekey(const RecognizeParams& params);
   // accept.cpp: recognition (ch. 9.4), the compatible set greedily from the best hypothesis; false when the
   // rounds end here. finish_report: the cell owners reset and the note of an empty result.

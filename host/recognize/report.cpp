@@ -29,6 +29,16 @@ std::string axis_angle_text(const Mat3& R) {
   return fmt::format("{:6.1f}° about ({:5.2f}, {:5.2f}, {:5.2f})", deg, ax.x(), ax.y(), ax.z());
 }
 
+std::string ambiguity_text(const Hypothesis& h, const Library& library) {
+  auto candidate = [&](int model, double fit) {
+    return fmt::format("{} ({:.2f}, fit {:.2f})", library.models[static_cast<std::size_t>(model)].name,
+                       h.candidate_confidence(fit), fit);
+  };
+  std::string s = "ambiguous: " + candidate(h.model, h.fit());
+  for (const Hypothesis::Alternative& a : h.listed_alternatives()) s += " or " + candidate(a.model, a.fit);
+  return s + "; they differ only out of view";
+}
+
 std::string result_table(const Recognition& r, const Library& library) {
   std::string s;
   if (r.objects.empty()) {
@@ -44,18 +54,9 @@ std::string result_table(const Recognition& r, const Library& library) {
     std::string name = library.models[static_cast<std::size_t>(h.model)].name;
     if (h.instance > 0) name += fmt::format(" #{}", h.instance + 1);
     s += fmt::format("{:<3} {:<24} ({:7.1f}, {:7.1f}, {:7.1f})  {:<38} {:5.2f} {:7.4f} {:>2}/{:<2}\n", i++,
-                     name, h.t.x(), h.t.y(), h.t.z(), axis_angle_text(h.R), h.verify.confidence, h.cost,
+                     name, h.t.x(), h.t.y(), h.t.z(), axis_angle_text(h.R), h.confidence(), h.cost,
                      h.matches.size(), h.faces_visible);
-    if (h.alternatives > 0) {
-      s += "    fits this view as well:";
-      const char* sep = "";
-      for (const Hypothesis::Alternative& a : h.listed_alternatives()) {
-        s += fmt::format("{} {} ({:.2f})", sep, library.models[static_cast<std::size_t>(a.model)].name,
-                         a.confidence);
-        sep = ",";
-      }
-      s += "\n";
-    }
+    if (h.ambiguous()) s += "    " + ambiguity_text(h, library) + "\n";
   }
   if (!r.note.empty()) s += "note: " + r.note + "\n";
   return s;
@@ -297,9 +298,10 @@ void write_scene_svg(const std::filesystem::path& dir, const Library& library, c
     const Hypothesis& h = r.objects[o];
     const Model& m = library.models[static_cast<std::size_t>(h.model)];
     legend_row(static_cast<int>(o), colour_hex(label_colour(static_cast<std::int32_t>(o) + 1)),
-               fmt::format("{}{}: confidence {:.2f}, at ({}, {}, {}) mm", m.name,
-                           h.instance > 0 ? fmt::format(" #{}", h.instance + 1) : "", h.verify.confidence,
-                           mm_text(h.t.x()), mm_text(h.t.y()), mm_text(h.t.z())));
+               fmt::format("{}{}: confidence {:.2f}{}, at ({}, {}, {}) mm", m.name,
+                           h.instance > 0 ? fmt::format(" #{}", h.instance + 1) : "", h.confidence(),
+                           h.ambiguous() ? " (ambiguous)" : "", mm_text(h.t.x()), mm_text(h.t.y()),
+                           mm_text(h.t.z())));
   }
   // The swatch: a level surface at the lowest height (the table) as draw_top_view shades it.
   legend_row(static_cast<int>(r.objects.size()), "#4a4a4a",
@@ -330,12 +332,15 @@ void write_index_html(const std::filesystem::path& dir, const std::string& title
     const Model& m = library.models[static_cast<std::size_t>(h.model)];
     std::string state = m.name;
     for (int k : h.path) state += "." + std::to_string(k);
+    const std::string ambiguity =
+        h.ambiguous() ? "<br><b>" + html_escape(ambiguity_text(h, library)) + "</b>" : std::string();
     html << fmt::format(
-        "<tr><td style=\"background:{}\">{}</td><td>{}{}</td><td>({:.1f}, {:.1f}, {:.1f})</td><td>{}</td>"
-        "<td>{:.2f}</td><td>{:.4f}</td><td>{} / {}</td><td>{}</td></tr>\n",
+        "<tr><td style=\"background:{}\">{}</td><td>{}{}{}</td><td>({:.1f}, {:.1f}, {:.1f})</td><td>{}</td>"
+        "<td>{:.2f}{}</td><td>{:.4f}</td><td>{} / {}</td><td>{}</td></tr>\n",
         colour_hex(label_colour(static_cast<std::int32_t>(o) + 1)), o + 1, html_escape(m.name),
-        h.instance > 0 ? fmt::format(" #{}", h.instance + 1) : "", h.t.x(), h.t.y(), h.t.z(),
-        html_escape(axis_angle_text(h.R)), h.verify.confidence, h.cost, h.matches.size(), h.faces_visible,
+        h.instance > 0 ? fmt::format(" #{}", h.instance + 1) : "", ambiguity, h.t.x(), h.t.y(), h.t.z(),
+        html_escape(axis_angle_text(h.R)), h.confidence(),
+        h.ambiguous() ? fmt::format(" (fit {:.2f})", h.fit()) : "", h.cost, h.matches.size(), h.faces_visible,
         state);
   }
   html << "</table>\n";

@@ -13,8 +13,13 @@ namespace fs::host::rec {
 // Rotation as axis-angle: "123.4° about (0.00, 0.00, 1.00)".
 std::string axis_angle_text(const Mat3& R);
 
-// A fixed-width table: model, instance, position (mm), rotation (axis-angle), confidence, cost, faces.
+// A fixed-width table: model, instance, position (mm), rotation (axis-angle), confidence, cost, faces; an
+// ambiguous object is followed by its ambiguity_text().
 std::string result_table(const Recognition& r, const Library& library);
+
+// The candidates of an ambiguous object (Hypothesis::ambiguous()) with their confidence and fit:
+// "ambiguous: cube (0.50, fit 1.00) or box (0.49, fit 0.99); they differ only out of view".
+std::string ambiguity_text(const Hypothesis& h, const Library& library);
 
 // `bytes` in base64 (RFC 4648, with '=' padding): the data: URIs and scene-data.js of the reports.
 std::string base64(const std::string& bytes);

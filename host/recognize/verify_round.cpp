@@ -48,17 +48,30 @@ void verify_task(void* ctx, std::size_t task, int worker) {
     std::swap(h.inlier_cells, m.slot_cells[task]);
     h.inlier_cells.assign(v.inlier_cells().begin(), v.inlier_cells().end());
     cells = &h.inlier_cells;
+  } else {
+    m.raw_confidence[m.order[task]] = h.verify.confidence;
   }
-  // How much of the matched scene regions the model explains: a model smaller than the faces it claims
-  // leaves measured points of those faces unexplained.
-  const auto& counts = m.refine_phase ? m.region_fine : m.region_coarse;
+  m.scale_by_explained(h, *cells, m.refine_phase);
+  if (m.refine_phase)
+    m.support_test(m.library->models[static_cast<std::size_t>(h.model)], h);
+  else
+    m.reseat(m.order[task], worker);
+}
+
+}  // namespace
+
+// How much of the matched scene regions the model explains (cells: its inlier cells): a model smaller than
+// the faces it claims leaves measured points of those faces unexplained.
+void Recognizer::Impl::scale_by_explained(Hypothesis& h, const std::vector<std::uint32_t>& cells,
+                                          bool fine_samples) const {
+  const auto& counts = fine_samples ? region_fine : region_coarse;
   std::uint64_t total = 0, explained = 0;
   for (const FaceMatch& fm : h.matches) {
     const int r = fm.scene - 1;
     if (r >= 0 && static_cast<std::size_t>(r) < counts.size()) total += counts[static_cast<std::size_t>(r)];
   }
-  for (std::uint32_t cell : *cells) {
-    const std::int32_t r = (*m.labels)[cell];
+  for (std::uint32_t cell : cells) {
+    const std::int32_t r = (*labels)[cell];
     for (const FaceMatch& fm : h.matches)
       if (fm.scene - 1 == r) {
         ++explained;
@@ -68,10 +81,7 @@ void verify_task(void* ctx, std::size_t task, int worker) {
   h.verify.explained =
       total > 0 ? std::min(1.0, static_cast<double>(explained) / static_cast<double>(total)) : 0.0;
   h.verify.confidence *= h.verify.explained;
-  if (m.refine_phase) m.support_test(m.library->models[static_cast<std::size_t>(h.model)], h);
 }
-
-}  // namespace
 
 void Recognizer::Impl::verify_hypotheses(Recognizer& rz, const HypothesisContext& hc,
                                          const OrganizedCloud& cloud, RecognizeStats& stats) {
@@ -80,6 +90,8 @@ void Recognizer::Impl::verify_hypotheses(Recognizer& rz, const HypothesisContext
   for (std::size_t i = 0; i < nhyp; ++i)
     if (alive[i]) order.push_back(i);
   for (std::size_t i : order) hyps[i].prescore = prescore(hc, hyps[i]);
+  reseated.assign(nhyp, 0);
+  raw_confidence.assign(nhyp, 0.0);
   std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
     const Hypothesis& x = hyps[a];
     const Hypothesis& y = hyps[b];
@@ -91,9 +103,14 @@ void Recognizer::Impl::verify_hypotheses(Recognizer& rz, const HypothesisContext
   // object are not crowded out by the many hypotheses of a large one).
   select_covering(*this, params.verify_per_face, static_cast<std::size_t>(params.max_verified),
                   [](const Hypothesis&) { return true; });
-  // Phase 1: coarse check of every candidate (no refinement).
+  // Phase 1: coarse check of every candidate (no refinement); then a hypothesis of a near-symmetric model
+  // moves to its best placement (reseat.cpp).
   refine_phase = false;
+  hctx = &hc;
+  reseat_min_confidence = 0.5 * params.min_confidence;
   pool.run(order.size(), verify_task, this);
+  for (std::size_t i : order) stats.reseated += reseated[i];
+  drop_reseated_duplicates(params);
   rekey(params);
   // Phase 2: the plausible ones are refined by ICP and verified on the fine sample set.
   const double min_plausible = 0.5 * params.min_confidence;

@@ -133,7 +133,8 @@ nlohmann::json scan_summary_json(const ScanInfo& info, const rec::Recognition& r
     const rec::Hypothesis& h = r.objects[o];
     objects.push_back({{"model", library.models[static_cast<std::size_t>(h.model)].name},
                        {"instance", h.instance},
-                       {"confidence", h.verify.confidence},
+                       {"confidence", h.confidence()},
+                       {"ambiguous", h.ambiguous()},
                        {"colour", object_colour(o)}});
   }
   j["objects"] = std::move(objects);

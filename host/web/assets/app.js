@@ -77,7 +77,8 @@
       const li = document.createElement('li');
       li.dataset.index = i;
       li.innerHTML = '<span class="sw" style="background:' + esc(o.colour) + '"></span><span class="name">' +
-        esc(FacetView.objectName(o)) + '</span><span class="conf">' + o.confidence.toFixed(2) + '</span>';
+        esc(FacetView.objectName(o)) + (o.ambiguous ? ' (ambiguous)' : '') + '</span><span class="conf">' +
+        o.confidence.toFixed(2) + '</span>';
       li.addEventListener('click', () => app.viewer.select(i));
       ul.appendChild(li);
     });

@@ -93,13 +93,14 @@
     rows.push(['position (mm)', '(' + o.translation.map((v) => fmt(v)).join(', ') + ')']);
     rows.push(['rotation', fmt(aa.deg) + '° about (' + aa.axis.map((v) => fmt(v, 2)).join(', ') + ')']);
     rows.push(['rotation matrix', '<span class="mono">' + o.rotation.map((r) => '[' + r.map((v) => fmt(v, 3)).join(' ') + ']').join('<br>') + '</span>']);
-    rows.push(['confidence', fmt(o.confidence, 2)]);
+    rows.push(['confidence', fmt(o.confidence, 2) + (o.ambiguous ? ' (ambiguous; fit ' + fmt(o.fit, 2) + ')' : '')]);
     rows.push(['faces matched / visible', o.faces_matched + ' / ' + o.faces_visible +
       (o.faces_matched_by_search !== undefined ? ' (' + o.faces_matched_by_search + ' by the search)' : '')]);
     rows.push(['cost', fmt(o.cost, 4)]);
     if (o.verification) rows.push(['fit', o.verification.inliers + ' inlier points, RMS ' + fmt(o.verification.rms_mm, 2) + ' mm']);
     const alts = o.alternatives || [];
-    rows.push(['alternatives', alts.length ? alts.map((a) => esc(a.model) + ' (' + fmt(a.confidence, 2) + ')').join(', ') : 'none']);
+    rows.push(['alternatives', alts.length ? alts.map((a) => esc(a.model) + ' (' + fmt(a.confidence, 2) +
+      (a.fit !== undefined ? ', fit ' + fmt(a.fit, 2) : '') + ')').join(', ') : 'none']);
     const amb = [];
     if (alts.length) amb.push('the view fits ' + alts.map((a) => esc(a.model)).join(', ') + ' as well (their differences are out of view)');
     if (o.translation_underdetermined) amb.push('position free along (' + o.translation_underdetermined.direction.map((v) => fmt(v, 2)).join(', ') + ')');

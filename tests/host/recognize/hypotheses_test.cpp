@@ -293,15 +293,18 @@ TEST(Report, ResultTableNamesTheAlternativesOfAnObject) {
   r.objects[0].model = 0;
   r.objects[0].verify.confidence = 1.0;
   const std::string plain = fs::host::rec::result_table(r, library);
-  EXPECT_EQ(plain.find("fits this view as well"), std::string::npos) << plain;
+  EXPECT_EQ(plain.find("ambiguous"), std::string::npos) << plain;
   r.objects[0].alternatives = 1;
   r.objects[0].alternative[0] = {1, 0.99};
+  // Ambiguous: each candidate's confidence is its fit times its share of the fits (1.99 together).
   const std::string table = fs::host::rec::result_table(r, library);
-  EXPECT_NE(table.find("fits this view as well: cube-b (0.99)"), std::string::npos) << table;
+  EXPECT_NE(table.find("ambiguous: cube (0.50, fit 1.00) or cube-b (0.49, fit 0.99)"), std::string::npos)
+      << table;
   const nlohmann::json j = fs::host::rec::to_json(r, library);
   ASSERT_TRUE(j["objects"][0].contains("alternatives"));
   EXPECT_EQ(j["objects"][0]["alternatives"][0]["model"], "cube-b");
-  EXPECT_DOUBLE_EQ(j["objects"][0]["alternatives"][0]["confidence"].get<double>(), 0.99);
+  EXPECT_DOUBLE_EQ(j["objects"][0]["alternatives"][0]["fit"].get<double>(), 0.99);
+  EXPECT_DOUBLE_EQ(j["objects"][0]["alternatives"][0]["confidence"].get<double>(), 0.99 * 0.99 / 1.99);
 }
 
 }  // namespace
