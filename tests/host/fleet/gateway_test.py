@@ -182,11 +182,17 @@ class ClusterTest(unittest.TestCase):
         self.ca = ["--nats-ca", os.path.join(fs.ENV.certs, "ca.pem")]
         self.procs = []
 
+        attempts = []
+
         def setup_done():  # the cluster elects its JetStream leader first
             p = run([fs.ARGS.facetscan, "fleet-setup", "--nats", self.url, *self.ca, "--replicas", "3",
                      "--ack-wait", "2"], env=fs.ENV.user_env("admin"), check=False)
+            attempts.append(p.stderr.strip())
             return p.returncode == 0
-        wait_until(setup_done, "fleet-setup on the 3-node cluster", step=1.0)
+        try:
+            wait_until(setup_done, "fleet-setup on the 3-node cluster", timeout=3 * HANG_GUARD_S, step=1.0)
+        except AssertionError as e:
+            raise AssertionError(f"{e}; fleet-setup said: {attempts[:3]} ... {attempts[-2:]}") from None
 
     def tearDown(self):
         for i, p in enumerate(self.procs):
@@ -197,8 +203,13 @@ class ClusterTest(unittest.TestCase):
             n.kill()
 
     def results(self):
-        out = run([fs.ARGS.facetscan, "results", "--nats", self.url, *self.ca, "--json"],
-                  env=fs.ENV.user_env("shopfloor"), check=False).stdout
+        # Right after a node is killed a call may fail (its streams elect new leaders): retried, never read as
+        # "no results".
+        def read():
+            p = run([fs.ARGS.facetscan, "results", "--nats", self.url, *self.ca, "--json"],
+                    env=fs.ENV.user_env("shopfloor"), check=False)
+            return p if p.returncode == 0 else None
+        out = wait_until(read, "facetscan results on the cluster", step=1.0).stdout
         return [json.loads(line) for line in out.splitlines() if line.strip()]
 
     def test_node_killed_mid_batch(self):

@@ -135,9 +135,13 @@ def live_test(a):
         d.find_elements(By.CSS_SELECTOR, "#objects li")[0].click()
         check(d.find_element(By.ID, "objects").find_elements(By.CSS_SELECTOR, "li.selected"),
               "clicking an object in the list selects it")
-        rows = d.find_elements(By.CSS_SELECTOR, "#history tbody tr")
-        check(len(rows) == 1 and "report" in rows[0].text and ".fscan" in rows[0].text,
-              "history lists the scan with its report and .fscan links")
+        # The scan's record comes twice: at once for the 3D view, again with the report's links once the report
+        # is written (later on a loaded machine).
+        def history_row():
+            rows = d.find_elements(By.CSS_SELECTOR, "#history tbody tr")
+            return len(rows) == 1 and "report" in rows[0].text and ".fscan" in rows[0].text
+        wait(d, history_row, "the history row with its report and .fscan links", 60)
+        check(history_row(), "history lists the scan with its report and .fscan links")
         pics = d.find_elements(By.CSS_SELECTOR, "#pictures img")
         check(len(pics) == 4 and all(d.execute_script("return arguments[0].naturalWidth", p) > 0 for p in pics),
               "the 2D pictures (top view, segmentation, PFRG, ENM) load")
