@@ -7,6 +7,7 @@
 #include <Eigen/Geometry>
 
 #include "common/error.hpp"
+#include "hw-sim/scene/cluttered_scene.hpp"
 #include "hw-sim/scene/prng.hpp"
 
 namespace fs::sim {
@@ -169,15 +170,17 @@ const char* to_string(SceneCategory c) {
       return "occluded";
     case SceneCategory::empty:
       return "empty";
+    case SceneCategory::cluttered:
+      return "cluttered";
   }
   return "?";
 }
 
 SceneCategory parse_scene_category(const std::string& name) {
-  for (auto c :
-       {SceneCategory::single, SceneCategory::separated, SceneCategory::occluded, SceneCategory::empty})
+  for (auto c : {SceneCategory::single, SceneCategory::separated, SceneCategory::occluded,
+                 SceneCategory::empty, SceneCategory::cluttered})
     if (name == to_string(c)) return c;
-  throw Error("scene category '" + name + "': expected single, separated, occluded or empty");
+  throw Error("scene category '" + name + "': expected single, separated, occluded, empty or cluttered");
 }
 
 std::vector<Mesh> read_catalog_meshes(const std::filesystem::path& dir) {
@@ -193,12 +196,15 @@ std::vector<Mesh> read_catalog_meshes(const std::filesystem::path& dir) {
   return meshes;
 }
 
-Vec3 volume_centroid(const Mesh& mesh) {
+namespace {
+
+// Volume and first moment, by tetrahedra from an interior point (any face winding).
+double volume_and_moment(const Mesh& mesh, Vec3& moment) {
   Vec3 interior = Vec3::Zero();
   for (const auto& v : mesh.vertices) interior += v;
   interior /= static_cast<double>(std::max<std::size_t>(1, mesh.vertices.size()));
   double volume = 0;
-  Vec3 moment = Vec3::Zero();
+  moment = Vec3::Zero();
   for (const auto& f : mesh.faces)
     for (std::size_t k = 1; k + 1 < f.size(); ++k) {
       const Vec3& a = mesh.vertices.at(f[0]);
@@ -209,6 +215,19 @@ Vec3 volume_centroid(const Mesh& mesh) {
       moment += v * (interior + a + b + c) / 4.0;
     }
   if (!(volume > 0)) throw Error("mesh '" + mesh.name + "': no volume");
+  return volume;
+}
+
+}  // namespace
+
+double mesh_volume(const Mesh& mesh) {
+  Vec3 moment;
+  return volume_and_moment(mesh, moment);
+}
+
+Vec3 volume_centroid(const Mesh& mesh) {
+  Vec3 moment;
+  const double volume = volume_and_moment(mesh, moment);
   return moment / volume;
 }
 
@@ -259,6 +278,7 @@ std::vector<CatalogEntry> make_catalog(const std::vector<Mesh>& meshes, const Ca
     e.size_mm = options.min_size_mm + (options.max_size_mm - options.min_size_mm) * rng.uniform();
     for (auto& v : e.mesh.vertices) v *= e.size_mm / extent;
     e.centroid = volume_centroid(e.mesh);
+    e.volume_mm3 = mesh_volume(e.mesh);
     for (std::size_t f = 0; f < e.mesh.faces.size(); ++f)
       if (is_stable_face(e.mesh, f, e.centroid, 0.5)) e.stable_faces.push_back(static_cast<int>(f));
     if (e.stable_faces.empty()) throw Error("mesh '" + m.name + "': no stable resting face");
@@ -292,6 +312,8 @@ RandomScene make_random_scene(const std::vector<CatalogEntry>& catalog, const Ra
   if (catalog.empty() && o.category != SceneCategory::empty) throw Error("random scene: empty catalog");
   if (o.min_objects < 1 || o.max_objects < o.min_objects)
     throw Error("random scene: need 1 <= min_objects <= max_objects");
+  if (o.clutter_min_objects < 1 || o.clutter_max_objects < o.clutter_min_objects)
+    throw Error("random scene: need 1 <= clutter_min_objects <= clutter_max_objects");
   Prng rng(seed * 0x9E3779B97F4A7C15ULL + 0x5EED + static_cast<std::uint64_t>(o.category));
   for (int restart = 0; restart < 64; ++restart) {
     RandomScene out;
@@ -311,7 +333,13 @@ RandomScene make_random_scene(const std::vector<CatalogEntry>& catalog, const Ra
       add_object(out.scene, box, p.R, Vec3(t.x(), t.y(), p.z));
       out.catalog_index.push_back(-1);
       out.resting_face.push_back(-1);
+      out.support.push_back(-1);
+      out.support_face.push_back(-1);
       return out;
+    }
+    if (o.category == SceneCategory::cluttered) {
+      if (place_cluttered(catalog, o, rng, out)) return out;
+      continue;
     }
 
     const int want =
@@ -346,6 +374,8 @@ RandomScene make_random_scene(const std::vector<CatalogEntry>& catalog, const Ra
         add_object(out.scene, e.mesh, p.R, Vec3(t.x(), t.y(), p.z));
         out.catalog_index.push_back(ci);
         out.resting_face.push_back(face);
+        out.support.push_back(-1);
+        out.support_face.push_back(-1);
         placer.placed.push_back(shifted(p.hull, t));
         ok = true;
       }
