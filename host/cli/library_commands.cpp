@@ -1,4 +1,4 @@
-// facetscan library build|list|polycubes
+// facetscan library build|merge|list|show|polycubes
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
@@ -14,6 +14,7 @@
 #include "host/cli/commands.hpp"
 #include "host/cli/progress.hpp"
 #include "host/library/library.hpp"
+#include "host/library/library_merge.hpp"
 #include "host/library/mesh_files.hpp"
 #include "host/library/polycubes.hpp"
 #include "host/library/views.hpp"
@@ -42,7 +43,8 @@ void print_table(const Library& lib) {
 }  // namespace
 
 void add_library_commands(CLI::App& app) {
-  auto* lib = app.add_subcommand("library", "Reference model library: build from meshes, list, polycubes");
+  auto* lib = app.add_subcommand("library",
+                                 "Reference model library: build from meshes, merge, list, show, polycubes");
   lib->require_subcommand(1);
 
   struct BuildArgs {
@@ -93,6 +95,68 @@ void add_library_commands(CLI::App& app) {
     if (!b->quiet) {
       print_table(out);
       fmt::print("wrote {}\n", b->out);
+    }
+  });
+
+  struct MergeArgs {
+    std::vector<std::string> inputs;
+    std::string out;
+    BuildOptions options;
+    bool quiet = false;
+    bool allow_large = false;
+  };
+  auto mg = std::make_shared<MergeArgs>();
+  auto* merge = lib->add_subcommand(
+      "merge", "Write one .fslib of the models of several .fslib files and meshes / directories (in order)");
+  merge->add_option("inputs", mg->inputs, ".fslib files, mesh files or directories of meshes")->required();
+  merge->add_option("-o,--output", mg->out, "Output library (.fslib)")->required();
+  merge->add_option("--scale", mg->options.scale, "Multiply mesh coordinates (to millimetres)")
+      ->check(CLI::PositiveNumber);
+  merge
+      ->add_option("--merge-angle", mg->options.merge_angle_deg,
+                   "Coplanar merge tolerance of meshes (degrees)")
+      ->check(CLI::Range(0.0, 30.0));
+  merge->add_flag("--allow-open", mg->options.allow_open,
+                  "Accept open meshes (flagged: faces may be missing)");
+  merge->add_flag("--allow-large", mg->allow_large,
+                  "Keep models of more faces than the matcher takes (a warning; they are never matched)");
+  merge->add_flag("-q,--quiet", mg->quiet, "No progress bar, no summary");
+  merge->callback([mg] {
+    Progress progress(0, mg->quiet);
+    LibraryMerge merged =
+        gather_library(mg->inputs, mg->options, [&](std::size_t i, std::size_t n, const std::string& name) {
+          progress.set_total(n);
+          progress.update(i, name);
+        });
+    progress.finish();
+    if (merged.size() == 0) {
+      std::string names;
+      for (const auto& in : mg->inputs) names += (names.empty() ? "" : ", ") + in;
+      throw Error(names + ": the library has no models");
+    }
+    // Sources in order with their model counts (.fslib files by name, meshes together).
+    std::vector<std::pair<std::string, std::size_t>> counts;
+    for (std::size_t i = 0; i < merged.size(); ++i) {
+      const Model& m = merged.library().models[i];
+      const std::string& src = merged.source_of(i);
+      if (m.face_count() > static_cast<std::size_t>(match::kMaxNodes)) {
+        const std::string msg =
+            fmt::format("{}: model '{}' has {} faces; the matcher takes models of at most {} faces", src,
+                        m.name, m.face_count(), match::kMaxNodes);
+        if (!mg->allow_large) throw Error(msg + " (--allow-large keeps it)");
+        std::fprintf(stderr, "facetscan library merge: warning: %s\n", msg.c_str());
+      }
+      const std::string key = is_library_file(src) ? src : std::string("meshes");
+      if (counts.empty() || counts.back().first != key)
+        counts.emplace_back(key, 1);
+      else
+        ++counts.back().second;
+    }
+    const Library out = merged.release();
+    out.save(mg->out);
+    if (!mg->quiet) {
+      for (const auto& [src, n] : counts) fmt::print("{}: {} models\n", src, n);
+      fmt::print("wrote {} models to {}\n", out.models.size(), mg->out);
     }
   });
 

@@ -1,5 +1,7 @@
 // Polycube enumeration (grow by one cube + canonical form) and their surfaces.
 #include <algorithm>
+#include <charconv>
+#include <cmath>
 #include <map>
 #include <set>
 
@@ -133,6 +135,58 @@ std::string polycube_name(int volume, std::size_t index) {
 
 Model polycube_model(const Polycube& cells, double edge, const std::string& name) {
   return build_model(polycube_mesh(cells, edge, name));
+}
+
+std::optional<PolycubeId> parse_polycube_name(std::string_view name) {
+  constexpr std::string_view kPrefix = "polycube-";
+  if (name.substr(0, kPrefix.size()) != kPrefix) return std::nullopt;
+  name.remove_prefix(kPrefix.size());
+  const std::size_t dash = name.find('-');
+  if (dash == std::string_view::npos || dash == 0 || dash + 1 == name.size()) return std::nullopt;
+  PolycubeId id;
+  const char* vend = name.data() + dash;
+  const auto v = std::from_chars(name.data(), vend, id.volume);
+  const char* end = name.data() + name.size();
+  const auto i = std::from_chars(vend + 1, end, id.index);
+  if (v.ec != std::errc() || v.ptr != vend || i.ec != std::errc() || i.ptr != end) return std::nullopt;
+  if (id.volume < 1 || id.index < 1) return std::nullopt;
+  return id;
+}
+
+Mesh polycube_mesh_of(const Model& model, const std::vector<std::vector<Polycube>>& generated,
+                      const std::string& source) {
+  const auto fail = [&](const std::string& what) {
+    return Error(fmt::format("{}: model '{}': {}", source, model.name, what));
+  };
+  const auto id = parse_polycube_name(model.name);
+  if (!id) throw fail("not a polycube (names are polycube-<volume>-<index>)");
+  const auto v = static_cast<std::size_t>(id->volume);
+  if (v > generated.size() || id->index > generated[v - 1].size())
+    throw fail(fmt::format("no such polycube among the generated ones (volume <= {})", generated.size()));
+  const Polycube& cells = generated[v - 1][id->index - 1];
+  // The edge from the model's bounding box (exact for the generator's coordinates, edge x integer).
+  Eigen::AlignedBox3d box_model;
+  for (const auto& f : model.faces)
+    for (const auto& loop : f.loops)
+      for (const auto& p : loop) box_model.extend(p);
+  int cells_extent = 0;
+  for (const Cell& c : cells)
+    for (int k : c) cells_extent = std::max(cells_extent, k + 1);
+  const double edge = box_model.isEmpty() ? 0.0 : box_model.sizes().maxCoeff() / cells_extent;
+  if (!(edge > 0)) throw fail("no extent");
+  Mesh mesh = polycube_mesh(cells, edge, model.name);
+  // The model's faces must be the mesh's: the same bounding box, total area and volume (a library of another
+  // generator, or an edited name, fails here).
+  Eigen::AlignedBox3d box_mesh;
+  for (const auto& p : mesh.vertices) box_mesh.extend(p);
+  const double area = static_cast<double>(mesh.faces.size()) * edge * edge;  // unit squares
+  const double volume = static_cast<double>(v) * edge * edge * edge;
+  const double tol = 1e-6 * edge;
+  if (std::abs(area - model.total_area) > 1e-6 * area || std::abs(volume - model.volume) > 1e-6 * volume ||
+      (box_mesh.min() - box_model.min()).cwiseAbs().maxCoeff() > tol ||
+      (box_mesh.max() - box_model.max()).cwiseAbs().maxCoeff() > tol)
+    throw fail(fmt::format("its faces are not those of the generator's polycube {}-{}", v, id->index));
+  return mesh;
 }
 
 }  // namespace fs::host

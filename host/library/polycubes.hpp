@@ -3,7 +3,9 @@
 // exactly once up to rotation and translation (mirror images are distinct), as cell sets, surface meshes and
 // models (coplanar unit squares merged into faces).
 #include <array>
+#include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "common/mesh.hpp"
@@ -37,5 +39,20 @@ std::string polycube_name(int volume, std::size_t index);
 
 // The model of a polycube (build_model on polycube_mesh).
 Model polycube_model(const Polycube& cells, double edge, const std::string& name);
+
+// (volume, index from 1) of a name "polycube-<volume>-<index>"; nullopt for any other name.
+struct PolycubeId {
+  int volume = 0;
+  std::size_t index = 0;
+};
+std::optional<PolycubeId> parse_polycube_name(std::string_view name);
+
+// The surface mesh of a library's polycube model (as `library polycubes` made it): the cells of its name in
+// `generated` (enumerate_polycubes of at least its volume), the edge from its bounding box, in the model's
+// frame (placing the mesh at (R, t) places the model there). Throws fs::Error naming `source` and
+// the model when the name is no polycube's, lies beyond `generated`, or the mesh does not reproduce the model
+// (area, volume, bounding box).
+Mesh polycube_mesh_of(const Model& model, const std::vector<std::vector<Polycube>>& generated,
+                      const std::string& source);
 
 }  // namespace fs::host

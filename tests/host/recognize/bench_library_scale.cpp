@@ -1,0 +1,564 @@
+// Recognition time against library size (issue #24), the baseline before a library index: the same scans
+// recognized against
+//   poly120         the 120 polyhedra (scaled as bench_recognition: make_catalog, seed S)
+//   cubes7          the 1,230 polycubes of volume <= 7 (edge 20 mm)
+//   cubes8          the 8,152 polycubes of volume <= 8 (`facetscan library polycubes --max-volume 8`)
+//   poly120+cubes8  the 120 polyhedra with the 8,152 polycubes as distractors (two .fslib files, one -l each)
+// Scenes: the 120-polyhedra scenes (categories round-robin) go to poly120 and poly120+cubes8; single
+// polycubes of volume <= --cube-volume seen with >= --min-faces faces go to cubes7 and cubes8. Per library:
+// .fslib size, load time, resident memory of the library and of the recognizer, and per category: top-1,
+// ambiguous-correct (the true model among the alternatives of the object reported there), false positives,
+// CPU time per scan (one core) with matching and verification separately, search states, allocations of a
+// warm recognize().
+// --profile K: for K scenes per library, every reference matched alone against the scene graph (the first
+// round's parameters): where matching time goes (references with and without a solution, pruning counts).
+//
+//   bench_library_scale [--scenes N] [--libraries poly120,cubes7,cubes8,poly120+cubes8] [--steps 500]
+//                       [--categories single,separated,occluded,empty] [--cubes-fslib cubes8.fslib]
+//                       [--max-volume 8] [--cube-volume 7] [--min-faces 3] [--min-face-cells 40] [--seed S]
+//                       [--noise 0.05] [--alloc-every 4] [--profile 0] [--solutions 32] [--work DIR]
+//                       [--verbose]
+#include <malloc.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <CLI/CLI.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <memory>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "common/alloc_counter/alloc_counter.hpp"
+#include "common/error.hpp"
+#include "host/library/library.hpp"
+#include "host/library/mesh_files.hpp"
+#include "host/library/polycubes.hpp"
+#include "host/match/inexact.hpp"
+#include "host/match/node_set.hpp"
+#include "host/recognize/recognizer.hpp"
+#include "hw-sim/scene/polycube_catalog.hpp"
+#include "hw-sim/scene/random_scene.hpp"
+#include "library_scale_scenes.hpp"
+#include "support/test_paths.hpp"
+
+namespace {
+
+namespace stdfs = std::filesystem;
+using fs::bench::BenchScene;
+using fs::host::Library;
+using fs::sim::SceneCategory;
+using Clock = std::chrono::steady_clock;
+
+double ms_since(Clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+double cpu_ms() {
+  timespec ts{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+  return static_cast<double>(ts.tv_sec) * 1e3 + static_cast<double>(ts.tv_nsec) * 1e-6;
+}
+double rss_mb() {
+  std::ifstream f("/proc/self/status");
+  std::string line;
+  while (std::getline(f, line))
+    if (line.rfind("VmRSS:", 0) == 0) return std::stod(line.substr(6)) / 1024.0;
+  return std::nan("");
+}
+double quantile(std::vector<double> v, double q) {
+  if (v.empty()) return std::nan("");
+  std::sort(v.begin(), v.end());
+  const double pos = q * static_cast<double>(v.size() - 1);
+  const auto i = static_cast<std::size_t>(pos);
+  const double f = pos - static_cast<double>(i);
+  return i + 1 < v.size() ? v[i] * (1 - f) + v[i + 1] * f : v[i];
+}
+double pct(int a, int b) { return b > 0 ? 100.0 * a / b : std::nan(""); }
+
+struct Args {
+  int scenes = 40;
+  std::uint64_t seed = 1;
+  std::uint32_t steps = 500;
+  double noise = 0.05;
+  std::vector<std::string> libraries{"poly120", "cubes7", "cubes8", "poly120+cubes8"};
+  std::vector<SceneCategory> categories{SceneCategory::single, SceneCategory::separated,
+                                        SceneCategory::occluded, SceneCategory::empty};
+  std::string cubes_fslib, work;
+  int max_volume = 8, cube_volume = 7, min_faces = 3;
+  std::size_t min_face_cells = 40;
+  int alloc_every = 4, profile = 0;
+  bool verbose = false;
+  fs::host::rec::RecognizeParams params = [] {
+    fs::host::rec::RecognizeParams p;
+    p.threads = 1;
+    return p;
+  }();
+};
+
+// ------------------------------------------------------------------------------------------ the libraries
+
+struct Inputs {
+  stdfs::path work;
+  std::string poly_fslib, cubes_small_fslib, cubes_fslib;
+  std::vector<fs::sim::CatalogEntry> poly_catalog, cube_catalog;
+};
+
+// poly120.fslib from the scaled catalog; the polycube libraries from --cubes-fslib or the generator; the
+// polycube scene catalog from the small library's models (the generator's mesh of each).
+void prepare(const Args& a, Inputs& in, bool poly, bool cubes) {
+  if (poly) {
+    in.poly_catalog = fs::sim::make_catalog(
+        fs::sim::read_catalog_meshes(fs::test::shared_data() / "polyhedra/polyhedra-viewer/off"),
+        {.seed = a.seed});
+    Library lib;
+    for (const auto& e : in.poly_catalog) lib.add(fs::host::build_model(e.mesh));
+    in.poly_fslib = (in.work / "poly120.fslib").string();
+    lib.save(in.poly_fslib);
+  }
+  if (!cubes) return;
+  const auto t0 = Clock::now();
+  Library all;
+  if (!a.cubes_fslib.empty()) {
+    in.cubes_fslib = a.cubes_fslib;
+    all = Library::load(a.cubes_fslib);
+  } else {
+    const auto gen = fs::host::enumerate_polycubes(a.max_volume);
+    for (std::size_t v = 0; v < gen.size(); ++v)
+      for (std::size_t i = 0; i < gen[v].size(); ++i) {
+        const std::string name = fs::host::polycube_name(static_cast<int>(v + 1), i + 1);
+        all.models.push_back(fs::host::polycube_model(gen[v][i], 20.0, name));
+      }
+    in.cubes_fslib = (in.work / ("cubes" + std::to_string(a.max_volume) + ".fslib")).string();
+    all.save(in.cubes_fslib);
+    std::printf("generated %zu polycubes of volume <= %d in %.1f s: %s\n", all.models.size(), a.max_volume,
+                ms_since(t0) / 1e3, in.cubes_fslib.c_str());
+  }
+  Library small;
+  for (const auto& m : all.models) {
+    const auto id = fs::host::parse_polycube_name(m.name);
+    if (id && id->volume <= 7) small.models.push_back(m);
+  }
+  in.cubes_small_fslib = (in.work / "cubes7.fslib").string();
+  small.save(in.cubes_small_fslib);
+  // Scene polycubes: volume <= cube_volume, meshes from the generator, sizes from the library.
+  const auto gen = fs::host::enumerate_polycubes(a.cube_volume);
+  std::vector<fs::Mesh> meshes;
+  for (const auto& m : small.models) {
+    const auto id = fs::host::parse_polycube_name(m.name);
+    if (id && id->volume <= a.cube_volume)
+      meshes.push_back(fs::host::polycube_mesh_of(m, gen, in.cubes_small_fslib));
+  }
+  in.cube_catalog = fs::sim::make_polycube_catalog(meshes);
+}
+
+struct LibrarySpec {
+  std::string name;
+  std::vector<std::string> files;
+  bool polycube_scenes = false;
+};
+
+LibrarySpec spec_of(const std::string& name, const Inputs& in) {
+  if (name == "poly120") return {name, {in.poly_fslib}, false};
+  if (name == "cubes7") return {name, {in.cubes_small_fslib}, true};
+  if (name == "cubes8") return {name, {in.cubes_fslib}, true};
+  if (name == "poly120+cubes8") return {name, {in.poly_fslib, in.cubes_fslib}, false};
+  throw fs::Error("--libraries: unknown library '" + name + "' (poly120, cubes7, cubes8, poly120+cubes8)");
+}
+
+// ------------------------------------------------------------------------------------------------ scenes
+
+std::vector<BenchScene> polyhedra_scenes(const Args& a, const Inputs& in) {
+  std::vector<BenchScene> out;
+  for (int i = 0; i < a.scenes; ++i) {
+    const SceneCategory cat = a.categories[static_cast<std::size_t>(i) % a.categories.size()];
+    const std::uint64_t seed = a.seed + static_cast<std::uint64_t>(i);
+    const auto rs = fs::sim::make_random_scene(in.poly_catalog, {.category = cat, .steps = a.steps}, seed);
+    out.push_back(fs::bench::capture(rs, in.poly_catalog, seed, a.noise));
+  }
+  return out;
+}
+
+std::vector<BenchScene> polycube_scenes(const Args& a, const Inputs& in, int& tried) {
+  const Library lib = Library::load(in.cubes_small_fslib);
+  std::unordered_map<std::string, std::size_t> index;
+  for (std::size_t i = 0; i < lib.models.size(); ++i) index[lib.models[i].name] = i;
+  std::vector<BenchScene> out;
+  tried = 0;
+  for (std::uint64_t seed = a.seed; static_cast<int>(out.size()) < a.scenes; ++seed) {
+    if (++tried > 50 * a.scenes) throw fs::Error("polycube scenes: too few seen with enough faces");
+    const auto rs = fs::sim::make_random_scene(in.cube_catalog,
+                                               {.category = SceneCategory::single, .steps = a.steps}, seed);
+    fs::sim::GroundTruthGrid grid;
+    BenchScene s = fs::bench::capture(rs, in.cube_catalog, seed, a.noise, &grid);
+    const auto& model = lib.models[index.at(s.objects.at(0).model)];
+    s.faces_seen = fs::bench::faces_seen(grid, rs.scene.objects[0], 0, model, a.min_face_cells);
+    if (s.faces_seen >= a.min_faces) out.push_back(std::move(s));
+  }
+  return out;
+}
+
+// ---------------------------------------------------------------------------------------------- the runs
+
+struct Stats {
+  int scenes = 0, objects = 0, top1 = 0, ambiguous_ok = 0, found = 0, extra = 0, phantoms = 0,
+      scenes_with_fp = 0;
+  int truth_hypothesis = 0, truth_verified = 0;  // objects whose true model is among the hypotheses there
+  std::vector<double> cpu, match, verify, seg, states, allocs;
+};
+
+struct Profile {
+  int scenes = 0;
+  double ms = 0, ms_without = 0;  // all references / those without a solution
+  std::int64_t refs = 0, refs_with = 0, states = 0, states_without = 0;
+  std::array<std::int64_t, fs::host::match::kConditionCount> removed{};
+  std::vector<double> ref_ms;  // per reference and scene
+};
+
+// Every reference alone against the whole scene graph of the last recognize(), with the first round's
+// matching parameters (prepare.cpp): time, states, solutions.
+void profile_references(const fs::host::rec::Recognizer& rec, const Library& lib,
+                        const fs::host::rec::RecognizeParams& p, fs::host::match::InexactMatcher& matcher,
+                        Profile& out) {
+  fs::host::match::MatchParams mp = p.match;
+  mp.max_states = std::min<std::int64_t>(p.match.max_states, p.max_states);
+  mp.th_minlevel = p.min_level;
+  if (p.max_solutions > 0) mp.max_solutions = p.max_solutions;
+  if (p.rigidity_pairs) mp.rigidity_pairs = true;
+  if (p.rigidity_deg > 0) mp.th_omega_deg = p.rigidity_deg;
+  if (p.match_area_ratio > 0) {
+    mp.th_area_ratio = p.match_area_ratio;
+    mp.th_area_slack_mm2 = p.match_area_slack_mm2;
+  }
+  const fs::host::Pfrg& scene = rec.scene_graph();
+  if (scene.nodes.size() > static_cast<std::size_t>(fs::host::match::kMaxNodes)) return;
+  ++out.scenes;
+  for (const auto& m : lib.models) {
+    const auto t0 = Clock::now();
+    const auto& r = matcher.match(scene, m.graph, mp);
+    const double ms = ms_since(t0);
+    bool solved = false;
+    for (const auto& s : r.solutions) solved = solved || !s.partial;
+    ++out.refs;
+    out.ms += ms;
+    out.states += r.stats.states_created;
+    out.ref_ms.push_back(ms);
+    if (solved) {
+      ++out.refs_with;
+    } else {
+      out.ms_without += ms;
+      out.states_without += r.stats.states_created;
+      for (std::size_t c = 0; c < out.removed.size(); ++c) out.removed[c] += r.stats.removed[c];
+    }
+  }
+}
+
+void evaluate(const BenchScene& sc, const std::vector<fs::host::rec::Hypothesis>& found, const Library& lib,
+              const std::unordered_map<std::string, int>& index, Stats& s, bool verbose) {
+  std::vector<bool> used(found.size(), false);
+  for (const auto& o : sc.objects) {
+    if (o.model.empty()) continue;
+    const int truth = index.at(o.model);
+    const auto& tm = lib.models[static_cast<std::size_t>(truth)];
+    const fs::Vec3 centre = o.R * tm.center + o.t;
+    ++s.objects;
+    int nearest = -1, hit = -1;
+    double nearest_d = 20.0, hit_d = 10.0;
+    for (std::size_t j = 0; j < found.size(); ++j) {
+      const auto& m = lib.models[static_cast<std::size_t>(found[j].model)];
+      const double d = (found[j].R * m.center + found[j].t - centre).norm();
+      if (d < nearest_d) nearest_d = d, nearest = static_cast<int>(j);
+      if (!used[j] && found[j].model == truth && d < hit_d) hit_d = d, hit = static_cast<int>(j);
+    }
+    if (hit >= 0) used[static_cast<std::size_t>(hit)] = true, ++s.found;
+    std::string got = "nothing";
+    if (nearest >= 0) {
+      const auto& h = found[static_cast<std::size_t>(nearest)];
+      got = lib.models[static_cast<std::size_t>(h.model)].name;
+      if (h.model == truth) {
+        ++s.top1;
+        ++s.ambiguous_ok;
+      } else {
+        for (const auto& alt : h.listed_alternatives())
+          if (alt.model == truth) ++s.ambiguous_ok, got += " (true model listed as an alternative)";
+      }
+    }
+    if (verbose && (nearest < 0 || found[static_cast<std::size_t>(nearest)].model != truth))
+      std::printf("  seed %llu %s: %s -> %s\n", static_cast<unsigned long long>(sc.seed),
+                  fs::sim::to_string(sc.category), o.model.c_str(), got.c_str());
+  }
+  int extra = 0;
+  for (std::size_t j = 0; j < found.size(); ++j) {
+    if (used[j]) continue;
+    ++extra;
+    const auto& m = lib.models[static_cast<std::size_t>(found[j].model)];
+    const fs::Vec3 c = found[j].R * m.center + found[j].t;
+    bool near = false;
+    for (const auto& o : sc.objects) {
+      if (o.model.empty()) continue;
+      const auto& tm = lib.models[static_cast<std::size_t>(index.at(o.model))];
+      near = near || (o.R * tm.center + o.t - c).norm() < 20.0;
+    }
+    s.phantoms += near ? 0 : 1;
+  }
+  s.extra += extra;
+  s.scenes_with_fp += extra > 0 ? 1 : 0;
+}
+
+// Recall before acceptance: a hypothesis of the true model near its true place (centre < 10 mm) among all
+// hypotheses of the last recognize(), and among the verified ones.
+void truth_among_hypotheses(const BenchScene& sc, const fs::host::rec::Recognizer& rec, const Library& lib,
+                            const std::unordered_map<std::string, int>& index, Stats& s) {
+  const auto all = rec.all_hypotheses();
+  const auto verified = rec.candidates();
+  for (const auto& o : sc.objects) {
+    if (o.model.empty()) continue;
+    const int truth = index.at(o.model);
+    const auto& tm = lib.models[static_cast<std::size_t>(truth)];
+    const fs::Vec3 centre = o.R * tm.center + o.t;
+    auto near = [&](const fs::host::rec::Hypothesis* h) {
+      return h->model == truth && (h->R * tm.center + h->t - centre).norm() < 10.0;
+    };
+    s.truth_hypothesis += std::any_of(all.begin(), all.end(), near) ? 1 : 0;
+    s.truth_verified += std::any_of(verified.begin(), verified.end(), near) ? 1 : 0;
+  }
+}
+
+struct LibraryRun {
+  std::string name;
+  std::size_t models = 0;
+  double fslib_mb = 0, load_ms = 0, lib_rss_mb = 0, rec_rss_mb = 0, rec_ms = 0, warm_rss_mb = 0;
+  std::map<SceneCategory, Stats> stats;
+  Profile profile;
+};
+
+LibraryRun run_library(const Args& a, const LibrarySpec& spec, const std::vector<BenchScene>& scenes) {
+  LibraryRun out;
+  out.name = spec.name;
+  for (const auto& f : spec.files)
+    out.fslib_mb += static_cast<double>(stdfs::file_size(f)) / (1024.0 * 1024.0);
+  malloc_trim(0);
+  const double rss0 = rss_mb();
+  auto t0 = Clock::now();
+  const Library lib = fs::host::load_or_build_library(spec.files);
+  out.load_ms = ms_since(t0);
+  out.models = lib.models.size();
+  const double rss1 = rss_mb();
+  out.lib_rss_mb = rss1 - rss0;
+  const std::size_t cells =
+      static_cast<std::size_t>(a.steps) * fs::ScannerCalibration::bench_default().camera.height;
+  t0 = Clock::now();
+  auto rec = std::make_unique<fs::host::rec::Recognizer>(lib, a.params, cells);
+  out.rec_ms = ms_since(t0);
+  out.rec_rss_mb = rss_mb() - rss1;
+  std::printf(
+      "%s: %zu models, %.1f MB .fslib, loaded in %.0f ms (+%.0f MB resident), recognizer built in %.0f ms "
+      "(+%.0f MB)\n",
+      spec.name.c_str(), out.models, out.fslib_mb, out.load_ms, out.lib_rss_mb, out.rec_ms, out.rec_rss_mb);
+  std::fflush(stdout);
+  std::unordered_map<std::string, int> index;
+  for (std::size_t i = 0; i < lib.models.size(); ++i) index[lib.models[i].name] = static_cast<int>(i);
+  fs::host::match::InexactMatcher matcher(fs::host::match::MatcherLimits{
+      std::max<std::int64_t>(a.params.max_states, 16), std::max(a.params.solutions_per_model, 1)});
+  const auto t_run = Clock::now();
+  for (std::size_t i = 0; i < scenes.size(); ++i) {
+    const BenchScene& sc = scenes[i];
+    const double c0 = cpu_ms();
+    const auto& r = rec->recognize(sc.cloud, &sc.table);
+    const double cpu = cpu_ms() - c0;
+    const std::vector<fs::host::rec::Hypothesis> found = r.objects;
+    Stats& s = out.stats[sc.category];
+    ++s.scenes;
+    s.cpu.push_back(cpu);
+    // Stage times are wall times (one thread: the caller's); on a loaded machine they exceed the CPU time,
+    // so the scan's CPU time is split by their shares.
+    const double share = r.stats.total_ms > 0 ? cpu / r.stats.total_ms : 0.0;
+    s.match.push_back(share * r.stats.match_ms);
+    s.verify.push_back(share * r.stats.verify_ms);
+    s.seg.push_back(share * (r.stats.segment_ms + r.stats.pfrg_ms));
+    s.states.push_back(static_cast<double>(r.stats.states));
+    if (a.verbose)
+      std::printf(
+          "  seed %llu %s: cpu %.0f ms, matching %.0f, verification %.0f, %lld states, %d rounds, %zu "
+          "objects\n",
+          static_cast<unsigned long long>(sc.seed), fs::sim::to_string(sc.category), cpu, r.stats.match_ms,
+          r.stats.verify_ms, static_cast<long long>(r.stats.states), r.stats.rounds, found.size());
+    evaluate(sc, found, lib, index, s, a.verbose);
+    truth_among_hypotheses(sc, *rec, lib, index, s);
+    // Every K-th scene of each category (its first included).
+    if (a.alloc_every > 0 && (s.scenes - 1) % a.alloc_every == 0) {
+      fs::AllocCounter counter;
+      rec->recognize(sc.cloud, &sc.table);
+      s.allocs.push_back(static_cast<double>(counter.process_allocations()));
+    }
+    if (static_cast<int>(i) < a.profile) profile_references(*rec, lib, a.params, matcher, out.profile);
+    if (!a.verbose && (i + 1) % 10 == 0)
+      std::fprintf(stderr, "%s: %zu / %zu scenes, %.0f s\n", spec.name.c_str(), i + 1, scenes.size(),
+                   ms_since(t_run) / 1e3);
+  }
+  out.warm_rss_mb = rss_mb() - rss0;
+  return out;
+}
+
+void report(const Args& a, const std::vector<LibraryRun>& runs) {
+  std::printf(
+      "\n| library | models | .fslib MB | load ms | library RSS MB | recognizer RSS MB (built / warm) |\n");
+  std::printf("|---|---|---|---|---|---|\n");
+  for (const auto& r : runs)
+    std::printf("| %s | %zu | %.1f | %.0f | %.0f | %.0f / %.0f |\n", r.name.c_str(), r.models, r.fslib_mb,
+                r.load_ms, r.lib_rss_mb, r.rec_rss_mb, r.warm_rss_mb - r.lib_rss_mb);
+  std::printf(
+      "\n| library, scenes | scenes | objects | top-1 | ambiguous-correct | found (model + centre < 10 mm) | "
+      "false positives (objects / scenes / phantoms) | true model among the last round's hypotheses / "
+      "verified | CPU ms "
+      "median "
+      "/ p90 | matching ms median / p90 | verification ms median / p90 | segmentation ms median | states "
+      "median | warm allocs median / max |\n");
+  std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+  for (const auto& r : runs)
+    for (const auto& [cat, s] : r.stats)
+      std::printf(
+          "| %s %s | %d | %d | %.1f %% | %.1f %% | %.1f %% | %d / %d / %d | %.0f / %.0f %% | %.0f / %.0f | "
+          "%.0f / %.0f | %.0f / %.0f | %.0f | %.0f | %.0f / %.0f |\n",
+          r.name.c_str(), fs::sim::to_string(cat), s.scenes, s.objects, pct(s.top1, s.objects),
+          pct(s.ambiguous_ok, s.objects), pct(s.found, s.objects), s.extra, s.scenes_with_fp, s.phantoms,
+          pct(s.truth_hypothesis, s.objects), pct(s.truth_verified, s.objects), quantile(s.cpu, 0.5),
+          quantile(s.cpu, 0.9), quantile(s.match, 0.5), quantile(s.match, 0.9), quantile(s.verify, 0.5),
+          quantile(s.verify, 0.9), quantile(s.seg, 0.5), quantile(s.states, 0.5), quantile(s.allocs, 0.5),
+          quantile(s.allocs, 1.0));
+  std::printf(
+      "(stage columns: the scan's CPU time split by the stages' wall-time shares; top-1 and found count "
+      "objects, "
+      "false positives are reported objects that are no hit, phantoms those with no true object within 20 "
+      "mm)\n");
+  bool any = false;
+  for (const auto& r : runs) any = any || r.profile.scenes > 0;
+  if (!any) return;
+  std::printf(
+      "\nper-reference profile (every reference alone against the whole scene graph, first-round "
+      "parameters, %d scenes per library):\n",
+      a.profile);
+  for (const auto& r : runs) {
+    const Profile& p = r.profile;
+    if (p.scenes == 0) continue;
+    std::printf(
+        "  %s: %.0f ms per scene over %zu references (%.3f ms each, p99 %.3f, max %.2f); %.2f %% of "
+        "references reach a solution; those without take %.1f %% of the time and %.1f %% of %lld states\n",
+        r.name.c_str(), p.ms / p.scenes, r.models, p.ms / static_cast<double>(p.refs),
+        quantile(p.ref_ms, 0.99), quantile(p.ref_ms, 1.0),
+        pct(static_cast<int>(p.refs_with), static_cast<int>(p.refs)),
+        100.0 * p.ms_without / std::max(p.ms, 1e-9),
+        100.0 * static_cast<double>(p.states_without) / std::max<double>(1.0, static_cast<double>(p.states)),
+        static_cast<long long>(p.states));
+    std::printf("    candidates removed in references without a solution, per condition:");
+    for (int c = 0; c < fs::host::match::kConditionCount; ++c)
+      if (p.removed[static_cast<std::size_t>(c)] > 0)
+        std::printf(
+            " %s %lld",
+            std::string(fs::host::match::condition_name(static_cast<fs::host::match::Condition>(c))).c_str(),
+            static_cast<long long>(p.removed[static_cast<std::size_t>(c)]));
+    std::printf("\n");
+  }
+}
+
+Args parse_args(CLI::App& app, int argc, char** argv) {
+  Args a;
+  std::vector<std::string> categories;
+  app.add_option("--scenes", a.scenes, "scenes per scene set (polyhedra: round-robin over the categories)")
+      ->check(CLI::Range(1, 100000));
+  app.add_option("--libraries", a.libraries, "poly120,cubes7,cubes8,poly120+cubes8")->delimiter(',');
+  app.add_option("--steps", a.steps, "scan steps (grid rows)")->check(CLI::Range(10u, 1u << 20));
+  app.add_option("--categories", categories, "polyhedra scenes: single,separated,occluded,empty")
+      ->delimiter(',');
+  app.add_option("--cubes-fslib", a.cubes_fslib, "the polycube library (default: generated, --max-volume)");
+  app.add_option("--max-volume", a.max_volume, "volume of the generated polycube library")
+      ->check(CLI::Range(7, 9));
+  app.add_option("--cube-volume", a.cube_volume, "largest polycube placed in scenes")
+      ->check(CLI::Range(1, 7));
+  app.add_option("--min-faces", a.min_faces, "a polycube scene shows at least this many model faces")
+      ->check(CLI::Range(1, 100));
+  app.add_option("--min-face-cells", a.min_face_cells, "... each with at least this many points");
+  app.add_option("--seed", a.seed, "scene i uses seed S + i; the polyhedra sizes use S");
+  app.add_option("--noise", a.noise, "depth noise sigma, mm")->check(CLI::Range(0.0, 10.0));
+  app.add_option(
+         "--alloc-every", a.alloc_every,
+         "count the allocations of a warm recognize() in every K-th scene of each category (0 = never)")
+      ->check(CLI::Range(0, 1000000));
+  app.add_option("--profile", a.profile, "scenes per library profiled reference by reference")
+      ->check(CLI::Range(0, 100000));
+  app.add_option("--work", a.work, "folder for the .fslib files (kept; default: a temporary one, removed)");
+  app.add_option("--solutions", a.params.solutions_per_model,
+                 "RecognizeParams::solutions_per_model (default 32): hypotheses kept per reference")
+      ->check(CLI::Range(1, 1024));
+  app.add_flag("--verbose", a.verbose, "one line per scene and per miss");
+  app.parse(argc, argv);
+  if (!categories.empty()) {
+    a.categories.clear();
+    for (const auto& c : categories) a.categories.push_back(fs::sim::parse_scene_category(c));
+  }
+  return a;
+}
+
+int run(const Args& a) {
+  const auto t0 = Clock::now();
+  Inputs in;
+  struct WorkDir {  // a temporary work folder goes, also on an error
+    stdfs::path path;
+    bool temp;
+    ~WorkDir() {
+      std::error_code ec;
+      if (temp) stdfs::remove_all(path, ec);
+    }
+  } work{a.work.empty() ? stdfs::temp_directory_path() / ("bench_library_scale-" + std::to_string(getpid()))
+                        : stdfs::path(a.work),
+         a.work.empty()};
+  in.work = work.path;
+  stdfs::create_directories(in.work);
+  bool poly = false, cube_scenes_needed = false, cube_files = false;
+  for (const auto& l : a.libraries) {
+    const LibrarySpec spec = spec_of(l, in);  // refuses an unknown name before any work
+    poly = poly || !spec.polycube_scenes;
+    cube_scenes_needed = cube_scenes_needed || spec.polycube_scenes;
+    cube_files = cube_files || l.find("cubes") != std::string::npos;
+  }
+  prepare(a, in, poly, cube_files);
+  int tried = 0;
+  const auto tp = Clock::now();
+  const std::vector<BenchScene> poly_scenes = poly ? polyhedra_scenes(a, in) : std::vector<BenchScene>{};
+  const std::vector<BenchScene> cube_scenes =
+      cube_scenes_needed ? polycube_scenes(a, in, tried) : std::vector<BenchScene>{};
+  std::printf(
+      "scenes: %zu of the polyhedra, %zu single polycubes of volume <= %d seen with >= %d faces (of %d "
+      "drawn), %u steps, noise %.2f mm, %d solutions per reference, one thread; ready in %.0f s\n",
+      poly_scenes.size(), cube_scenes.size(), a.cube_volume, a.min_faces, tried, a.steps, a.noise,
+      a.params.solutions_per_model, ms_since(tp) / 1e3);
+  std::vector<LibraryRun> runs;
+  for (const auto& name : a.libraries) {
+    const LibrarySpec spec = spec_of(name, in);
+    runs.push_back(run_library(a, spec, spec.polycube_scenes ? cube_scenes : poly_scenes));
+    malloc_trim(0);
+  }
+  report(a, runs);
+  std::printf("\n%.0f s total\n", ms_since(t0) / 1e3);
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{
+      "bench_library_scale: recognition time against library size (the same scans, 120 to 8,272 models)"};
+  try {
+    return run(parse_args(app, argc, argv));
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "bench_library_scale: %s\n", e.what());
+    return 2;
+  }
+}
