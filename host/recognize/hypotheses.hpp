@@ -27,8 +27,9 @@ void update_translation(const HypothesisContext& c, Hypothesis& h, std::vector<P
 int expand(const HypothesisContext& c, Hypothesis& h, std::vector<PlanePair>& scratch,
            const std::vector<char>* taken = nullptr);
 
-// Within each model's list: merges compatible solutions (no shared scene or reference node, similar rotation
-// and translation) and drops duplicates (the same object under a symmetry-equivalent pose, overlapping scene
+// Within each model's list (hyps grouped by model: each model's hypotheses contiguous, as the recognizer
+// makes them): merges compatible solutions (no shared scene or reference node, similar rotation and
+// translation) and drops duplicates (the same object under a symmetry-equivalent pose, overlapping scene
 // nodes; the costlier one goes). Returns the number of merges.
 int merge_compatible(const HypothesisContext& c, std::span<Hypothesis> hyps, std::vector<char>& alive,
                      std::vector<PlanePair>& scratch);
