@@ -261,7 +261,9 @@ void add_fleet_commands(CLI::App& app) {
   auto* worker = app.add_subcommand(
       "worker", "Fleet worker: recognize the scans of the NATS stream SCANS, publish the results to RESULTS");
   add_nats_options(worker, w->nats);
-  worker->add_option("-l,--library", w->library, "Library: a .fslib file, or mesh files / directories")
+  worker
+      ->add_option("-l,--library", w->library,
+                   "Library: .fslib files, mesh files and directories of meshes, mixed (repeatable)")
       ->required()
       ->expected(1, -1);
   worker

@@ -857,8 +857,9 @@ void add_live_commands(CLI::App& app) {
   auto* serve = app.add_subcommand("serve", "Listen for scanners and recognize every scan they stream");
   serve->add_option("--listen", so->listen, "ADDR:PORT to listen on (default 127.0.0.1:7450)");
   serve
-      ->add_option("-l,--library", so->library,
-                   "Library: a .fslib file, or mesh files / directories (required, except with --nats)")
+      ->add_option(
+          "-l,--library", so->library,
+          "Library: .fslib files, mesh files and directories of meshes, mixed (required, except with --nats)")
       ->expected(1, -1);
   serve->add_option("-o,--out", so->out_dir,
                     "Write result.json and an HTML report per scan into DIR/scan-<n>-id<scan id>/");

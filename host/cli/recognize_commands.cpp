@@ -253,8 +253,9 @@ void add_recognize_commands(CLI::App& app) {
                          "Recognize the library's objects in scans (.fscan) or point clouds (.pcd, .ply); "
                          "a directory is a batch");
   rc->add_option("inputs", o->inputs, "Input files or directories")->required();
-  rc->add_option("-l,--library", o->library,
-                 "Library: a .fslib file, or mesh files / directories (required, except with --nats)")
+  rc->add_option(
+        "-l,--library", o->library,
+        "Library: .fslib files, mesh files and directories of meshes, mixed (required, except with --nats)")
       ->expected(1, -1);
   rc->add_option("--json", o->json_out, "Write the recognition JSON to FILE ('-' = stdout)");
   rc->add_option("--report", o->report_dir,
