@@ -177,7 +177,11 @@ class ClusterTest(unittest.TestCase):
     def setUp(self):
         work = os.path.join(fs.ENV.work, "cluster")
         ports = [(free_port(), free_port()) for _ in range(3)]
-        self.nodes = [Node(work, i, ports) for i in (1, 2, 3)]
+        self.nodes = []
+        # Cleanups run even when setUp fails below (tearDown would not): no server outlives the test.
+        self.addCleanup(lambda: [n.kill() for n in self.nodes])
+        for i in (1, 2, 3):
+            self.nodes.append(Node(work, i, ports))
         self.url = ",".join(f"tls://localhost:{n.port}" for n in self.nodes)
         self.ca = ["--nats-ca", os.path.join(fs.ENV.certs, "ca.pem")]
         self.procs = []
@@ -199,8 +203,6 @@ class ClusterTest(unittest.TestCase):
             p.stop(signal.SIGKILL)
             with open(os.path.join(self.nodes[0].dir, f"proc-{i}.log"), "w") as f:
                 f.write(" ".join(p.cmd) + "\n" + "\n".join(p.lines) + "\n")
-        for n in self.nodes:
-            n.kill()
 
     def results(self):
         # Right after a node is killed a call may fail (its streams elect new leaders): retried, never read as
