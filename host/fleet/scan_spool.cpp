@@ -183,17 +183,21 @@ std::vector<std::uint8_t> ScanSpool::read(const SpoolEntry& entry) const {
   return bytes;
 }
 
+void ScanSpool::forget(std::uint64_t sequence) {
+  const auto it = std::find_if(entries_.begin(), entries_.end(),
+                               [&](const SpoolEntry& x) { return x.sequence == sequence; });
+  if (it != entries_.end()) {
+    bytes_ -= it->bytes;
+    entries_.erase(it);
+  }
+}
+
 void ScanSpool::remove(const SpoolEntry& entry) {
   std::error_code ec;
   stdfs::remove(entry.path, ec);
   if (ec) throw Error(fmt::format("{}: cannot remove ({})", entry.path.string(), ec.message()));
   std::lock_guard lock(mu_);
-  const auto it = std::find_if(entries_.begin(), entries_.end(),
-                               [&](const SpoolEntry& x) { return x.sequence == entry.sequence; });
-  if (it != entries_.end()) {
-    bytes_ -= it->bytes;
-    entries_.erase(it);
-  }
+  forget(entry.sequence);
 }
 
 stdfs::path ScanSpool::reject(const SpoolEntry& entry, const std::string& reason) {
@@ -206,12 +210,7 @@ stdfs::path ScanSpool::reject(const SpoolEntry& entry, const std::string& reason
     throw Error(fmt::format("{}: cannot move to {} ({})", entry.path.string(), to.string(), ec.message()));
   std::ofstream(to.string() + ".reason") << reason << "\n";
   std::lock_guard lock(mu_);
-  const auto it = std::find_if(entries_.begin(), entries_.end(),
-                               [&](const SpoolEntry& x) { return x.sequence == entry.sequence; });
-  if (it != entries_.end()) {
-    bytes_ -= it->bytes;
-    entries_.erase(it);
-  }
+  forget(entry.sequence);
   ++rejected_;
   return to;
 }

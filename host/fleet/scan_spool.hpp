@@ -59,6 +59,8 @@ class ScanSpool {
   const std::filesystem::path& dir() const { return dir_; }
 
  private:
+  void forget(std::uint64_t sequence);  // drops an entry from the list (mu_ held)
+
   std::filesystem::path dir_;
   std::uint64_t max_bytes_;
   mutable std::mutex mu_;

@@ -14,25 +14,6 @@ double cross2(const Vec2& o, const Vec2& a, const Vec2& b) {
   return (a.x() - o.x()) * (b.y() - o.y()) - (a.y() - o.y()) * (b.x() - o.x());
 }
 
-// Andrew's monotone chain, counter-clockwise, no collinear points.
-std::vector<Vec2> hull2(std::vector<Vec2> p) {
-  std::sort(p.begin(), p.end(),
-            [](const Vec2& a, const Vec2& b) { return a.x() < b.x() || (a.x() == b.x() && a.y() < b.y()); });
-  if (p.size() < 3) return p;
-  std::vector<Vec2> h(2 * p.size());
-  std::size_t k = 0;
-  for (std::size_t i = 0; i < p.size(); ++i) {
-    while (k >= 2 && cross2(h[k - 2], h[k - 1], p[i]) <= 0) --k;
-    h[k++] = p[i];
-  }
-  for (std::size_t i = p.size() - 1, t = k + 1; i > 0; --i) {
-    while (k >= t && cross2(h[k - 2], h[k - 1], p[i - 1]) <= 0) --k;
-    h[k++] = p[i - 1];
-  }
-  h.resize(k - 1);
-  return h;
-}
-
 // Newell normal of face f, unit, pointing out of the solid; zero for a face without area.
 Vec3 face_normal(const Mesh& mesh, std::size_t f, bool inward) {
   const auto& face = mesh.faces[f];
@@ -97,7 +78,7 @@ std::vector<int> stable_resting_faces(const Mesh& mesh, const SolidMass& mass, d
     std::vector<Vec2> contact;
     for (const auto& v : mesh.vertices)
       if (std::abs(n.dot(v - p0)) <= tol) contact.emplace_back(u.dot(v), w.dot(v));
-    const std::vector<Vec2> hull = hull2(std::move(contact));
+    const std::vector<Vec2> hull = convex_hull(std::move(contact));
     if (hull.size() < 3) continue;
     const Vec2 c(u.dot(mass.centroid), w.dot(mass.centroid));
     bool inside = true;

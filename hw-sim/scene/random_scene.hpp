@@ -94,6 +94,8 @@ RandomScene make_random_scene(const std::vector<CatalogEntry>& catalog, const Ra
 // Footprint of a posed scene object (convex hull of its world vertices projected on z = 0,
 // counter-clockwise).
 std::vector<Vec2> footprint(const SceneObject& object);
+// Convex hull of points on a plane (Andrew's monotone chain): counter-clockwise, no collinear points.
+std::vector<Vec2> convex_hull(std::vector<Vec2> points);
 // Distance between two convex polygons (0 when they overlap or touch).
 double polygon_distance(const std::vector<Vec2>& a, const std::vector<Vec2>& b);
 
