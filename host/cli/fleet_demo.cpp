@@ -11,29 +11,13 @@
 
 #include "common/error.hpp"
 #include "host/cli/child_process.hpp"
+#include "host/cli/install_paths.hpp"
 #include "host/cli/local_fleet.hpp"
 #include "host/fleet/results_client.hpp"
 
 namespace fs::host::cli {
-namespace {
-
 namespace stdfs = std::filesystem;
 using Clock = std::chrono::steady_clock;
-
-stdfs::path self_dir() {
-  std::error_code ec;
-  const stdfs::path exe = stdfs::read_symlink("/proc/self/exe", ec);
-  return ec ? stdfs::current_path() : exe.parent_path();
-}
-
-stdfs::path scenes_dir() {
-  for (const stdfs::path& p : {stdfs::path(FACETSCAN_SCENES_DIR), stdfs::path("/usr/share/facetscan/scenes")})
-    if (stdfs::is_directory(p)) return p;
-  throw Error("cannot find the shipped scenes (looked in " FACETSCAN_SCENES_DIR
-              " and /usr/share/facetscan/scenes)");
-}
-
-}  // namespace
 
 int run_fleet_demo(const FleetDemoOptions& o) {
   if (o.scanners < 1 || o.workers < 1) throw Error("--fleet and --workers must be at least 1");

@@ -30,6 +30,7 @@
 #include "common/error.hpp"
 #include "host/cli/fleet_demo.hpp"
 #include "host/cli/fleet_submit.hpp"
+#include "host/cli/install_paths.hpp"
 #include "host/cli/memory_budget.hpp"
 #include "host/cli/progress.hpp"
 #include "host/fleet/gateway.hpp"
@@ -677,20 +678,6 @@ void run_serve(const ServeOptions& o) {
       emit(stdout,
            fmt::format("recognition ms per scan: {:.1f}\n", fmt::join(handler.recognition_ms(), " ")));
   }
-}
-
-// Where the shipped scenes are: next to the sources, or installed.
-stdfs::path scenes_dir() {
-  for (const stdfs::path& p : {stdfs::path(FACETSCAN_SCENES_DIR), stdfs::path("/usr/share/facetscan/scenes")})
-    if (stdfs::is_directory(p)) return p;
-  throw Error("cannot find the shipped scenes (looked in " FACETSCAN_SCENES_DIR
-              " and /usr/share/facetscan/scenes)");
-}
-
-stdfs::path self_dir() {
-  std::error_code ec;
-  const stdfs::path exe = stdfs::read_symlink("/proc/self/exe", ec);
-  return ec ? stdfs::current_path() : exe.parent_path();
 }
 
 // The galvo twin of the demo, as facetscan-fw-hil's --galvo value:
