@@ -1,11 +1,13 @@
 // Recognizer step 5 (thesis ch. 9.4): recognition, the extraction of a compatible set from the best verified
 // hypothesis down (no shared scene face, few shared inliers, no interpenetrating solids; a reused model is a
-// second instance). Beyond the thesis's greedy extraction, a hypothesis that explains the points of the
-// objects it conflicts with, and more, replaces them; and the report of an empty result.
+// second instance; an object is supported by the table, by measured points under it or by an accepted
+// object). Beyond the thesis's greedy extraction, a hypothesis that explains the points of the objects it
+// conflicts with, and more, replaces them; and the report of an empty result.
 #include <algorithm>
 #include <cstdio>
 
 #include "host/recognize/recognizer_impl.hpp"
+#include "host/recognize/support.hpp"
 
 namespace fs::host::rec {
 
@@ -73,79 +75,183 @@ void Recognizer::Impl::measure_conflicts(const Hypothesis& h, const Recognition&
   }
 }
 
+// h, unsupported by the table or by measured points under it, rests on an accepted object: its confidence
+// is restored (the support test's factor undone).
+bool Recognizer::Impl::supported_by_accepted(Hypothesis& h, const Recognition& out) const {
+  if (h.verify.support >= 1.0 || h.verify.support <= 0.0) return false;
+  if (!have_table) return false;
+  const PosedModel upper{&geometry[static_cast<std::size_t>(h.model)], h.R, h.t};
+  for (const Hypothesis& o : out.objects)
+    if (rests_on(upper, h.verify.lowest_mm, {&geometry[static_cast<std::size_t>(o.model)], o.R, o.t}, table,
+                 support_tol)) {
+      h.verify.confidence /= h.verify.support;
+      h.verify.support = 1.0;
+      return true;
+    }
+  return false;
+}
+
+// Accepts hyps[i] unless it conflicts with the accepted objects and cannot replace them; false when it is
+// not accepted.
+bool Recognizer::Impl::accept_one(const RecognizeParams& params, Recognizer& rz, std::size_t i,
+                                  Recognition& out) {
+  Hypothesis& h = hyps[i];
+  // Conflicts with the accepted objects (thesis ch. 9's incompatibility, and a physically possible world):
+  // a shared scene face, too many shared inliers, or solids that interpenetrate.
+  measure_conflicts(h, out);
+  bool clash = false, solid_clash = false;
+  std::size_t shared = 0;
+  for (std::size_t k = 0; k < out.objects.size(); ++k) {
+    shared += static_cast<std::size_t>(conflict_cells[k]);
+    clash = clash || conflict_faces[k] > 0;
+    solid_clash = solid_clash || interpenetrates(params, k);
+  }
+  clash =
+      clash || solid_clash ||
+      static_cast<double>(shared) > params.max_shared_inliers * static_cast<double>(h.inlier_cells.size());
+  if (clash) {
+    // One model that explains the points of the objects it conflicts with, and more, at least as well
+    // replaces them (a larger model over a region that smaller ones split; the points decide).
+    double replaced_inliers = 0.0;
+    int replaced_violations = 0;
+    bool replace = true;
+    int conflicts = 0;
+    for (std::size_t k = 0; k < out.objects.size() && replace; ++k) {
+      const Hypothesis& o = out.objects[k];
+      const double own = static_cast<double>(o.inlier_cells.size());
+      if (!conflicts_with(params, k, out)) continue;
+      ++conflicts;
+      replace = h.verify.confidence >= o.verify.confidence - params.alternative_confidence &&
+                static_cast<double>(conflict_cells[k]) >= params.replace_cover * own;
+      replaced_violations += o.verify.violations;
+      // The points the objects explain together (a cell counts once: for its owner).
+      for (std::uint32_t c : o.inlier_cells)
+        replaced_inliers += cell_owner[c] == static_cast<std::int32_t>(k);
+    }
+    // ... unless the measured points contradict it more than they contradict the objects it replaces.
+    const double h_cells = static_cast<double>(h.inlier_cells.size());
+    replace = replace && conflicts > 0 && h_cells >= params.replace_gain * replaced_inliers &&
+              h.verify.violations <= replaced_violations + params.replace_violations * h_cells;
+    if (!replace) {
+      out.stats.interpenetrating += solid_clash ? 1 : 0;
+      return false;
+    }
+    for (std::size_t k = out.objects.size(); k-- > 0;) {
+      if (conflicts_with(params, k, out)) {
+        remove_object(out, k);
+        ++out.stats.replaced;
+      }
+    }
+  }
+  for (const FaceMatch& m : h.matches) node_used[static_cast<std::size_t>(m.scene)] = 1;
+  const auto obj_index = static_cast<std::int32_t>(out.objects.size());
+  for (std::uint32_t c : h.inlier_cells) cell_owner[c] = obj_index;
+  find_alternatives(*this, i, params, h);
+  canonical_pose(rz.library_.models[static_cast<std::size_t>(h.model)], h.R, h.t);
+  out.objects.emplace_back();
+  std::swap(out.objects.back(), spare_objects[out.objects.size() - 1]);
+  copy_hypothesis(h, out.objects.back());
+  return true;
+}
+
+// The inlier cells of the hypotheses still waiting for support that no accepted object owns get `owner`
+// (kWaitingOwner while the hidden ones are checked, -1 afterwards).
+void Recognizer::Impl::mark_waiting_cells(std::int32_t owner) {
+  const std::int32_t from = owner == -1 ? kWaitingOwner : -1;
+  for (std::size_t i : deferred)
+    if (i != kNoHypothesis)
+      for (std::uint32_t c : hyps[i].inlier_cells)
+        if (cell_owner[c] == from) cell_owner[c] = owner;
+}
+
+// h's confidence when its occluded rays whose measured points belong to other objects (accepted, or waiting
+// for support: cell_owner != -1) no longer count against it (fine samples, h's refined pose).
+double Recognizer::Impl::confidence_with_occluders(const Hypothesis& h, double occluded_weight) {
+  Verifier& v = verifiers.front();
+  Mat3 R = h.R;
+  Vec3 t = h.t;
+  const VerifyResult r = v.verify(fine, geometry[static_cast<std::size_t>(h.model)], R, t, false);
+  int explained = 0;
+  for (std::uint32_t c : v.occluded_cells()) explained += cell_owner[c] != -1 ? 1 : 0;
+  const double seen = static_cast<double>(r.inliers + r.violations);
+  const double before = seen + occluded_weight * static_cast<double>(r.occluded);
+  const double after = seen + occluded_weight * static_cast<double>(r.occluded - explained);
+  if (explained == 0 || after <= 0.0) return h.verify.confidence;
+  return h.verify.confidence * before / after;
+}
+
 bool Recognizer::Impl::accept_objects(Recognizer& rz, Scan& scan, int round, Recognition& out) {
   const RecognizeParams& params = rz.params_;
   out.stats.incompatible_pairs +=
       count_incompatible_pairs(std::span<const Hypothesis>(hyps.data(), nhyp), order);
   const std::size_t accepted_before = out.objects.size();
   const int replaced_before = out.stats.replaced;
+  auto reject = [&](const Hypothesis& h) {
+    ++out.stats.rejected;
+    if (h.verify.confidence > scan.best_rejected) {
+      scan.best_rejected = h.verify.confidence;
+      scan.best_rejected_model = h.model;
+    }
+  };
+  // Two kinds of hypotheses wait for other objects instead of being rejected (objects explained together):
+  // - one that passes only if something under it holds it up, until an object it rests on is accepted (the
+  //   supporter may come later in the order: it is partly hidden by what it carries);
+  // - one that passes only if the measured points in front of it (occluded rays) belong to other objects,
+  //   until they do: to accepted objects or to objects waiting for support (what it carries may hide it).
+  const double w_occ = verifiers.front().params().occluded_weight;
+  deferred.clear();
+  hidden_wait.clear();
   for (std::size_t i : order) {
+    if (static_cast<int>(out.objects.size()) >= params.max_objects) break;
     Hypothesis& h = hyps[i];
+    const bool restored = h.verify.confidence < params.min_confidence && supported_by_accepted(h, out);
     if (h.verify.confidence < params.min_confidence) {
-      ++out.stats.rejected;
-      if (h.verify.confidence > scan.best_rejected) {
-        scan.best_rejected = h.verify.confidence;
-        scan.best_rejected_model = h.model;
-      }
+      const VerifyResult& v = h.verify;
+      const double seen = static_cast<double>(v.inliers + v.violations);
+      if (v.support > 0.0 && v.support < 1.0 && v.confidence / v.support >= params.min_confidence)
+        deferred.push_back(i);
+      else if (v.occluded > 0 && seen > 0.0 &&
+               v.confidence * (seen + w_occ * static_cast<double>(v.occluded)) / seen >=
+                   params.min_confidence)
+        hidden_wait.push_back(i);
+      else
+        reject(h);
       continue;
     }
-    // Conflicts with the accepted objects (thesis ch. 9's incompatibility, and a physically possible world):
-    // a shared scene face, too many shared inliers, or solids that interpenetrate.
-    measure_conflicts(h, out);
-    bool clash = false, solid_clash = false;
-    std::size_t shared = 0;
-    for (std::size_t k = 0; k < out.objects.size(); ++k) {
-      shared += static_cast<std::size_t>(conflict_cells[k]);
-      clash = clash || conflict_faces[k] > 0;
-      solid_clash = solid_clash || interpenetrates(params, k);
-    }
-    clash =
-        clash || solid_clash ||
-        static_cast<double>(shared) > params.max_shared_inliers * static_cast<double>(h.inlier_cells.size());
-    if (clash) {
-      // One model that explains the points of the objects it conflicts with, and more, at least as well
-      // replaces them (a larger model over a region that smaller ones split; the points decide).
-      double replaced_inliers = 0.0;
-      int replaced_violations = 0;
-      bool replace = true;
-      int conflicts = 0;
-      for (std::size_t k = 0; k < out.objects.size() && replace; ++k) {
-        const Hypothesis& o = out.objects[k];
-        const double own = static_cast<double>(o.inlier_cells.size());
-        if (!conflicts_with(params, k, out)) continue;
-        ++conflicts;
-        replace = h.verify.confidence >= o.verify.confidence - params.alternative_confidence &&
-                  static_cast<double>(conflict_cells[k]) >= params.replace_cover * own;
-        replaced_violations += o.verify.violations;
-        // The points the objects explain together (a cell counts once: for its owner).
-        for (std::uint32_t c : o.inlier_cells)
-          replaced_inliers += cell_owner[c] == static_cast<std::int32_t>(k);
-      }
-      // ... unless the measured points contradict it more than they contradict the objects it replaces.
-      const double h_cells = static_cast<double>(h.inlier_cells.size());
-      replace = replace && conflicts > 0 && h_cells >= params.replace_gain * replaced_inliers &&
-                h.verify.violations <= replaced_violations + params.replace_violations * h_cells;
-      if (!replace) {
-        out.stats.interpenetrating += solid_clash ? 1 : 0;
-        continue;
-      }
-      for (std::size_t k = out.objects.size(); k-- > 0;) {
-        if (conflicts_with(params, k, out)) {
-          remove_object(out, k);
-          ++out.stats.replaced;
-        }
-      }
-    }
-    if (static_cast<int>(out.objects.size()) >= params.max_objects) break;
-    for (const FaceMatch& m : h.matches) node_used[static_cast<std::size_t>(m.scene)] = 1;
-    const auto obj_index = static_cast<std::int32_t>(out.objects.size());
-    for (std::uint32_t c : h.inlier_cells) cell_owner[c] = obj_index;
-    find_alternatives(*this, i, params, h);
-    canonical_pose(rz.library_.models[static_cast<std::size_t>(h.model)], h.R, h.t);
-    out.objects.emplace_back();
-    std::swap(out.objects.back(), spare_objects[out.objects.size() - 1]);
-    copy_hypothesis(h, out.objects.back());
+    if (accept_one(params, rz, i, out) && restored) ++out.stats.stacked;
   }
+  auto full = [&] { return static_cast<int>(out.objects.size()) >= params.max_objects; };
+  for (bool progress = true; progress && !full();) {
+    progress = false;
+    // The deferred ones, in order, as long as one finds an accepted object to rest on (a stack of several).
+    for (std::size_t& i : deferred) {
+      if (i == kNoHypothesis || full() || !supported_by_accepted(hyps[i], out)) continue;
+      if (accept_one(params, rz, i, out)) {
+        ++out.stats.stacked;
+        progress = true;
+      }
+      i = kNoHypothesis;
+    }
+    // Then the hidden ones, their occluded rays checked against the objects accepted or waiting for support.
+    mark_waiting_cells(kWaitingOwner);
+    for (std::size_t& i : hidden_wait) {
+      if (i == kNoHypothesis || full()) continue;
+      Hypothesis& h = hyps[i];
+      const double confidence = confidence_with_occluders(h, w_occ);
+      if (confidence < std::max(params.min_confidence, params.hidden_min_confidence)) continue;
+      h.verify.confidence = confidence;
+      if (accept_one(params, rz, i, out)) {
+        ++out.stats.hidden;
+        progress = true;
+      }
+      i = kNoHypothesis;
+    }
+    mark_waiting_cells(-1);
+  }
+  for (std::size_t i : deferred)
+    if (i != kNoHypothesis) reject(hyps[i]);
+  for (std::size_t i : hidden_wait)
+    if (i != kNoHypothesis) reject(hyps[i]);
   // Instances: the k-th accepted object of a model is its instance k (replacements may have removed some).
   for (std::size_t k = 0; k < out.objects.size(); ++k) {
     int instance = 0;

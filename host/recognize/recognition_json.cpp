@@ -88,6 +88,8 @@ nlohmann::json to_json(const Recognition& r, const Library& library) {
                           {"rounds", s.rounds},
                           {"replaced", s.replaced},
                           {"interpenetrating", s.interpenetrating},
+                          {"stacked", s.stacked},
+                          {"hidden", s.hidden},
                           {"reseated", s.reseated},
                           {"rejected", s.rejected},
                           {"incompatible_pairs", s.incompatible_pairs}};

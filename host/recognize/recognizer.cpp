@@ -52,6 +52,8 @@ Recognizer::Impl::Impl(const Library& lib, const RecognizeParams& p, int threads
   dropped.reserve(max_h);
   raw_confidence.reserve(max_h);
   picked.reserve(max_h);
+  deferred.reserve(max_h);
+  hidden_wait.reserve(max_h);
   face_cover.reserve(kMaxNodeIds);
   alive.reserve(max_h);
   pairs.reserve(256);

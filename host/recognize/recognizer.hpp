@@ -64,12 +64,19 @@ struct RecognizeParams {
   // Support (beyond the thesis): a solid object rests on the table or on something measured below its lowest
   // point. A hypothesis floating higher than support_tol_mm above the table (or sunk below it) with no
   // measured point within support_radius_mm under its lowest point gets its confidence scaled by
-  // unsupported_factor (the top part of a taller model seen from above looks like a smaller model).
+  // unsupported_factor (the top part of a taller model seen from above looks like a smaller model), unless it
+  // rests on an object accepted in the same decision (a point of its resting face within support_tol_mm of
+  // that object's convex surface, that object below it): a part stacked on another hides the face it rests
+  // on.
   double support_tol_mm = 3.0;
   double support_radius_mm = 6.0;
   double unsupported_factor = 0.5;
   // Acceptance.
   double min_confidence = 0.6;
+  // A hypothesis below min_confidence only because of measured points in front of it (occluded rays) is
+  // accepted when those points belong to other objects (accepted, or waiting for an object to rest on) and
+  // its confidence without them reaches this (an object explained together with others must fit clearly).
+  double hidden_min_confidence = 0.9;
   double confidence_weight = 0.2;   // ordering key = cost + weight * (1 - confidence)
   double inlier_weight = 0.01;      //   - inlier_weight * inliers / (most inliers of the round's hypotheses)
   double max_shared_inliers = 0.3;  // two objects may not explain more than this share of the same points
@@ -199,6 +206,8 @@ struct RecognizeStats {
   int rounds = 0;            // matching + verification rounds run
   int replaced = 0;          // accepted objects replaced by one model explaining their points and more
   int interpenetrating = 0;  // hypotheses refused because their solid would interpenetrate an accepted one
+  int stacked = 0;           // objects accepted because they rest on another accepted object (support test)
+  int hidden = 0;            // objects accepted because other objects explain the points in front of them
   int reseated = 0;          // hypotheses moved to a near-symmetric placement (RecognizeParams)
 };
 

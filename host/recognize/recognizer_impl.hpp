@@ -175,6 +175,16 @@ struct Recognizer::Impl {
   double support_tol = 3.0, support_radius = 6.0, unsupported_factor = 0.5;
 
   void support_test(const Model& model, Hypothesis& h) const;
+  // h failed the support test but rests on an accepted object: its confidence is restored (true).
+  bool supported_by_accepted(Hypothesis& h, const Recognition& out) const;
+  static constexpr std::size_t kNoHypothesis = static_cast<std::size_t>(-1);
+  std::vector<std::size_t> deferred;     // hypotheses waiting for an accepted object to rest on (accept.cpp)
+  std::vector<std::size_t> hidden_wait;  // ... for other objects to explain the points in front of them
+  static constexpr std::int32_t kWaitingOwner =
+      -2;  // cell_owner of a cell a hypothesis waiting for support holds
+  void mark_waiting_cells(std::int32_t owner);
+  double confidence_with_occluders(const Hypothesis& h, double occluded_weight);
+  bool accept_one(const RecognizeParams& params, Recognizer& rz, std::size_t i, Recognition& out);
 
   // ---- the steps of recognize(), by stage ----
   // Per-scan settings and tallies of recognize() (kept across its rounds).

@@ -261,6 +261,7 @@ VerifyResult Verifier::evaluate(const SampleSet& samples, const ModelGeometry& g
                                 const Vec3& t) {
   VerifyResult r;
   inlier_cells_.clear();
+  occluded_cells_.clear();
   inlier_sample_.clear();
   inlier_face_.clear();
   const Mat3 Rt = R.transpose();
@@ -292,6 +293,7 @@ VerifyResult Verifier::evaluate(const SampleSet& samples, const ModelGeometry& g
         ++r.violations;
       } else if (range < s - tol) {
         ++r.occluded;
+        occluded_cells_.push_back(samples.cells()[k]);
       } else {
         ++r.inliers;
         inlier_cells_.push_back(samples.cells()[k]);

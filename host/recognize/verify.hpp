@@ -140,6 +140,7 @@ class Verifier {
   void reserve(std::size_t samples, std::size_t faces) {
     front_.reserve(faces);
     inlier_cells_.reserve(samples);
+    occluded_cells_.reserve(samples);
     inlier_sample_.reserve(samples);
     inlier_face_.reserve(samples);
   }
@@ -147,12 +148,14 @@ class Verifier {
   VerifyResult verify(const SampleSet& samples, const ModelGeometry& geometry, Mat3& R, Vec3& t, bool refine);
   // Cell indices of the inliers of the last verify() call (for colouring the cloud by object).
   const std::vector<std::uint32_t>& inlier_cells() const { return inlier_cells_; }
+  // Cell indices of the measured points in front of the predicted surface (occluded) in the last evaluation.
+  const std::vector<std::uint32_t>& occluded_cells() const { return occluded_cells_; }
   const VerifyParams& params() const { return params_; }
 
  private:
   VerifyResult evaluate(const SampleSet& samples, const ModelGeometry& g, const Mat3& R, const Vec3& t);
   VerifyParams params_;
-  std::vector<std::uint32_t> inlier_cells_;
+  std::vector<std::uint32_t> inlier_cells_, occluded_cells_;
   std::vector<std::uint32_t> inlier_sample_;
   std::vector<std::int32_t> inlier_face_;
   std::vector<std::uint32_t> front_;  // front_faces() of the current pose's viewpoint

@@ -155,6 +155,12 @@ Args parse_args(CLI::App& app, int argc, char** argv) {
   app.add_option("--max-refined", p.max_refined, "hypotheses refined by ICP")->check(positive);
   app.add_option("--rounds", p.rounds, "rounds of matching + verification")->check(positive);
   app.add_option("--inlier-weight", p.inlier_weight, "RecognizeParams::inlier_weight")->check(non_negative);
+  app.add_option(
+         "--support-radius", p.support_radius_mm,
+         "RecognizeParams::support_radius_mm (0 = only the table or an accepted object holds a solid up)")
+      ->check(non_negative);
+  app.add_option("--hidden-min-confidence", p.hidden_min_confidence, "RecognizeParams::hidden_min_confidence")
+      ->check(non_negative);
   app.add_option("--sample-mm", p.verify.sample_spacing_mm,
                  "VerifyParams::sample_spacing_mm (0 = every sample_step-th cell)")
       ->check(non_negative);
