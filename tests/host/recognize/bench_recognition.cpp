@@ -71,6 +71,9 @@ struct CategoryStats {
   // Reported objects that list alternatives ("ambiguous"), and those of them whose true model (of the scene
   // object they were matched to, else of the nearest one within 20 mm) is the reported model or listed.
   int ambiguous = 0, ambiguous_correct = 0;
+  // Issue #20's scoring: a missed object counts as found when an otherwise unmatched report within 10 mm is
+  // ambiguous with its true model among the candidates (that report is then no false positive).
+  int found_as_candidate = 0;
   int stacked = 0, stacked_found = 0;     // objects resting on another one (cluttered)
   int interpenetrating_pairs = 0;         // accepted pairs whose solids interpenetrate (must stay 0)
   std::map<std::string, int> confusions;  // "true -> reported" for identity errors; "*" = true model listed
@@ -399,6 +402,29 @@ int run(const Args& args) {
       for (const auto& a : h.listed_alternatives()) correct = correct || a.model == true_model;
       s.ambiguous_correct += correct ? 1 : 0;
     }
+    // Missed objects whose true model is a candidate of an unmatched ambiguous report within 10 mm.
+    std::vector<bool> as_candidate(found_objects.size(), false);
+    for (std::size_t oi = 0; oi < rs.scene.objects.size(); ++oi) {
+      if (rs.catalog_index[oi] < 0) continue;
+      bool matched = false;
+      for (std::size_t j = 0; j < found_objects.size(); ++j)
+        matched = matched || (truth_of[j] == static_cast<int>(oi));
+      if (matched) continue;
+      const auto& obj = rs.scene.objects[oi];
+      const auto& tm = library.models[static_cast<std::size_t>(rs.catalog_index[oi])];
+      for (std::size_t j = 0; j < found_objects.size(); ++j) {
+        const auto& h = found_objects[j];
+        if (used[j] || as_candidate[j]) continue;
+        const auto& m = library.models[static_cast<std::size_t>(h.model)];
+        if ((h.R * m.center + h.t - (obj.rotation * tm.center + obj.translation)).norm() >= 10.0) continue;
+        bool listed = false;
+        for (const auto& a : h.listed_alternatives()) listed = listed || a.model == rs.catalog_index[oi];
+        if (!listed) continue;
+        as_candidate[j] = true;
+        ++s.found_as_candidate;
+        break;
+      }
+    }
     int extra = 0;
     for (std::size_t j = 0; j < found_objects.size(); ++j) extra += used[j] ? 0 : 1;
     s.extra += extra;
@@ -445,6 +471,14 @@ int run(const Args& args) {
   std::printf(
       "\nambiguous: reported objects that list alternatives; correct: the true model is the reported one or "
       "listed\n");
+  std::printf(
+      "\nscored as issue #20 asks (an ambiguous report is correct when the true model is among its "
+      "candidates):\n");
+  for (const auto& [cat, s] : stats)
+    std::printf("  %-10s found %d of %d (%.1f %%), false positives %d of %d reported (%.1f %%)\n",
+                fs::sim::to_string(cat), s.found + s.found_as_candidate, s.objects,
+                pct(s.found + s.found_as_candidate, s.objects), s.extra - s.found_as_candidate, s.reported,
+                pct(s.extra - s.found_as_candidate, s.reported));
   std::printf("\nwall time per stage (median ms; stages run on --threads workers): \n");
   for (const auto& [cat, s] : stats)
     std::printf("  %-10s segmentation + PFRG %.1f, matching %.1f, hypotheses + verification %.1f\n",
