@@ -31,28 +31,15 @@
 #include <nlohmann/json.hpp>
 
 #include "common/wire.hpp"
+#include "support/run_command.hpp"
 #include "support/test_paths.hpp"
 
 namespace {
 
 namespace stdfs = std::filesystem;
 
-struct CmdResult {
-  int code = -1;
-  std::string out;
-};
-
-CmdResult run(const std::string& cmd) {
-  CmdResult r;
-  FILE* p = popen((cmd + " 2>&1").c_str(), "r");
-  if (!p) return r;
-  std::array<char, 4096> buf{};
-  std::size_t n;
-  while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) r.out.append(buf.data(), n);
-  const int status = pclose(p);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
+using fs::test::CmdResult;
+using fs::test::run;
 
 std::string bin(const std::string& name) { return (fs::test::bin_dir() / name).string(); }
 std::string facetscan() { return bin("facetscan"); }

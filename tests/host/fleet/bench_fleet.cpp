@@ -43,6 +43,7 @@
 #include "host/library/mesh_files.hpp"
 #include "host/match/params.hpp"
 #include "host/recognize/recognizer.hpp"
+#include "support/quantile.hpp"
 
 namespace {
 
@@ -54,14 +55,7 @@ double ms_since(Clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 }
 
-double quantile(std::vector<double> v, double q) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  const double pos = q * static_cast<double>(v.size() - 1);
-  const auto i = static_cast<std::size_t>(pos);
-  const double f = pos - static_cast<double>(i);
-  return i + 1 < v.size() ? v[i] * (1 - f) + v[i + 1] * f : v[i];
-}
+using fs::test::quantile;
 
 std::vector<std::uint8_t> read_bytes(const stdfs::path& p) {
   std::ifstream f(p, std::ios::binary);

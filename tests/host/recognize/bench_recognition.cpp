@@ -44,6 +44,7 @@
 #include "host/recognize/verify.hpp"
 #include "hw-sim/scene/ground_truth_grid.hpp"
 #include "hw-sim/scene/random_scene.hpp"
+#include "support/quantile.hpp"
 #include "support/test_paths.hpp"
 
 namespace {
@@ -56,14 +57,7 @@ double cpu_ms() {
   return static_cast<double>(ts.tv_sec) * 1e3 + static_cast<double>(ts.tv_nsec) * 1e-6;
 }
 
-double quantile(std::vector<double> v, double q) {
-  if (v.empty()) return std::nan("");
-  std::sort(v.begin(), v.end());
-  const double pos = q * static_cast<double>(v.size() - 1);
-  const auto i = static_cast<std::size_t>(pos);
-  const double f = pos - static_cast<double>(i);
-  return i + 1 < v.size() ? v[i] * (1 - f) + v[i + 1] * f : v[i];
-}
+using fs::test::quantile;
 
 struct CategoryStats {
   int scenes = 0, objects = 0, found = 0, identity_ok = 0, reported = 0, extra = 0, scenes_with_fp = 0;
