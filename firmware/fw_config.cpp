@@ -63,6 +63,8 @@ void apply_config_json(FwConfig& c, const std::string& text, const std::string& 
       c.rt_priority = get_num<int>(v, src, k, 1, 99);
     else if (k == "rt_cpu")
       c.rt_cpu = get_num<int>(v, src, k, -1, 1023);
+    else if (k == "rt_cpu_latency_us")
+      c.rt_cpu_latency_us = get_num<int>(v, src, k, -1, 2'000'000'000);
     else if (k == "virtual_time")
       c.virtual_time = get_bool(v, src, k);
     else if (k == "steps") {

@@ -5,6 +5,7 @@
 //     "laser": "gpio:CHIP:line=L[,active_low=1]"   (a laser on its own GPIO line, e.g. with the CAN galvo)
 //     "scene": "hw-sim/scenes/cube.json",  "steps": 500,  "first_step": 0,  "scan_id": 1,
 //     "stream": "HOST:PORT",  "record": "scan.fscan",  "rt": false,  "rt_priority": 80,  "rt_cpu": -1,
+//     "rt_cpu_latency_us": 0 (PM QoS wake-up latency limit with rt; -1 = leave the CPU idle states alone),
 //     "virtual_time": true,  "faults": ["galvo.stall@step=120"],
 //     "loop": {"period_us": 500, "max_dwell_ms": 40, "camera_timeout_ms": 25, "late_limit_us": 250,
 //              "max_consecutive_late": 3, "heartbeat_ms": 500, "require_host": false, "host_grace_ms": 0,
@@ -43,6 +44,7 @@ struct FwConfig {
   bool rt = false;
   int rt_priority = 80;
   int rt_cpu = -1;
+  int rt_cpu_latency_us = 0;
   std::optional<bool> virtual_time;  // default: virtual with sim devices, real time otherwise
   std::vector<std::string> faults;
   LoopConfig loop;

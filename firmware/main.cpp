@@ -193,12 +193,15 @@ int run_scan(fw::FwConfig& cfg) {
 
   fw::Controller ctl(dev->devices(), cfg.loop, pub, cal);
   fw::SafetyGuard guard(*dev->laser, *dev->galvo, &ctl);
+  fw::RealtimeResult rt;  // holds the CPU latency limit until the scan ends
   if (cfg.rt) {
     fw::RealtimeRequest rq;
     rq.priority = cfg.rt_priority;
     rq.cpu = cfg.rt_cpu;
-    const auto r = fw::apply_realtime(rq);
-    for (const auto& w : r.warnings) std::fprintf(stderr, "%s: warning: %s\n", fw::program_name(), w.c_str());
+    rq.cpu_latency_us = cfg.rt_cpu_latency_us;
+    rt = fw::apply_realtime(rq);
+    for (const auto& w : rt.warnings)
+      std::fprintf(stderr, "%s: warning: %s\n", fw::program_name(), w.c_str());
   }
   const fw::LoopReport& rep = ctl.run();
   pub.flush();
@@ -270,8 +273,10 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(std::uint64_t{1}, std::uint64_t{1} << 62));
   app.add_option("--stream", cfg.stream, "stream to the host HOST:PORT (reconnects with backoff)");
   app.add_option("--record", cfg.record, "record the scan to a .fscan file");
-  app.add_flag("--rt", cfg.rt,
-               "SCHED_FIFO + mlockall + CPU affinity for the loop (warns when not permitted)");
+  app.add_flag(
+      "--rt", cfg.rt,
+      "SCHED_FIFO + mlockall + CPU affinity + CPU wake-up latency limit for the loop (warns when not "
+      "permitted)");
   app.add_option("--fault", cfg.faults,
                  "inject a fault into the twins, e.g. galvo.stall@step=120 (repeatable)")
       ->group(sim_group);

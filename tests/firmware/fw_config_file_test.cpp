@@ -54,4 +54,17 @@ TEST(FwConfigFile, ScanIdIsTakenAndChecked) {
             "board.json: scan_id: expected an integer");
 }
 
+TEST(FwConfigFile, CpuLatencyLimitIsTakenAndChecked) {
+  fs::fw::FwConfig cfg;
+  EXPECT_EQ(cfg.rt_cpu_latency_us, 0);
+  fs::fw::apply_config_json(cfg, R"({"rt": true, "rt_cpu_latency_us": 25})", "board.json");
+  EXPECT_EQ(cfg.rt_cpu_latency_us, 25);
+  fs::fw::apply_config_json(cfg, R"({"rt_cpu_latency_us": -1})", "board.json");
+  EXPECT_EQ(cfg.rt_cpu_latency_us, -1);
+  EXPECT_EQ(error_of([&] {
+              fs::fw::apply_config_json(cfg, R"({"rt_cpu_latency_us": -2})", "board.json");
+            }).rfind("board.json: rt_cpu_latency_us: out of range", 0),
+            0u);
+}
+
 }  // namespace
