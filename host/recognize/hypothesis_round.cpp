@@ -1,6 +1,6 @@
-// Recognizer step 3 (thesis ch. 8.1.3, 9.4.1): hypotheses from the kept solutions (pose from the rotation fit
-// and the matched planes, expansion, compatible merge) and, beyond the thesis, the single-face hypotheses of
-// faces that border no other face.
+// Recognizer step 3 (thesis ch. 8.1.3, 9.4.1): hypotheses from the search solutions (pose from the rotation
+// fit and the matched planes, expansion, compatible merge) and, beyond the thesis, the single-face hypotheses
+// of faces that border no other face.
 #include <algorithm>
 
 #include "host/recognize/recognizer_impl.hpp"
@@ -8,14 +8,11 @@
 namespace fs::host::rec {
 
 using detail::Clock;
-using detail::ModelSlots;
 using detail::ms_since;
-using detail::SolutionSlot;
 
 void Recognizer::Impl::make_hypotheses(Recognizer& rz, const HypothesisContext& hc, const Pfrg& graph,
                                        Scan& scan, RecognizeStats& stats) {
   hyp_t0 = Clock::now();
-  solutions_to_hypotheses(rz.library_.models.size(), stats);
   for (std::size_t i = 0; i < nhyp; ++i) {
     Hypothesis& h = hyps[i];
     update_translation(hc, h, pairs);
@@ -28,35 +25,6 @@ void Recognizer::Impl::make_hypotheses(Recognizer& rz, const HypothesisContext& 
   scan.hypotheses_total += static_cast<int>(nhyp);
   stats.hypotheses = scan.hypotheses_total;
   if (nhyp == 0) stats.verify_ms += ms_since(hyp_t0);
-}
-
-// hyps[0 .. nhyp) = the kept solutions of every model (the models' solution slots emptied).
-void Recognizer::Impl::solutions_to_hypotheses(std::size_t models, RecognizeStats& stats) {
-  nhyp = 0;
-  for (std::size_t mi = 0; mi < models; ++mi) {
-    ModelSlots& ms = per_model[mi];
-    stats.states += ms.states;
-    for (int k = 0; k < ms.count; ++k) {
-      const SolutionSlot& s = ms.slots[static_cast<std::size_t>(k)];
-      Hypothesis& h = hyps[nhyp++];
-      h.model = static_cast<int>(mi);
-      h.rank = s.rank;
-      h.path.assign(s.path.begin(), s.path.end());
-      h.matches.clear();
-      for (const auto& m : s.matches) h.matches.push_back(FaceMatch{m.scene, m.ref, false});
-      h.level = s.level;
-      h.R = s.rotation;
-      h.cost = s.cost;
-      h.rotfit_error = s.rotfit;
-      h.degenerate = s.degenerate;
-      h.merged = false;
-      h.instance = 0;
-      h.verify = VerifyResult{};
-      h.inlier_cells.clear();
-    }
-    ms.count = 0;
-    ms.states = 0;
-  }
 }
 
 // Faces that border no (unexplained) face: single-face hypotheses (model face on it, another on the

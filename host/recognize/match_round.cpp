@@ -1,5 +1,9 @@
 // Recognizer step 2b (thesis ch. 7): every reference PFRG matched against every part of the scene graph, in
-// parallel (one InexactMatcher per worker); each model's best solutions kept in its solution slots.
+// parallel (one InexactMatcher per worker), a batch of references at a time; each batch's solutions become
+// hypotheses, at most RecognizeParams::max_hypotheses of them (the lowest matching costs).
+#include <algorithm>
+#include <limits>
+
 #include "host/match/node_set.hpp"
 #include "host/recognize/recognizer_impl.hpp"
 
@@ -12,11 +16,11 @@ using detail::SolutionSlot;
 
 namespace {
 
-// Worker task: model `task` against every part.
+// Worker task: model batch_first + task against every part.
 void match_model(void* ctx, std::size_t task, int worker) {
   auto& m = *static_cast<Recognizer::Impl*>(ctx);
-  const Model& model = m.library->models[task];
-  ModelSlots& ms = m.per_model[task];
+  const Model& model = m.library->models[m.batch_first + task];
+  ModelSlots& ms = m.batch[task];
   ms.states = 0;
   ms.count = 0;
   // A model of more faces than the matcher takes (kept by `library build --allow-large`) is never matched.
@@ -24,7 +28,9 @@ void match_model(void* ctx, std::size_t task, int worker) {
   // Each connected part of the scene graph is searched on its own (a solution is connected, so
   // it lies in one part); the model's solution slots are shared out evenly among the parts.
   const int per_part = static_cast<int>((ms.slots.size() + m.nparts - 1) / m.nparts);
+  const std::uint64_t mask = m.part_mask[m.batch_first + task];
   for (std::size_t part = 0; part < m.nparts; ++part) {
+    if (!((mask >> part) & 1u)) continue;  // the arc index: no solution possible
     const bool small = m.round_small || m.part_faces[part] < m.mparams.th_minlevel;
     const match::MatchResult& r = m.matchers[static_cast<std::size_t>(worker)]->match(
         m.parts[part], model.graph, small ? m.mparams_small : m.mparams);
@@ -33,8 +39,8 @@ void match_model(void* ctx, std::size_t task, int worker) {
     for (const match::Solution& s : r.solutions) {
       if (ms.count >= static_cast<int>(ms.slots.size()) || taken >= per_part) break;
       if (s.partial) continue;
-      ++taken;
       SolutionSlot& slot = ms.slots[static_cast<std::size_t>(ms.count++)];
+      slot.part_rank = taken++;
       slot.path.assign(s.path.begin(), s.path.end());
       slot.matches.assign(s.matches.begin(), s.matches.end());
       slot.rotation = s.rotation;
@@ -47,13 +53,122 @@ void match_model(void* ctx, std::size_t task, int worker) {
   }
 }
 
+// Higher matching cost first, then the later model, then the later solution of a model: the top of the heap
+// is the hypothesis a better solution replaces when the pool is full.
+bool worse(const Hypothesis& a, const Hypothesis& b) {
+  if (a.cost != b.cost) return a.cost > b.cost;
+  if (a.model != b.model) return a.model > b.model;
+  return a.rank > b.rank;
+}
+
+void fill(Hypothesis& h, int model, const SolutionSlot& s) {
+  h.model = model;
+  h.rank = s.rank;
+  h.part_rank = s.part_rank;
+  h.path.assign(s.path.begin(), s.path.end());
+  h.matches.clear();
+  for (const auto& m : s.matches) h.matches.push_back(FaceMatch{m.scene, m.ref, false});
+  h.level = s.level;
+  h.R = s.rotation;
+  h.cost = s.cost;
+  h.rotfit_error = s.rotfit;
+  h.degenerate = s.degenerate;
+  h.merged = false;
+  h.instance = 0;
+  h.verify = VerifyResult{};
+  h.inlier_cells.clear();
+}
+
 }  // namespace
 
 void Recognizer::Impl::match_references(const Library& lib, int round, RecognizeStats& stats) {
   const auto t0 = Clock::now();
-  pool.run(nparts == 0 ? 0 : lib.models.size(), match_model, this);
+  nhyp = 0;
+  pool_full = false;
+  worst.clear();
+  quota = std::numeric_limits<int>::max();
+  const std::size_t models = nparts == 0 ? 0 : lib.models.size();
+  part_mask.assign(models, use_arc_index ? 0 : ~std::uint64_t{0});
+  if (use_arc_index) {
+    for (std::size_t part = 0; part < nparts; ++part) {
+      const bool small = round_small || part_faces[part] < mparams.th_minlevel;
+      arc_index.candidates(parts[part], small ? mparams_small : mparams, part_mask, std::uint64_t{1} << part);
+    }
+  }
+  for (std::uint64_t m : part_mask) stats.references_searched += m != 0;
+  for (batch_first = 0; batch_first < models; batch_first += kMatchBatch) {
+    const std::size_t n = std::min(kMatchBatch, models - batch_first);
+    pool.run(n, match_model, this);
+    collect_batch(n, stats);
+  }
+  // Replacements leave the pool out of model order; the compatible merge needs each model's run together.
+  if (pool_full) {
+    std::sort(hyps.begin(), hyps.begin() + static_cast<std::ptrdiff_t>(nhyp),
+              [](const Hypothesis& a, const Hypothesis& b) {
+                return a.model != b.model ? a.model < b.model : a.rank < b.rank;
+              });
+  }
   stats.match_ms += ms_since(t0);
   stats.rounds = round + 1;
+}
+
+// hyps[0 .. nhyp) without the hypotheses of part_rank >= quota (order kept, buffers swapped, not copied).
+std::size_t Recognizer::Impl::trim_to_quota() {
+  std::size_t w = 0;
+  for (std::size_t i = 0; i < nhyp; ++i) {
+    if (hyps[i].part_rank >= quota) continue;
+    if (w != i) std::swap(hyps[w], hyps[i]);
+    ++w;
+  }
+  const std::size_t removed = nhyp - w;
+  nhyp = w;
+  return removed;
+}
+
+// The batch's solutions (model order, deterministic whatever the threads did) into hyps. While there is room
+// all are kept. When the pool is full, the quota of solutions per model and scene part goes down (each keeps
+// its best ones, as the matcher ranked them) until they fit: every model keeps the same number in every part,
+// so a model that fits one object is not crowded out by thousands that fit another. At one per model and
+// part, a solution replaces the kept one of highest matching cost when it costs less.
+void Recognizer::Impl::collect_batch(std::size_t n, RecognizeStats& stats) {
+  auto heap_less = [this](std::size_t a, std::size_t b) { return worse(hyps[b], hyps[a]); };
+  for (std::size_t k = 0; k < n; ++k) {
+    ModelSlots& ms = batch[k];
+    stats.states += ms.states;
+    stats.solutions += ms.count;
+    const int model = static_cast<int>(batch_first + k);
+    for (int j = 0; j < ms.count; ++j) {
+      const SolutionSlot& s = ms.slots[static_cast<std::size_t>(j)];
+      while (nhyp == max_solutions && !pool_full && s.part_rank < quota) {
+        int top = s.part_rank;  // the highest rank present goes
+        for (std::size_t i = 0; i < nhyp; ++i) top = std::max(top, hyps[i].part_rank);
+        if (top == 0) break;
+        quota = top;
+        stats.solutions_dropped += static_cast<std::int64_t>(trim_to_quota());
+      }
+      if (s.part_rank >= quota) {
+        ++stats.solutions_dropped;
+        continue;
+      }
+      if (nhyp < max_solutions) {
+        fill(hyps[nhyp++], model, s);
+        continue;
+      }
+      if (!pool_full) {  // full at one per model and part: heap of all it holds
+        pool_full = true;
+        for (std::size_t i = 0; i < nhyp; ++i) worst.push_back(i);
+        std::make_heap(worst.begin(), worst.end(), heap_less);
+      }
+      ++stats.solutions_dropped;
+      const Hypothesis& top = hyps[worst.front()];
+      if (!(s.cost < top.cost)) continue;  // a later model or rank with an equal cost stays out
+      std::pop_heap(worst.begin(), worst.end(), heap_less);
+      fill(hyps[worst.back()], model, s);
+      std::push_heap(worst.begin(), worst.end(), heap_less);
+    }
+    ms.count = 0;
+    ms.states = 0;
+  }
 }
 
 }  // namespace fs::host::rec

@@ -105,7 +105,7 @@ void Recognizer::Impl::prepare_samples(Recognizer& rz, const OrganizedCloud& clo
   count_regions(coarse, region_coarse);
   count_regions(fine, region_fine);
   stats.verify_ms += ms_since(t_samples);
-  for (ModelSlots& ms : per_model) ms.count = 0, ms.states = 0;  // no part: no solution (not last scan's)
+  nhyp = 0;  // no part: no hypothesis (not last scan's)
 }
 
 }  // namespace fs::host::rec

@@ -13,7 +13,7 @@ using detail::kMaxMatches;
 using detail::ms_since;
 
 Recognizer::Impl::Impl(const Library& lib, const RecognizeParams& p, int threads)
-    : pool(threads), per_model(lib.models.size()) {
+    : pool(threads), batch(std::min(kMatchBatch, lib.models.size())) {
   match::MatcherLimits limits;
   limits.max_states = std::max<std::int64_t>(p.max_states, 16);
   limits.max_reported = std::max(p.solutions_per_model, 1);
@@ -31,18 +31,29 @@ Recognizer::Impl::Impl(const Library& lib, const RecognizeParams& p, int threads
   }
   worker_pairs.resize(static_cast<std::size_t>(pool.threads()));
   for (auto& w : worker_pairs) w.reserve(256);
-  for (auto& pm : per_model) {
-    pm.slots.resize(static_cast<std::size_t>(p.solutions_per_model));
+  for (auto& pm : batch) {
+    pm.slots.resize(static_cast<std::size_t>(std::max(p.solutions_per_model, 0)));
     for (auto& s : pm.slots) {
       s.path.reserve(kMaxMatches);
       s.matches.reserve(kMaxMatches);
     }
   }
-  // The search solutions of every reference, plus room for the single-face hypotheses of kLoneFaceRoom lone
-  // faces.
-  const std::size_t max_h = lib.models.size() * static_cast<std::size_t>(p.solutions_per_model) +
-                            kLoneFaceRoom * static_cast<std::size_t>(std::max(p.single_face_max, 0));
+  // The search solutions (all of every reference's, up to max_hypotheses), plus room for the single-face
+  // hypotheses of kLoneFaceRoom lone faces.
+  max_solutions = std::min(lib.models.size() * static_cast<std::size_t>(std::max(p.solutions_per_model, 0)),
+                           static_cast<std::size_t>(std::max(p.max_hypotheses, 1)));
+  const std::size_t max_h =
+      max_solutions + kLoneFaceRoom * static_cast<std::size_t>(std::max(p.single_face_max, 0));
   hyps.resize(max_h);
+  worst.reserve(max_solutions);
+  use_arc_index = p.arc_index;
+  if (use_arc_index) {
+    std::vector<const Pfrg*> graphs;
+    graphs.reserve(lib.models.size());
+    for (const Model& m : lib.models) graphs.push_back(&m.graph);
+    arc_index = match::ArcIndex(graphs);
+  }
+  part_mask.reserve(lib.models.size());
   for (auto& h : hyps) {
     h.matches.reserve(kMaxMatches);
     h.path.reserve(kMaxMatches);

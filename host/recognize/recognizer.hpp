@@ -34,6 +34,16 @@ struct RecognizeParams {
   seg::SegmentParams segment = seg::SegmentParams::laser();
   VerifyParams verify;
   int solutions_per_model = 32;  // best solutions of each reference kept as hypotheses (ranked by prescore)
+  // Search solutions kept per round over all references: when more come (a scene that nearly every reference
+  // of a large library fits, e.g. a box among polycubes), the lowest matching costs are kept (ties: the
+  // earlier model in the library) and the others counted (RecognizeStats::solutions_dropped). The
+  // recognizer's memory is sized by this, not by the library: references are matched in batches of
+  // kMatchBatch.
+  int max_hypotheses = 8192;
+  // Match only the references that can hold a solution of the scene part (match::ArcIndex: a reference arc
+  // whose normals' angle and face areas pass the rigidity and one-sided area conditions against one of the
+  // part's arcs). Exact: the results are those of matching every reference. false = match every reference.
+  bool arc_index = true;
   std::int64_t max_states = 20000;  // state budget of one match
   // TH_solutions of one match (ch. 7.4's "solutions found" stop; the thesis runs t9.3 to exhaustion). A
   // search of a symmetric model otherwise spends its budget on symmetry-equivalent solutions and their
@@ -147,6 +157,7 @@ struct FaceMatch {
 struct Hypothesis {
   int model = -1;         // index into the library
   int rank = 0;           // rank of its solution in its model's list
+  int part_rank = 0;      // its solution is the k-th kept of its model in its scene part (0 = the best)
   std::vector<int> path;  // search-tree path of its solution: state id "<model>.9.1.1"
   std::vector<FaceMatch> matches;
   int level = 0;          // faces matched by the search
@@ -209,6 +220,9 @@ struct RecognizeStats {
   int stacked = 0;           // objects accepted because they rest on another accepted object (support test)
   int hidden = 0;            // objects accepted because other objects explain the points in front of them
   int reseated = 0;          // hypotheses moved to a near-symmetric placement (RecognizeParams)
+  std::int64_t references_searched = 0;  // references matched against some part (all rounds; arc_index)
+  std::int64_t solutions = 0;            // search solutions of all references (all rounds)
+  std::int64_t solutions_dropped = 0;    // of those, beyond RecognizeParams::max_hypotheses (the worst costs)
 };
 
 struct Recognition {

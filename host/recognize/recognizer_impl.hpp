@@ -8,6 +8,7 @@
 #include <memory>
 #include <vector>
 
+#include "host/match/arc_index.hpp"
 #include "host/recognize/hypotheses.hpp"
 #include "host/recognize/near_symmetry.hpp"
 #include "host/recognize/pose.hpp"
@@ -33,6 +34,7 @@ struct SolutionSlot {
   Mat3 rotation = Mat3::Identity();
   double cost = 0, rotfit = 0;
   int level = 0, rank = 0;
+  int part_rank = 0;  // k-th solution of its model in its scene part
   bool degenerate = false;
 };
 
@@ -61,7 +63,21 @@ struct Recognizer::Impl {
   std::vector<Verifier> verifiers;
   std::vector<ModelGeometry> geometry;
   std::vector<std::vector<NearSymmetry>> near_sym;  // by model (RecognizeParams::near_symmetry_share)
-  std::vector<ModelSlots> per_model;
+  // References are matched kMatchBatch at a time: batch[k] holds the solutions of model batch_first + k until
+  // they are collected into hyps (collect_batch), so this memory does not grow with the library.
+  static constexpr std::size_t kMatchBatch = 256;
+  std::vector<ModelSlots> batch;
+  // By model, bit k: model may hold a solution of parts[k] (match::ArcIndex; all bits when it is off).
+  match::ArcIndex arc_index;
+  bool use_arc_index = false;
+  std::vector<std::uint64_t> part_mask;
+  std::size_t batch_first = 0;
+  std::size_t max_solutions = 0;   // hypotheses the searches may fill (RecognizeParams::max_hypotheses)
+  std::vector<std::size_t> worst;  // heap of hyps indices, highest matching cost on top (when full)
+  bool pool_full = false;
+  int quota = 0;  // solutions kept per model and scene part this round (lowered when the pool fills)
+  void collect_batch(std::size_t n, RecognizeStats& stats);
+  std::size_t trim_to_quota();
   std::vector<Hypothesis> hyps;  // pool; the first nhyp are live this scan
   std::size_t nhyp = 0;
   std::vector<std::size_t> order;
@@ -205,14 +221,14 @@ struct Recognizer::Impl {
   // into connected parts; nullptr when nothing is left to search.
   const Pfrg* split_scene(Recognizer& rz, const Scan& scan, int round, const Vec3& viewpoint,
                           RecognizeStats& stats);
-  // match_round.cpp: every reference against every part (in parallel, one matcher per worker).
+  // match_round.cpp: every reference against every part (in parallel, one matcher per worker, a batch of
+  // references at a time); their solutions become hyps[0 .. nhyp), grouped by model.
   void match_references(const Library& lib, int round, RecognizeStats& stats);
   // hypothesis_round.cpp: hypotheses from the kept solutions (pose, expansion, compatible merge) and the
   // single-face hypotheses of lone faces.
   detail::Clock::time_point hyp_t0;  // start of this round's hypotheses (verify_ms counts from there)
   void make_hypotheses(Recognizer& rz, const HypothesisContext& hc, const Pfrg& graph, Scan& scan,
                        RecognizeStats& stats);
-  void solutions_to_hypotheses(std::size_t models, RecognizeStats& stats);
   void lone_face_hypotheses(Recognizer& rz, const Pfrg& graph, RecognizeStats& stats);
   // verify_round.cpp: low-level verification, coarse for the most plausible hypotheses, then ICP refinement
   // and fine verification; leaves the verified ones in order (best ordering key first).

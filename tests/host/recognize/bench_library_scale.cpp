@@ -495,6 +495,12 @@ Args parse_args(CLI::App& app, int argc, char** argv) {
   app.add_option("--solutions", a.params.solutions_per_model,
                  "RecognizeParams::solutions_per_model (default 32): hypotheses kept per reference")
       ->check(CLI::Range(1, 1024));
+  app.add_option("--max-hypotheses", a.params.max_hypotheses,
+                 "RecognizeParams::max_hypotheses (default 8192): search solutions kept per round")
+      ->check(CLI::Range(1, 1 << 24));
+  app.add_flag(
+      "--no-arc-index", [&a](std::int64_t) { a.params.arc_index = false; },
+      "match every reference (RecognizeParams::arc_index off)");
   app.add_flag("--verbose", a.verbose, "one line per scene and per miss");
   app.parse(argc, argv);
   if (!categories.empty()) {

@@ -137,6 +137,11 @@ Args parse_args(CLI::App& app, int argc, char** argv) {
   app.add_option("--preset", preset, "matching preset (match::preset)");
   app.add_option("--min-level", p.min_level, "TH_minlevel")->check(positive);
   app.add_option("--solutions", p.solutions_per_model, "solutions kept per model")->check(positive);
+  app.add_option("--max-hypotheses", p.max_hypotheses, "search solutions kept per round (all models)")
+      ->check(positive);
+  app.add_flag(
+      "--no-arc-index", [&p](std::int64_t) { p.arc_index = false; },
+      "match every reference (RecognizeParams::arc_index off)");
   app.add_option("--max-states", p.max_states, "state budget of one match")->check(positive);
   app.add_option("--area-ratio", p.match_area_ratio, "match_area_ratio (0 = off)")->check(non_negative);
   app.add_option("--omega", p.rigidity_deg, "rigidity cone TH_omega, degrees (0 = the preset's)")

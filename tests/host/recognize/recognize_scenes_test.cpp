@@ -125,6 +125,65 @@ TEST(RecognizeScenes, OneRoundMissesTheTouchingTwoFaceCube) {
   EXPECT_EQ(r.stats.rounds, 1);
 }
 
+// The hypothesis pool (RecognizeParams::max_hypotheses) bounds the recognizer's memory whatever the library
+// size. When more solutions come, every model keeps the same number of its best ones in every scene part (the
+// most that fit), and at one each, the lowest matching costs; whatever the thread count.
+TEST(RecognizeScenes, HypothesisPoolKeepsEachModelsBestSolutions) {
+  SceneRun s = scan("default");
+  const fs::Plane table = s.scene.calibration.table;
+  fs::host::rec::RecognizeParams params;
+  params.rounds = 1;
+  params.merge_translation_mm = -1.0;     // no compatible merge: every kept solution stays a hypothesis
+  params.single_face_min_area_mm2 = 0.0;  // and no single-face hypotheses join them
+  struct Kept {
+    double cost;
+    int model, part_rank;
+    auto operator<=>(const Kept&) const = default;
+  };
+  auto kept = [&](const Recognizer& rec) {
+    std::vector<Kept> k;
+    for (const auto* h : rec.all_hypotheses()) k.push_back({h->cost, h->model, h->part_rank});
+    std::sort(k.begin(), k.end());
+    return k;
+  };
+  params.threads = 2;
+  Recognizer all(library(), params, s.cloud.points.size());
+  const auto& ra = all.recognize(s.cloud, &table);
+  const std::int64_t solutions = ra.stats.solutions;
+  ASSERT_GE(solutions, 16);
+  EXPECT_EQ(ra.stats.solutions_dropped, 0);
+  const std::vector<Kept> every = kept(all);
+  ASSERT_EQ(static_cast<std::int64_t>(every.size()), solutions);
+  auto below = [&](int q) {
+    std::vector<Kept> k;
+    for (const Kept& e : every)
+      if (e.part_rank < q) k.push_back(e);
+    return k;
+  };
+  // A pool of a third: the largest per-part quota that fits.
+  const auto third = static_cast<std::size_t>(solutions / 3);
+  int q = 1;
+  while (below(q + 1).size() <= third) ++q;
+  const std::vector<Kept> quota_kept = below(q);
+  ASSERT_LT(quota_kept.size(), every.size());
+  // A pool smaller than the models' best solutions: the lowest costs among those.
+  const std::vector<Kept> best = below(1);
+  ASSERT_GE(best.size(), 4u);
+  const std::vector<Kept> cheapest(best.begin(), best.begin() + static_cast<std::ptrdiff_t>(best.size() / 2));
+  for (const auto& [pool, expected] : {std::pair{third, quota_kept}, {best.size() / 2, cheapest}}) {
+    params.max_hypotheses = static_cast<int>(pool);
+    for (int threads : {1, 2}) {
+      params.threads = threads;
+      Recognizer capped(library(), params, s.cloud.points.size());
+      const auto& r = capped.recognize(s.cloud, &table);
+      EXPECT_EQ(r.stats.solutions, solutions) << pool << " / " << threads << " threads";
+      EXPECT_EQ(r.stats.solutions_dropped, solutions - static_cast<std::int64_t>(expected.size()))
+          << pool << " / " << threads << " threads";
+      EXPECT_EQ(kept(capped), expected) << pool << " / " << threads << " threads";
+    }
+  }
+}
+
 // Zero heap allocations per scan after warm-up, shown around a second recognize() of a scan in the
 // same process (all threads of the process are counted: the matching and verification workers too).
 TEST(RecognizeScenes, WarmRecognizeAllocatesNothing) {

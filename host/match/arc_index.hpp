@@ -1,0 +1,54 @@
+#pragma once
+// A library index exact with respect to the inexact matcher's pruning conditions (thesis table 7.6).
+//
+// Every search solution of two or more faces passes through a level-2 state: a scene arc (s0, s1) between two
+// real faces matched to a reference arc (r0, r1) (1 connectivity, 7 neighbour match), whose pairs pass
+//   - 3 rigidity from the level-1 parent (MatchParams::rigidity_pairs): |angle(n_r0, n_r1) - angle(n_s0,
+//   n_s1)|
+//     <= TH_omega, and
+//   - the one-sided area part of 9.1: area_s <= th_area_ratio * area_r + th_area_slack_mm2, for both pairs.
+// ArcIndex holds every reference arc in both directions, bucketed by the angle between its normals (a 90 deg
+// arc of a box and one of a wedge meet the same bucket) and sorted by area; candidates() marks the references
+// that hold such an arc for some arc of a scene graph. A reference it leaves unmarked cannot produce a
+// solution under the same parameters (TH_minlevel >= 2), so matching only the marked ones changes no result.
+// Conditions that are switched off are not used; when connectivity or neighbour match is off, or TH_minlevel
+// < 2, every reference is a candidate.
+#include <array>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "host/match/params.hpp"
+#include "host/pfrg/pfrg.hpp"
+
+namespace fs::host::match {
+
+class ArcIndex {
+ public:
+  ArcIndex() = default;
+  explicit ArcIndex(std::span<const Pfrg* const> references);
+
+  std::size_t references() const { return references_; }
+  std::size_t entries() const { return entries_.size(); }  // directed reference arcs kept
+  std::size_t bytes() const { return entries_.capacity() * sizeof(Entry); }
+
+  // The index applies to matches under p (else every reference is a candidate).
+  static bool applies(const MatchParams& p);
+  // mark[k] |= bit for every reference k that may hold a solution of `scene` under p (all of them when the
+  // index does not apply). mark must have references() entries. No allocation.
+  void candidates(const Pfrg& scene, const MatchParams& p, std::span<std::uint64_t> mark,
+                  std::uint64_t bit) const;
+
+ private:
+  struct Entry {
+    float angle;   // degrees between the two faces' normals, [0, 180]
+    float a0, a1;  // areas of the arc's first and second face (mm^2)
+    std::uint32_t ref;
+  };
+  static constexpr int kBuckets = 181;  // 1 degree each
+  std::size_t references_ = 0;
+  std::vector<Entry> entries_;  // by bucket, a0 descending within one
+  std::array<std::uint32_t, kBuckets + 1> start_{};
+};
+
+}  // namespace fs::host::match
