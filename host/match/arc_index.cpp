@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <tuple>
 
 namespace fs::host::match {
 
@@ -13,6 +14,8 @@ namespace {
 // much more so that it never removes what the matcher keeps.
 constexpr double kAngleSlackDeg = 1e-3;
 constexpr double kAreaSlackRel = 1e-6;
+// Scene parts the path check takes (a larger one is checked by its arcs only).
+constexpr std::size_t kMaxPathNodes = 256, kMaxPathArcs = 4096, kMaxPaths = 16384;
 
 double angle_deg(const Vec3& a, const Vec3& b) {
   return std::acos(std::clamp(a.dot(b), -1.0, 1.0)) * 180.0 / std::numbers::pi;
@@ -34,9 +37,75 @@ double min_ref_area(const MatchParams& p, double a_s) {
 
 }  // namespace
 
+ArcIndex::Scratch::Scratch() {
+  adj_start.reserve(kMaxPathNodes + 1);
+  cursor.reserve(kMaxPathNodes + 1);
+  adj.reserve(2 * kMaxPathArcs);
+  paths.reserve(kMaxPaths);
+}
+
+// Paths x - y - z of reference graph g: one signature per distinct triple of angles, with the largest areas.
+void ArcIndex::add_paths(const Pfrg& g, std::uint32_t ref) {
+  const std::size_t first = paths_.size();
+  float flattest = 90.0f;
+  auto index_of = [&](int id) {
+    for (std::size_t i = 0; i < g.nodes.size(); ++i)
+      if (g.nodes[i].id == id) return g.nodes[i].supernode ? -1 : static_cast<int>(i);
+    return -1;
+  };
+  std::vector<std::vector<int>> adj(g.nodes.size());
+  for (const PfrgArc& arc : g.arcs) {
+    const int a = index_of(arc.a), b = index_of(arc.b);
+    if (a < 0 || b < 0) continue;
+    adj[static_cast<std::size_t>(a)].push_back(b);
+    adj[static_cast<std::size_t>(b)].push_back(a);
+    const auto t = static_cast<float>(
+        angle_deg(g.nodes[static_cast<std::size_t>(a)].normal, g.nodes[static_cast<std::size_t>(b)].normal));
+    flattest = std::min(flattest, std::min(t, 180.0f - t));
+  }
+  for (std::size_t y = 0; y < g.nodes.size(); ++y) {
+    const PfrgNode& ny = g.nodes[y];
+    for (int x : adj[y]) {
+      const PfrgNode& nx = g.nodes[static_cast<std::size_t>(x)];
+      for (int z : adj[y]) {
+        if (z == x) continue;
+        const PfrgNode& nz = g.nodes[static_cast<std::size_t>(z)];
+        paths_.push_back({static_cast<float>(angle_deg(nx.normal, ny.normal)),
+                          static_cast<float>(angle_deg(ny.normal, nz.normal)),
+                          static_cast<float>(angle_deg(nx.normal, nz.normal)), static_cast<float>(nx.area),
+                          static_cast<float>(ny.area), static_cast<float>(nz.area)});
+      }
+    }
+  }
+  const auto begin = paths_.begin() + static_cast<std::ptrdiff_t>(first);
+  std::sort(begin, paths_.end(), [](const PathSig& p, const PathSig& q) {
+    return std::tie(p.xy, p.yz, p.xz) < std::tie(q.xy, q.yz, q.xz);
+  });
+  std::size_t kept = first;
+  for (std::size_t i = first; i < paths_.size(); ++i) {
+    const PathSig p = paths_[i];
+    if (kept > first) {
+      PathSig& last = paths_[kept - 1];
+      if (last.xy == p.xy && last.yz == p.yz && last.xz == p.xz) {
+        last.ax = std::max(last.ax, p.ax);  // the largest of each: passes wherever one of them passes
+        last.ay = std::max(last.ay, p.ay);
+        last.az = std::max(last.az, p.az);
+        continue;
+      }
+    }
+    paths_[kept++] = p;
+  }
+  paths_.resize(kept);
+  path_start_[ref + 1] = static_cast<std::uint32_t>(kept);
+  flattest_[ref] = flattest;
+}
+
 ArcIndex::ArcIndex(std::span<const Pfrg* const> references) : references_(references.size()) {
+  path_start_.assign(references.size() + 1, 0);
+  flattest_.assign(references.size(), 90.0f);
   for (std::size_t k = 0; k < references.size(); ++k) {
     const Pfrg& g = *references[k];
+    add_paths(g, static_cast<std::uint32_t>(k));
     for (const PfrgArc& arc : g.arcs) {
       const PfrgNode* a = g.find(arc.a);
       const PfrgNode* b = g.find(arc.b);
@@ -67,6 +136,7 @@ ArcIndex::ArcIndex(std::span<const Pfrg* const> references) : references_(refere
   }
   entries_.resize(kept);
   entries_.shrink_to_fit();
+  paths_.shrink_to_fit();
   std::sort(entries_.begin(), entries_.end(), [&](const Entry& x, const Entry& y) {
     if (bucket(x) != bucket(y)) return bucket(x) < bucket(y);
     if (x.a0 != y.a0) return x.a0 > y.a0;
@@ -82,8 +152,81 @@ bool ArcIndex::applies(const MatchParams& p) {
   return p.on(Condition::kConnectivity) && p.on(Condition::kNeighborMatch) && p.th_minlevel >= 2;
 }
 
+namespace {
+
+// scratch.paths = the paths x - y - z of the scene's real faces; false when the part is too large for it.
+bool scene_paths(const Pfrg& scene, const MatchParams& p, ArcIndex::Scratch& sc) {
+  const std::size_t n = scene.nodes.size();
+  if (n > kMaxPathNodes || scene.arcs.size() > kMaxPathArcs) return false;
+  auto index_of = [&](int id) {
+    for (std::size_t i = 0; i < n; ++i)
+      if (scene.nodes[i].id == id) return scene.nodes[i].supernode ? -1 : static_cast<int>(i);
+    return -1;
+  };
+  sc.adj_start.assign(n + 1, 0);
+  for (const PfrgArc& arc : scene.arcs) {
+    const int a = index_of(arc.a), b = index_of(arc.b);
+    if (a < 0 || b < 0) continue;
+    ++sc.adj_start[static_cast<std::size_t>(a) + 1];
+    ++sc.adj_start[static_cast<std::size_t>(b) + 1];
+  }
+  for (std::size_t i = 0; i < n; ++i) sc.adj_start[i + 1] += sc.adj_start[i];
+  sc.cursor.assign(sc.adj_start.begin(), sc.adj_start.end());
+  sc.adj.assign(static_cast<std::size_t>(sc.adj_start[n]), 0);
+  for (const PfrgArc& arc : scene.arcs) {
+    const int a = index_of(arc.a), b = index_of(arc.b);
+    if (a < 0 || b < 0) continue;
+    sc.adj[static_cast<std::size_t>(sc.cursor[static_cast<std::size_t>(a)]++)] = b;
+    sc.adj[static_cast<std::size_t>(sc.cursor[static_cast<std::size_t>(b)]++)] = a;
+  }
+  sc.paths.clear();
+  for (std::size_t y = 0; y < n; ++y) {
+    const PfrgNode& ny = scene.nodes[y];
+    const auto lo = static_cast<std::size_t>(sc.adj_start[y]),
+               hi = static_cast<std::size_t>(sc.adj_start[y + 1]);
+    for (std::size_t i = lo; i < hi; ++i) {
+      const PfrgNode& nx = scene.nodes[static_cast<std::size_t>(sc.adj[i])];
+      for (std::size_t j = lo; j < hi; ++j) {
+        if (j == i) continue;
+        if (sc.paths.size() == kMaxPaths) return false;
+        const PfrgNode& nz = scene.nodes[static_cast<std::size_t>(sc.adj[j])];
+        sc.paths.push_back({static_cast<float>(angle_deg(nx.normal, ny.normal)),
+                            static_cast<float>(angle_deg(ny.normal, nz.normal)),
+                            static_cast<float>(angle_deg(nx.normal, nz.normal)),
+                            static_cast<float>(min_ref_area(p, nx.area)),
+                            static_cast<float>(min_ref_area(p, ny.area)),
+                            static_cast<float>(min_ref_area(p, nz.area))});
+      }
+    }
+  }
+  return true;
+}
+
+}  // namespace
+
+// Some path of the scene has a path of reference `ref` that passes (arc_index.hpp): its first arc within
+// omega, the two other angles within omega + that arc's difference, every face large enough. Every difference
+// is then at most 2 omega, so the x - y angles (sorted) are searched in that window only.
+bool ArcIndex::path_passes(const Scratch& sc, std::size_t ref, double omega) const {
+  const auto first = paths_.begin() + path_start_[ref], last = paths_.begin() + path_start_[ref + 1];
+  for (const Scratch::Path& sp : sc.paths) {
+    auto it = std::lower_bound(first, last, static_cast<float>(sp.xy - 2.0 * omega),
+                               [](const PathSig& g, float v) { return g.xy < v; });
+    for (; it != last && it->xy <= sp.xy + 2.0 * omega; ++it) {
+      const PathSig& g = *it;
+      if (g.ax < sp.need_x || g.ay < sp.need_y || g.az < sp.need_z) continue;
+      const double dxy = std::abs(double(g.xy) - sp.xy), dyz = std::abs(double(g.yz) - sp.yz),
+                   dxz = std::abs(double(g.xz) - sp.xz);
+      if ((dxy <= omega && dyz <= omega + dxy && dxz <= omega + dxy) ||
+          (dyz <= omega && dxy <= omega + dyz && dxz <= omega + dyz))
+        return true;
+    }
+  }
+  return false;
+}
+
 void ArcIndex::candidates(const Pfrg& scene, const MatchParams& p, std::span<std::uint64_t> mark,
-                          std::uint64_t bit) const {
+                          std::uint64_t bit, Scratch& scratch) const {
   const std::size_t n = std::min(mark.size(), references_);
   if (!applies(p)) {
     for (std::size_t k = 0; k < n; ++k) mark[k] |= bit;
@@ -108,6 +251,15 @@ void ArcIndex::candidates(const Pfrg& scene, const MatchParams& p, std::span<std
         if (std::abs(static_cast<double>(e.angle) - angle) <= omega) mark[e.ref] |= bit;
       }
     }
+  }
+  // Level 3 (TH_minlevel >= 3, rigidity from the two-pair fit): the paths.
+  if (!(by_angle && p.th_minlevel >= 3 && p.on(Condition::kRigidity)) || !scene_paths(scene, p, scratch))
+    return;
+  for (std::size_t k = 0; k < n; ++k) {
+    if (!(mark[k] & bit)) continue;
+    // A first pair within the degenerate angle of parallel has no rotation fit: not checked.
+    if (static_cast<double>(flattest_[k]) <= p.degenerate_deg + kAngleSlackDeg) continue;
+    if (!path_passes(scratch, k, omega)) mark[k] &= ~bit;
   }
 }
 

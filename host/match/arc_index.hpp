@@ -13,6 +13,15 @@
 // solution under the same parameters (TH_minlevel >= 2), so matching only the marked ones changes no result.
 // Conditions that are switched off are not used; when connectivity or neighbour match is off, or TH_minlevel
 // < 2, every reference is a candidate.
+//
+// With TH_minlevel >= 3 a solution also passes through a level-3 state: a third pair (z, t) whose faces
+// border one of the first two, x or y, in both graphs, and whose reference normal the rotation fit of the
+// first two pairs turns within TH_omega of the scene normal (3 rigidity). That fit turns n_x and n_y within
+// e_x, e_y of their scene normals, e_x + e_y = delta = the first pair's angle difference (<= TH_omega): the
+// optimum lies between aligning one pair exactly (the other then off by delta) and the other. A rotation
+// keeps angles, so |angle(n_z, n_x) - angle(n_t, n_s_x)| <= TH_omega + delta, the same for y. The index keeps
+// each reference's paths of two arcs (x - y - z) by their three angles (with the largest face areas of the
+// paths sharing them) and drops a reference when no path of the part passes that way.
 #include <array>
 #include <cstdint>
 #include <span>
@@ -34,10 +43,21 @@ class ArcIndex {
 
   // The index applies to matches under p (else every reference is a candidate).
   static bool applies(const MatchParams& p);
+  // Working memory of candidates() (sized once; a part with more paths than it holds is checked by arcs
+  // only).
+  struct Scratch {
+    Scratch();
+    std::vector<int> adj_start, adj, cursor;  // by node index: neighbouring real faces
+    struct Path {
+      float xy, yz, xz;              // angles between the faces' normals (degrees)
+      float need_x, need_y, need_z;  // smallest reference areas (one-sided area condition)
+    };
+    std::vector<Path> paths;
+  };
   // mark[k] |= bit for every reference k that may hold a solution of `scene` under p (all of them when the
   // index does not apply). mark must have references() entries. No allocation.
-  void candidates(const Pfrg& scene, const MatchParams& p, std::span<std::uint64_t> mark,
-                  std::uint64_t bit) const;
+  void candidates(const Pfrg& scene, const MatchParams& p, std::span<std::uint64_t> mark, std::uint64_t bit,
+                  Scratch& scratch) const;
 
  private:
   struct Entry {
@@ -45,10 +65,21 @@ class ArcIndex {
     float a0, a1;  // areas of the arc's first and second face (mm^2)
     std::uint32_t ref;
   };
+  struct PathSig {
+    float xy, yz, xz;  // angles between the normals of x - y - z (degrees)
+    float ax, ay, az;  // the largest areas of the reference's paths with these angles
+  };
   static constexpr int kBuckets = 181;  // 1 degree each
   std::size_t references_ = 0;
   std::vector<Entry> entries_;  // by bucket, a0 descending within one
   std::array<std::uint32_t, kBuckets + 1> start_{};
+  std::vector<PathSig> paths_;             // by reference
+  std::vector<std::uint32_t> path_start_;  // reference k: paths_[path_start_[k], path_start_[k + 1])
+  // Reference k: its arc closest to parallel faces (min(angle, 180 - angle)); a level-2 state below the
+  // degenerate angle has no rotation fit, so such a reference is not checked by paths.
+  std::vector<float> flattest_;
+  void add_paths(const Pfrg& g, std::uint32_t ref);
+  bool path_passes(const Scratch& scratch, std::size_t ref, double omega) const;
 };
 
 }  // namespace fs::host::match

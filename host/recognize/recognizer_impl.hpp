@@ -69,6 +69,7 @@ struct Recognizer::Impl {
   std::vector<ModelSlots> batch;
   // By model, bit k: model may hold a solution of parts[k] (match::ArcIndex; all bits when it is off).
   match::ArcIndex arc_index;
+  match::ArcIndex::Scratch arc_scratch;
   bool use_arc_index = false;
   std::vector<std::uint64_t> part_mask;
   std::size_t batch_first = 0;
