@@ -7,6 +7,29 @@
 
 namespace fs::host::rec {
 
+namespace {
+
+// The recognizer's overrides of RecognizeParams::match (assigned in place per scan: no allocation).
+void override_match(const RecognizeParams& params, match::MatchParams& m) {
+  m.max_states = std::min<std::int64_t>(params.match.max_states, params.max_states);
+  m.th_minlevel = params.min_level;
+  if (params.max_solutions > 0) m.max_solutions = params.max_solutions;
+  if (params.rigidity_pairs) m.rigidity_pairs = true;
+  if (params.rigidity_deg > 0) m.th_omega_deg = params.rigidity_deg;
+  if (params.match_area_ratio > 0) {
+    m.th_area_ratio = params.match_area_ratio;
+    m.th_area_slack_mm2 = params.match_area_slack_mm2;
+  }
+}
+
+}  // namespace
+
+match::MatchParams match_params(const RecognizeParams& params) {
+  match::MatchParams m = params.match;
+  override_match(params, m);
+  return m;
+}
+
 using detail::Clock;
 using detail::ms_since;
 
@@ -58,15 +81,7 @@ Recognizer::Impl::Scan Recognizer::Impl::prepare_matching(Recognizer& rz, const 
   scene = &graph;
   library = &rz.library_;
   mparams = params.match;
-  mparams.max_states = std::min<std::int64_t>(params.match.max_states, params.max_states);
-  mparams.th_minlevel = params.min_level;
-  if (params.max_solutions > 0) mparams.max_solutions = params.max_solutions;
-  if (params.rigidity_pairs) mparams.rigidity_pairs = true;
-  if (params.rigidity_deg > 0) mparams.th_omega_deg = params.rigidity_deg;
-  if (params.match_area_ratio > 0) {
-    mparams.th_area_ratio = params.match_area_ratio;
-    mparams.th_area_slack_mm2 = params.match_area_slack_mm2;
-  }
+  override_match(params, mparams);
   mparams_small = mparams;
   scan.min_part = params.min_level;
   scan.small_parts = params.small_part_min_level > 0 && params.small_part_min_level < params.min_level;

@@ -267,6 +267,10 @@ class Recognizer {
   Recognition result_;
 };
 
+// The match parameters of the first round's searches (RecognizeParams::match with the recognizer's overrides:
+// state budget, TH_minlevel, TH_solutions, rigidity pairs and TH_omega, one-sided area condition).
+match::MatchParams match_params(const RecognizeParams& params);
+
 // Recognition JSON (DESIGN.md contract): {"objects":[{"model","rotation","translation","cost","confidence",
 // "fit","ambiguous","faces_matched","faces_visible","matches",...}],"stats":{...}}; an ambiguous object adds
 // "candidates" and "alternatives" (Hypothesis::confidence()).

@@ -14,7 +14,7 @@
 #include "host/recognize/recognizer.hpp"
 #include "hw-sim/scene/ground_truth_grid.hpp"
 #include "hw-sim/scene/random_scene.hpp"
-#include "support/test_paths.hpp"
+#include "support/polyhedra_catalog.hpp"
 
 namespace {
 
@@ -24,17 +24,12 @@ using fs::sim::SceneCategory;
 
 struct Bench {
   std::vector<fs::sim::CatalogEntry> catalog;
-  fs::host::Library library;
+  fs::host::Library library;  // the 120 polyhedra, then polycubes of volume <= 5 (edge 20 mm) as distractors
 };
 
 const Bench& bench() {
   static const Bench b = [] {
-    Bench x;
-    x.catalog = fs::sim::make_catalog(
-        fs::sim::read_catalog_meshes(fs::test::shared_data() / "polyhedra/polyhedra-viewer/off"),
-        {.seed = 1});
-    for (const auto& e : x.catalog) x.library.add(fs::host::build_model(e.mesh));
-    // Polycubes of volume <= 5 (edge 20 mm) as distractors: every angle 90 degrees.
+    Bench x{fs::test::polyhedra_catalog().catalog, fs::test::polyhedra_catalog().library};
     const auto cubes = fs::host::enumerate_polycubes(5);
     for (std::size_t v = 0; v < cubes.size(); ++v)
       for (std::size_t i = 0; i < cubes[v].size(); ++i)
@@ -82,19 +77,6 @@ fs::host::Pfrg view_of(const fs::host::Model& m) {
   return g;
 }
 
-// The recognizer's first-round match parameters (host/recognize/prepare.cpp).
-fs::host::match::MatchParams first_round(const RecognizeParams& rp) {
-  fs::host::match::MatchParams p = rp.match;
-  p.max_states = std::min<std::int64_t>(p.max_states, rp.max_states);
-  p.th_minlevel = rp.min_level;
-  p.max_solutions = rp.max_solutions;
-  p.rigidity_pairs = rp.rigidity_pairs;
-  p.th_omega_deg = rp.rigidity_deg;
-  p.th_area_ratio = rp.match_area_ratio;
-  p.th_area_slack_mm2 = rp.match_area_slack_mm2;
-  return p;
-}
-
 TEST(ArcIndex, EveryReferenceWithASolutionIsACandidate) {
   const auto& lib = bench().library;
   std::vector<const fs::host::Pfrg*> graphs;
@@ -103,7 +85,7 @@ TEST(ArcIndex, EveryReferenceWithASolutionIsACandidate) {
   EXPECT_GT(index.entries(), lib.models.size());
   RecognizeParams rp;
   rp.threads = 2;
-  const fs::host::match::MatchParams p = first_round(rp);
+  const fs::host::match::MatchParams p = fs::host::rec::match_params(rp);
   ASSERT_TRUE(fs::host::match::ArcIndex::applies(p));
   fs::host::match::InexactMatcher matcher;
   int with_solution = 0, cube_solutions = 0, skipped = 0, checked = 0;

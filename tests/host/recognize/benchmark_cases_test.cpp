@@ -19,29 +19,15 @@
 #include "host/recognize/recognizer.hpp"
 #include "hw-sim/scene/ground_truth_grid.hpp"
 #include "hw-sim/scene/random_scene.hpp"
-#include "support/test_paths.hpp"
+#include "support/polyhedra_catalog.hpp"
 
 namespace {
 
 using fs::host::rec::RecognizeParams;
 using fs::host::rec::Recognizer;
 
-struct Bench {
-  std::vector<fs::sim::CatalogEntry> catalog;
-  fs::host::Library library;
-};
-
-const Bench& bench() {
-  static const Bench b = [] {
-    Bench x;
-    x.catalog = fs::sim::make_catalog(
-        fs::sim::read_catalog_meshes(fs::test::shared_data() / "polyhedra/polyhedra-viewer/off"),
-        {.seed = 1});
-    for (const auto& e : x.catalog) x.library.add(fs::host::build_model(e.mesh));
-    return x;
-  }();
-  return b;
-}
+using Bench = fs::test::PolyhedraCatalog;
+const Bench& bench() { return fs::test::polyhedra_catalog(); }
 
 // The name of the model reported within 10 mm of scene object `index`'s centre ("" = none).
 std::string recognized_at(fs::sim::SceneCategory category, std::uint32_t steps, std::uint64_t seed,
