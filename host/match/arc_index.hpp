@@ -3,9 +3,8 @@
 //
 // Every search solution of two or more faces passes through a level-2 state: a scene arc (s0, s1) between two
 // real faces matched to a reference arc (r0, r1) (1 connectivity, 7 neighbour match), whose pairs pass
-//   - 3 rigidity from the level-1 parent (MatchParams::rigidity_pairs): |angle(n_r0, n_r1) - angle(n_s0,
-//   n_s1)|
-//     <= TH_omega, and
+//   - 3 rigidity from the level-1 parent (MatchParams::rigidity_pairs):
+//     |angle(n_r0, n_r1) - angle(n_s0, n_s1)| <= TH_omega, and
 //   - the one-sided area part of 9.1: area_s <= th_area_ratio * area_r + th_area_slack_mm2, for both pairs.
 // ArcIndex holds every reference arc in both directions, bucketed by the angle between its normals (a 90 deg
 // arc of a box and one of a wedge meet the same bucket) and sorted by area; candidates() marks the references
@@ -21,7 +20,9 @@
 // optimum lies between aligning one pair exactly (the other then off by delta) and the other. A rotation
 // keeps angles, so |angle(n_z, n_x) - angle(n_t, n_s_x)| <= TH_omega + delta, the same for y. The index keeps
 // each reference's paths of two arcs (x - y - z) by their three angles (with the largest face areas of the
-// paths sharing them) and drops a reference when no path of the part passes that way.
+// paths sharing them) and drops a reference when no path of the part passes that way. A reference with two
+// adjacent faces within MatchParams::degenerate_deg of parallel is not checked by paths (such a first pair
+// has no rotation fit).
 #include <array>
 #include <cstdint>
 #include <span>
@@ -39,7 +40,10 @@ class ArcIndex {
 
   std::size_t references() const { return references_; }
   std::size_t entries() const { return entries_.size(); }  // directed reference arcs kept
-  std::size_t bytes() const { return entries_.capacity() * sizeof(Entry); }
+  std::size_t bytes() const {
+    return entries_.capacity() * sizeof(Entry) + paths_.capacity() * sizeof(PathSig) +
+           path_start_.capacity() * sizeof(std::uint32_t) + flattest_.capacity() * sizeof(float);
+  }
 
   // The index applies to matches under p (else every reference is a candidate).
   static bool applies(const MatchParams& p);
