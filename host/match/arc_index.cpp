@@ -44,8 +44,9 @@ ArcIndex::Scratch::Scratch() {
   paths.reserve(kMaxPaths);
 }
 
-// Paths x - y - z of reference graph g: one signature per distinct triple of angles, with the largest areas.
-void ArcIndex::add_paths(const Pfrg& g, std::uint32_t ref) {
+// Reference g: its arcs in both directions (entries_, sorted later) and its paths x - y - z, one signature
+// per distinct triple of angles with the largest areas.
+void ArcIndex::add_reference(const Pfrg& g, std::uint32_t ref) {
   const std::size_t first = paths_.size();
   float flattest = 90.0f;
   auto index_of = [&](int id) {
@@ -59,9 +60,12 @@ void ArcIndex::add_paths(const Pfrg& g, std::uint32_t ref) {
     if (a < 0 || b < 0) continue;
     adj[static_cast<std::size_t>(a)].push_back(b);
     adj[static_cast<std::size_t>(b)].push_back(a);
-    const auto t = static_cast<float>(
-        angle_deg(g.nodes[static_cast<std::size_t>(a)].normal, g.nodes[static_cast<std::size_t>(b)].normal));
+    const PfrgNode& na = g.nodes[static_cast<std::size_t>(a)];
+    const PfrgNode& nb = g.nodes[static_cast<std::size_t>(b)];
+    const auto t = static_cast<float>(angle_deg(na.normal, nb.normal));
     flattest = std::min(flattest, std::min(t, 180.0f - t));
+    entries_.push_back({t, static_cast<float>(na.area), static_cast<float>(nb.area), ref});
+    entries_.push_back({t, static_cast<float>(nb.area), static_cast<float>(na.area), ref});
   }
   for (std::size_t y = 0; y < g.nodes.size(); ++y) {
     const PfrgNode& ny = g.nodes[y];
@@ -103,19 +107,8 @@ void ArcIndex::add_paths(const Pfrg& g, std::uint32_t ref) {
 ArcIndex::ArcIndex(std::span<const Pfrg* const> references) : references_(references.size()) {
   path_start_.assign(references.size() + 1, 0);
   flattest_.assign(references.size(), 90.0f);
-  for (std::size_t k = 0; k < references.size(); ++k) {
-    const Pfrg& g = *references[k];
-    add_paths(g, static_cast<std::uint32_t>(k));
-    for (const PfrgArc& arc : g.arcs) {
-      const PfrgNode* a = g.find(arc.a);
-      const PfrgNode* b = g.find(arc.b);
-      if (!a || !b || a->supernode || b->supernode) continue;  // never matched
-      const auto angle = static_cast<float>(angle_deg(a->normal, b->normal));
-      const auto ref = static_cast<std::uint32_t>(k);
-      entries_.push_back({angle, static_cast<float>(a->area), static_cast<float>(b->area), ref});
-      entries_.push_back({angle, static_cast<float>(b->area), static_cast<float>(a->area), ref});
-    }
-  }
+  for (std::size_t k = 0; k < references.size(); ++k)
+    add_reference(*references[k], static_cast<std::uint32_t>(k));
   auto bucket = [](const Entry& e) { return std::clamp(static_cast<int>(e.angle), 0, kBuckets - 1); };
   // Within one reference and one angle, an arc whose two areas are both at most another's passes only where
   // that one passes too: keep the undominated ones.

@@ -82,7 +82,7 @@ class ArcIndex {
   // Reference k: its arc closest to parallel faces (min(angle, 180 - angle)); a level-2 state below the
   // degenerate angle has no rotation fit, so such a reference is not checked by paths.
   std::vector<float> flattest_;
-  void add_paths(const Pfrg& g, std::uint32_t ref);
+  void add_reference(const Pfrg& g, std::uint32_t ref);
   bool path_passes(const Scratch& scratch, std::size_t ref, double omega) const;
 };
 

@@ -1,6 +1,7 @@
 // Recognizer step 2b (thesis ch. 7): every reference PFRG matched against every part of the scene graph, in
 // parallel (one InexactMatcher per worker), a batch of references at a time; each batch's solutions become
-// hypotheses, at most RecognizeParams::max_hypotheses of them (the lowest matching costs).
+// hypotheses, at most RecognizeParams::max_hypotheses of them (each model's best ones per part, see
+// collect_batch).
 #include <algorithm>
 #include <limits>
 

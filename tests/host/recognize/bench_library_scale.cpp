@@ -225,16 +225,7 @@ struct Profile {
 void profile_references(const fs::host::rec::Recognizer& rec, const Library& lib,
                         const fs::host::rec::RecognizeParams& p, fs::host::match::InexactMatcher& matcher,
                         Profile& out) {
-  fs::host::match::MatchParams mp = p.match;
-  mp.max_states = std::min<std::int64_t>(p.match.max_states, p.max_states);
-  mp.th_minlevel = p.min_level;
-  if (p.max_solutions > 0) mp.max_solutions = p.max_solutions;
-  if (p.rigidity_pairs) mp.rigidity_pairs = true;
-  if (p.rigidity_deg > 0) mp.th_omega_deg = p.rigidity_deg;
-  if (p.match_area_ratio > 0) {
-    mp.th_area_ratio = p.match_area_ratio;
-    mp.th_area_slack_mm2 = p.match_area_slack_mm2;
-  }
+  const fs::host::match::MatchParams mp = fs::host::rec::match_params(p);
   const fs::host::Pfrg& scene = rec.scene_graph();
   if (scene.nodes.size() > static_cast<std::size_t>(fs::host::match::kMaxNodes)) return;
   ++out.scenes;
