@@ -27,9 +27,10 @@ def scene_file(scene):
     return os.path.join(fs.ARGS.source, "hw-sim", "scenes", f"{scene}.json")
 
 
-def stream_scan(gateway, scene, wait=True):
+def stream_scan(gateway, scene, wait=True, scan_id=1):
     """One simulated scanner streams one 500-stripe scan of `scene` to the gateway."""
-    cmd = [fs.ARGS.fw_hil, "--scene", scene_file(scene), "--stream", f"127.0.0.1:{gateway.port}"]
+    cmd = [fs.ARGS.fw_hil, "--scene", scene_file(scene), "--stream", f"127.0.0.1:{gateway.port}",
+           "--scan-id", str(scan_id)]
     if wait:
         return run(cmd)
     return subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
@@ -66,14 +67,18 @@ class GatewayTest(fs.FleetCase):
         return results
 
     def test_scanners_gateway_two_workers(self):
-        self.worker("w1", "--test-hold-ms", "200")
-        self.worker("w2", "--test-hold-ms", "200")
+        # One scan in flight per worker, each held 3 s: the three scans, streamed at once, are published within
+        # that time, so while one worker holds its first scan the other must take the next (a worker with two
+        # threads, or scans spaced wider than the hold, could leave w2 idle on a loaded machine).
+        self.worker("w1", "--threads", "1", "--test-hold-ms", "3000")
+        self.worker("w2", "--threads", "1", "--test-hold-ms", "3000")
         spool = os.path.join(self.server.dir, "spool")
         gw = self.gateway(spool)
-        for scene in SCENES:
-            stream_scan(gw, scene)
-        ids = self.published_ids(gw, 3)
-        results = self.assert_results(dict(zip(ids, SCENES)))
+        scanners = [stream_scan(gw, scene, wait=False, scan_id=i + 1) for i, scene in enumerate(SCENES)]
+        for s in scanners:
+            self.assertEqual(s.wait(timeout=HANG_GUARD_S), 0)
+        ids = self.published_ids(gw, 3)  # SCANNER-SCANID-START-CRC, in the order the scans completed
+        results = self.assert_results({i: SCENES[int(i.split("-")[-3]) - 1] for i in ids})
         for r in results:
             self.assertEqual(r["scanner_id"], "127-0-0-1")  # one id per scanner address
             self.assertEqual(r["scan_status"], "complete")
