@@ -9,11 +9,10 @@ namespace {
 // returns true; true when one did.
 template <class F>
 bool any_lowest_point(const PosedModel& p, const Plane& table, double lowest, double tol_mm, F f) {
-  for (const Vec3& s : p.geometry->surface_samples()) {
+  return p.geometry->any_surface_sample([&](const Vec3& s) {
     const Vec3 w = p.R * s + p.t;
-    if (table.signed_distance(w) <= lowest + tol_mm && f(w)) return true;
-  }
-  return false;
+    return table.signed_distance(w) <= lowest + tol_mm && f(w);
+  });
 }
 
 }  // namespace

@@ -15,7 +15,7 @@ struct PosedModel {
 };
 
 // Model `upper` rests on a convex `lower`: lower's centre is below upper's and a point of upper's surface
-// near its lowest point (upper_lowest above the table; ModelGeometry::surface_samples, radius / 12 apart)
+// near its lowest point (upper_lowest above the table; ModelGeometry::any_surface_sample, radius / 12 apart)
 // lies on lower's surface (at most tol_mm outside it, or inside it).
 bool rests_on(const PosedModel& upper, double upper_lowest, const PosedModel& lower, const Plane& table,
               double tol_mm);

@@ -61,17 +61,11 @@ ModelGeometry::ModelGeometry(const Model& model)
 }
 
 void ModelGeometry::sample_surface() {
-  const double spacing = std::max(1.0, radius_ / 12.0);
-  for (std::size_t i = 0; i < faces_.size(); ++i) {
-    const Face& f = faces_[i];
-    const ModelFace& mf = model_->faces[i];
-    surface_.push_back(mf.centroid);
-    for (const auto& loop : mf.loops)
-      for (const Vec3& p : loop) surface_.push_back(p);
-    for (double x = f.lo.x() + 0.5 * spacing; x < f.hi.x(); x += spacing)
-      for (double y = f.lo.y() + 0.5 * spacing; y < f.hi.y(); y += spacing)
-        if (inside(f, Eigen::Vector2d(x, y))) surface_.push_back(x * f.u + y * f.v + f.offset * f.n);
-  }
+  if (!convex_) return;  // made as they are asked for (any_surface_sample)
+  each_surface_point([this](const Vec3& p) {
+    surface_.push_back(p);
+    return false;
+  });
 }
 
 void ModelGeometry::sample_volume() {

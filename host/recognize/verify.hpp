@@ -8,6 +8,7 @@
 // The pose is refined by point-to-plane ICP on the inliers (each assigned to its face's plane).
 // confidence = inliers / (inliers + violations + occluded_weight * occluded), scaled down when the inliers
 // are too few to carry the claim.
+#include <algorithm>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -55,8 +56,20 @@ class ModelGeometry {
   const Vec3& center() const { return center_; }
   bool convex() const { return convex_; }
   // Points on the model's surface (model frame): every face's vertices, centroid and a grid over it about
-  // radius / 12 apart (the interpenetration test of two posed models samples one against the other).
-  const std::vector<Vec3>& surface_samples() const { return surface_; }
+  // radius / 12 apart. any_surface_sample(f) calls f(point) on each in turn until f returns true (true when
+  // one did). A convex model keeps them (the interpenetration test of two posed convex models samples one
+  // against the other); a non-convex model makes them as they are asked for (the support test, rarely), so a
+  // library of thousands of non-convex parts does not hold them all (about 25 KB per polycube).
+  template <class F>
+  bool any_surface_sample(F&& f) const {
+    if (convex_) {
+      for (const Vec3& s : surface_)
+        if (f(s)) return true;
+      return false;
+    }
+    return each_surface_point(f);
+  }
+  const std::vector<Vec3>& surface_samples() const { return surface_; }  // convex models only (else empty)
   // How deep a point (model frame) lies inside a convex model: the smallest distance to a face plane,
   // negative outside. 0 for a non-convex model (not tested).
   double depth_inside(const Vec3& p) const;
@@ -75,6 +88,8 @@ class ModelGeometry {
     std::vector<Eigen::Vector3d> edges;  // (inward normal x, y, offset) per edge
   };
   bool inside(const Face& f, const Eigen::Vector2d& q) const;
+  template <class F>
+  bool each_surface_point(F&& f) const;
   void sample_surface();
   void sample_volume();
   std::vector<Vec3> surface_, volume_;
@@ -85,6 +100,23 @@ class ModelGeometry {
   double radius_;
   bool convex_ = false;
 };
+
+template <class F>
+bool ModelGeometry::each_surface_point(F&& f) const {
+  const double spacing = std::max(1.0, radius_ / 12.0);
+  for (std::size_t i = 0; i < faces_.size(); ++i) {
+    const Face& fc = faces_[i];
+    const ModelFace& mf = model_->faces[i];
+    if (f(mf.centroid)) return true;
+    for (const auto& loop : mf.loops)
+      for (const Vec3& p : loop)
+        if (f(p)) return true;
+    for (double x = fc.lo.x() + 0.5 * spacing; x < fc.hi.x(); x += spacing)
+      for (double y = fc.lo.y() + 0.5 * spacing; y < fc.hi.y(); y += spacing)
+        if (inside(fc, Eigen::Vector2d(x, y)) && f(Vec3(x * fc.u + y * fc.v + fc.offset * fc.n))) return true;
+  }
+  return false;
+}
 
 // Mean distance (mm) between depth-continuous neighbours along a grid row (x) and column (y) of an organized
 // cloud, from a subsample; 0 where unknown (unorganized cloud, no such neighbours).
