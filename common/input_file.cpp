@@ -98,9 +98,22 @@ Container read_all(const std::filesystem::path& path, std::uint64_t max_bytes, s
     out.resize(static_cast<std::size_t>(size));
     for (;;) {
       if (got == out.size()) {
-        // At the size fstat() gave: the file may have grown since; read on in bounded steps.
-        if (out.size() >= max_bytes + 1) break;
-        out.resize(static_cast<std::size_t>(std::min<std::uint64_t>(out.size() + 64 * kKiB, max_bytes + 1)));
+        // At the size fstat() gave: the file may have grown since. A small read tells before the container
+        // grows (growing would copy the whole file once more); what it finds is appended, to max_bytes + 1.
+        if (got > max_bytes) break;
+        char probe[4096];
+        const ssize_t r = ::read(fd, probe, sizeof probe);
+        if (r < 0) {
+          if (errno == EINTR) continue;
+          throw Error(path.string() + ": read error: " + std::strerror(errno));
+        }
+        if (r == 0) break;
+        const auto take = static_cast<std::size_t>(
+            std::min<std::uint64_t>(static_cast<std::uint64_t>(r), max_bytes + 1 - got));
+        out.resize(got + take);
+        std::memcpy(reinterpret_cast<char*>(out.data()) + got, probe, take);
+        got += take;
+        continue;
       }
       const ssize_t r = ::read(fd, reinterpret_cast<char*>(out.data()) + got, out.size() - got);
       if (r < 0) {

@@ -459,7 +459,7 @@ Model build_model(const Mesh& mesh, const BuildOptions& options, const std::stri
 
   std::vector<PfrgArc> arcs;
   for (const auto& [k, len] : arc_len) arcs.push_back({k.first, k.second, len});
-  finish_model(model, arcs, options);
+  finish_model(model, std::move(arcs), options);
   return model;
 }
 

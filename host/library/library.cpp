@@ -1,12 +1,15 @@
 // Library container and the .fslib binary file (layout in library.hpp).
+#include <algorithm>
 #include <array>
 #include <bit>
 #include <cmath>
 #include <cstring>
 #include <fstream>
-#include <set>
+#include <string_view>
+#include <unordered_set>
 
 #include <fmt/format.h>
+#include <zlib.h>
 
 #include "common/error.hpp"
 #include "common/input_file.hpp"
@@ -18,19 +21,15 @@ namespace {
 constexpr std::array<std::uint8_t, 8> kMagic{'F', 'S', 'L', 'I', 'B', '\r', '\n', 0x1a};
 constexpr std::size_t kHeaderSize = 8 + 4 + 4 + 8 + 4;
 
-std::uint32_t crc32(const std::uint8_t* p, std::size_t n) {
-  static const auto table = [] {
-    std::array<std::uint32_t, 256> t{};
-    for (std::uint32_t i = 0; i < 256; ++i) {
-      std::uint32_t c = i;
-      for (int k = 0; k < 8; ++k) c = (c & 1) ? 0xEDB88320u ^ (c >> 1) : c >> 1;
-      t[i] = c;
-    }
-    return t;
-  }();
-  std::uint32_t c = 0xFFFFFFFFu;
-  for (std::size_t i = 0; i < n; ++i) c = table[(c ^ p[i]) & 0xFF] ^ (c >> 8);
-  return c ^ 0xFFFFFFFFu;
+// CRC-32 (IEEE, zlib's crc32), in pieces that fit zlib's 32-bit length.
+std::uint32_t crc32_ieee(const std::uint8_t* p, std::size_t n) {
+  uLong crc = crc32(0L, Z_NULL, 0);
+  for (std::size_t at = 0; at < n;) {
+    const auto k = static_cast<uInt>(std::min<std::size_t>(n - at, std::size_t{1} << 30));
+    crc = crc32(crc, p + at, k);
+    at += k;
+  }
+  return static_cast<std::uint32_t>(crc);
 }
 
 struct Writer {
@@ -43,6 +42,7 @@ struct Writer {
     for (int i = 0; i < 8; ++i) out.push_back(static_cast<std::uint8_t>(v >> (8 * i)));
   }
   void f64(double v) { u64(std::bit_cast<std::uint64_t>(v)); }
+  void f32(float v) { u32(std::bit_cast<std::uint32_t>(v)); }
   void vec(const Vec3& v) {
     f64(v.x());
     f64(v.y());
@@ -68,19 +68,27 @@ struct Reader {
     need(1, what);
     return b[pos++];
   }
+  // Little-endian integers at p (a plain load on little-endian machines).
+  template <typename T>
+  static T load_le(const std::uint8_t* p) {
+    T v;
+    if constexpr (std::endian::native == std::endian::little) {
+      std::memcpy(&v, p, sizeof v);
+    } else {
+      v = 0;
+      for (std::size_t i = 0; i < sizeof v; ++i) v |= static_cast<T>(T{p[i]} << (8 * i));
+    }
+    return v;
+  }
   std::uint32_t u32(const char* what) {
     need(4, what);
-    std::uint32_t v = 0;
-    for (int i = 0; i < 4; ++i) v |= std::uint32_t{b[pos + static_cast<std::size_t>(i)]} << (8 * i);
     pos += 4;
-    return v;
+    return load_le<std::uint32_t>(b.data() + pos - 4);
   }
   std::uint64_t u64(const char* what) {
     need(8, what);
-    std::uint64_t v = 0;
-    for (int i = 0; i < 8; ++i) v |= std::uint64_t{b[pos + static_cast<std::size_t>(i)]} << (8 * i);
     pos += 8;
-    return v;
+    return load_le<std::uint64_t>(b.data() + pos - 8);
   }
   double f64(const char* what) {
     const std::size_t at = pos;
@@ -88,9 +96,23 @@ struct Reader {
     if (!std::isfinite(v)) throw error_at_offset(src, at, fmt::format("{} is not a finite number", what));
     return v;
   }
+  float f32(const char* what) {
+    const std::size_t at = pos;
+    const float v = std::bit_cast<float>(u32(what));
+    if (!std::isfinite(v)) throw error_at_offset(src, at, fmt::format("{} is not a finite number", what));
+    return v;
+  }
   Vec3 vec(const char* what) {
-    const double x = f64(what), y = f64(what), z = f64(what);
-    return {x, y, z};
+    need(24, what);
+    Vec3 v;
+    for (int i = 0; i < 3; ++i) {
+      v[i] = std::bit_cast<double>(load_le<std::uint64_t>(b.data() + pos + 8 * static_cast<std::size_t>(i)));
+      if (!std::isfinite(v[i]))
+        throw error_at_offset(src, pos + 8 * static_cast<std::size_t>(i),
+                              fmt::format("{} is not a finite number", what));
+    }
+    pos += 24;
+    return v;
   }
   // A count of items of at least min_bytes each that must fit in what is left.
   std::uint32_t count(const char* what, std::size_t min_bytes) {
@@ -110,6 +132,63 @@ const Model* Library::find(const std::string& name) const {
     if (m.name == name) return &m;
   return nullptr;
 }
+
+namespace {
+
+std::vector<const Pfrg*> graphs_of(const std::vector<Model>& models) {
+  std::vector<const Pfrg*> graphs;
+  graphs.reserve(models.size());
+  for (const Model& m : models) graphs.push_back(&m.graph);
+  return graphs;
+}
+
+void write_index(Writer& p, const match::ArcIndex& index) {
+  p.u32(static_cast<std::uint32_t>(index.entry_array().size()));
+  for (const auto& e : index.entry_array()) {
+    p.f32(e.angle);
+    p.f32(e.a0);
+    p.f32(e.a1);
+    p.u32(e.ref);
+  }
+  p.u32(static_cast<std::uint32_t>(index.path_array().size()));
+  for (const auto& g : index.path_array())
+    for (float v : {g.xy, g.yz, g.xz, g.ax, g.ay, g.az}) p.f32(v);
+  for (std::uint32_t v : index.path_starts()) p.u32(v);
+  for (float v : index.flattest_array()) p.f32(v);
+  for (std::uint32_t v : index.arc_counts()) p.u32(v);
+}
+
+match::ArcIndex read_index(Reader& r, std::size_t references) {
+  const std::size_t at = r.pos;
+  std::vector<match::ArcIndex::Entry> entries(r.count("arc index entry count", 16));
+  for (auto& e : entries) {
+    e.angle = r.f32("arc index entry angle");
+    e.a0 = r.f32("arc index entry area");
+    e.a1 = r.f32("arc index entry area");
+    e.ref = r.u32("arc index entry reference");
+  }
+  std::vector<match::ArcIndex::PathSig> paths(r.count("arc index path count", 24));
+  for (auto& g : paths)
+    for (float* v : {&g.xy, &g.yz, &g.xz, &g.ax, &g.ay, &g.az}) *v = r.f32("arc index path value");
+  r.need((references + 1) * 4 + references * 8, "arc index per-reference arrays");
+  std::vector<std::uint32_t> path_start(references + 1), arcs(references);
+  std::vector<float> flattest(references);
+  for (auto& v : path_start) v = r.u32("arc index path start");
+  for (auto& v : flattest) v = r.f32("arc index flattest angle");
+  for (auto& v : arcs) v = r.u32("arc index arc count");
+  try {
+    return match::ArcIndex::from_arrays(references, std::move(entries), std::move(paths),
+                                        std::move(path_start), std::move(flattest), std::move(arcs));
+  } catch (const Error& e) {
+    throw error_at_offset(r.src, at, e.what());
+  }
+}
+
+}  // namespace
+
+void Library::build_index() { index = match::ArcIndex(graphs_of(models)); }
+
+bool Library::index_describes_models() const { return index.describes(graphs_of(models)); }
 
 void Library::add(Model model) {
   if (find(model.name)) throw Error(fmt::format("library: duplicate model name '{}'", model.name));
@@ -144,12 +223,17 @@ std::vector<std::uint8_t> Library::to_bytes() const {
       for (int r = 0; r < 3; ++r)
         for (int c = 0; c < 3; ++c) p.f64(S(r, c));
   }
+  if (index_describes_models()) {
+    write_index(p, index);
+  } else {
+    write_index(p, match::ArcIndex(graphs_of(models)));
+  }
   Writer h;
   h.out.assign(kMagic.begin(), kMagic.end());
   h.u32(kFslibVersion);
   h.u32(static_cast<std::uint32_t>(models.size()));
   h.u64(p.out.size());
-  h.u32(crc32(p.out.data(), p.out.size()));
+  h.u32(crc32_ieee(p.out.data(), p.out.size()));
   h.out.insert(h.out.end(), p.out.begin(), p.out.end());
   return h.out;
 }
@@ -170,10 +254,10 @@ Library Library::from_bytes(std::span<const std::uint8_t> bytes, const std::stri
   r.pos = 8;
   const std::size_t vpos = r.pos;
   const std::uint32_t version = r.u32("version");
-  if (version != kFslibVersion)
+  if (version != 1 && version != kFslibVersion)
     throw error_at_offset(
         source, vpos,
-        fmt::format("unsupported .fslib version {} (this build reads {})", version, kFslibVersion));
+        fmt::format("unsupported .fslib version {} (this build reads 1 and {})", version, kFslibVersion));
   const std::uint32_t nmodels = r.u32("model count");
   const std::size_t spos = r.pos;
   const std::uint64_t size = r.u64("payload size");
@@ -182,21 +266,23 @@ Library Library::from_bytes(std::span<const std::uint8_t> bytes, const std::stri
     throw error_at_offset(
         source, spos,
         fmt::format("payload size {} but {} bytes follow the header", size, bytes.size() - kHeaderSize));
-  if (crc32(bytes.data() + kHeaderSize, bytes.size() - kHeaderSize) != crc)
+  if (crc32_ieee(bytes.data() + kHeaderSize, bytes.size() - kHeaderSize) != crc)
     throw error_at_offset(source, kHeaderSize, "payload CRC mismatch (file corrupt)");
   if (static_cast<std::uint64_t>(nmodels) * 17 > size)
     throw error_at_offset(source, 12, fmt::format("model count {} does not fit in the payload", nmodels));
 
   Library lib;
-  lib.models.reserve(nmodels);
-  std::set<std::string> names;
+  lib.models.reserve(nmodels);  // never reallocated below: the names' views stay valid
+  std::unordered_set<std::string_view> names;
+  names.reserve(nmodels);
+  std::vector<std::pair<std::uint64_t, std::size_t>> arc_keys;  // (faces, byte offset) of one model's arcs
   for (std::uint32_t mi = 0; mi < nmodels; ++mi) {
     Model m;
     const std::size_t name_pos = r.pos;
     const std::uint32_t len = r.count("model name length", 1);
     m.name.assign(reinterpret_cast<const char*>(bytes.data() + r.pos), len);
     r.pos += len;
-    if (!names.insert(m.name).second)
+    if (names.count(m.name))
       throw error_at_offset(source, name_pos, fmt::format("duplicate model name '{}'", m.name));
     const std::uint8_t open = r.u8("open flag");
     if (open > 1) throw error_at_offset(source, r.pos - 1, fmt::format("open flag {} is not 0 or 1", open));
@@ -227,7 +313,7 @@ Library Library::from_bytes(std::span<const std::uint8_t> bytes, const std::stri
     }
     const std::uint32_t na = r.count("arc count", 16);
     std::vector<PfrgArc> arcs(na);
-    std::set<std::pair<int, int>> seen;
+    arc_keys.clear();
     for (auto& a : arcs) {
       const std::size_t apos = r.pos;
       const std::uint32_t x = r.u32("arc node"), y = r.u32("arc node");
@@ -238,8 +324,18 @@ Library Library::from_bytes(std::span<const std::uint8_t> bytes, const std::stri
       if (a.border < 0) throw error_at_offset(source, apos + 8, "negative arc border");
       a.a = static_cast<int>(x);
       a.b = static_cast<int>(y);
-      if (!seen.insert({std::min(a.a, a.b), std::max(a.a, a.b)}).second)
-        throw error_at_offset(source, apos, fmt::format("duplicate arc ({}, {})", x, y));
+      arc_keys.emplace_back(std::uint64_t{std::min(x, y)} << 32 | std::max(x, y), apos);
+    }
+    // The first arc (in file order) that repeats an earlier one.
+    std::sort(arc_keys.begin(), arc_keys.end());
+    std::size_t dup = bytes.size();
+    for (std::size_t i = 1; i < arc_keys.size(); ++i)
+      if (arc_keys[i].first == arc_keys[i - 1].first) dup = std::min(dup, arc_keys[i].second);
+    if (dup != bytes.size()) {
+      const std::uint64_t key = std::find_if(arc_keys.begin(), arc_keys.end(), [&](const auto& k) {
+                                  return k.second == dup;
+                                })->first;
+      throw error_at_offset(source, dup, fmt::format("duplicate arc ({}, {})", key >> 32, key & 0xFFFFFFFFu));
     }
     const std::size_t sympos = r.pos;
     const std::uint32_t ns = r.count("symmetry count", 72);
@@ -252,11 +348,19 @@ Library Library::from_bytes(std::span<const std::uint8_t> bytes, const std::stri
       if ((S * S.transpose() - Mat3::Identity()).norm() > 1e-6 || S.determinant() < 0)
         throw error_at_offset(source, at, "symmetry is not a rotation matrix");
     }
-    finish_model(m, arcs, BuildOptions{}, false);
+    finish_model(m, std::move(arcs), BuildOptions{}, false);
     lib.models.push_back(std::move(m));
+    names.insert(lib.models.back().name);
+  }
+  if (version >= 2) {
+    const std::size_t at = r.pos;
+    lib.index = read_index(r, nmodels);
+    if (!lib.index_describes_models())
+      throw error_at_offset(source, at, "the arc index does not describe the models (arc counts differ)");
   }
   if (r.pos != bytes.size())
-    throw r.fail(fmt::format("{} unexpected bytes after the last model", bytes.size() - r.pos));
+    throw r.fail(fmt::format("{} unexpected bytes after the {}", bytes.size() - r.pos,
+                             version >= 2 ? "arc index" : "last model"));
   return lib;
 }
 

@@ -39,8 +39,39 @@ void LibraryMerge::add(Model model, const std::string& source) {
 }
 
 void LibraryMerge::add_all(Library library, const std::string& source) {
-  library_.models.reserve(library_.models.size() + library.models.size());
+  const std::size_t first = library_.models.size();
+  // (A loaded file's index describes its models: the reader checked. The recognizer checks the joined one.)
+  if (library.index.references() == library.models.size() && !library.models.empty())
+    indexes_.emplace_back(first, std::move(library.index));
+  library_.models.reserve(first + library.models.size());
   for (Model& m : library.models) add(std::move(m), source);
+}
+
+Library LibraryMerge::release() {
+  // One index per run of models: a stored one, or one built for the models between them.
+  std::vector<match::ArcIndex> built;
+  built.reserve(indexes_.size() + 1);
+  std::vector<const match::ArcIndex*> parts;
+  auto build = [&](std::size_t from, std::size_t to) {
+    if (from >= to) return;
+    std::vector<const Pfrg*> graphs;
+    for (std::size_t k = from; k < to; ++k) graphs.push_back(&library_.models[k].graph);
+    parts.push_back(&built.emplace_back(graphs));
+  };
+  std::size_t next = 0;
+  for (const auto& [first, index] : indexes_) {
+    build(next, first);
+    parts.push_back(&index);
+    next = first + index.references();
+  }
+  build(next, library_.models.size());
+  if (parts.size() != 1)
+    library_.index = match::ArcIndex::concat(parts);
+  else if (!built.empty())
+    library_.index = std::move(built.front());
+  else
+    library_.index = std::move(indexes_.front().second);
+  return std::move(library_);
 }
 
 }  // namespace fs::host

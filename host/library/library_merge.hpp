@@ -7,6 +7,7 @@
 #include <cstddef>
 #include <string>
 #include <unordered_map>
+#include <utility>
 #include <vector>
 
 #include "host/library/library.hpp"
@@ -26,7 +27,9 @@ class LibraryMerge {
   // The source of the model named `name`; nullptr when there is none.
   const std::string* source_of(const std::string& name) const;
 
-  Library release() { return std::move(library_); }
+  // The gathered library, with the arc index of all its models: the stored indexes of the .fslib files,
+  // built for the models of mesh files.
+  Library release();
 
  private:
   std::size_t intern(const std::string& source);
@@ -36,6 +39,8 @@ class LibraryMerge {
   std::vector<std::string> sources_;                      // distinct sources, in order of appearance
   std::vector<std::size_t> source_index_;                 // per model: index into sources_
   std::unordered_map<std::string, std::size_t> by_name_;  // model name -> model index
+  std::vector<std::pair<std::size_t, match::ArcIndex>>
+      indexes_;  // (first model, index of a library's models)
 };
 
 }  // namespace fs::host

@@ -18,11 +18,12 @@ struct Signature {
 
 }  // namespace
 
-void finish_model(Model& model, const std::vector<PfrgArc>& arcs, const BuildOptions& options,
+void finish_model(Model& model, std::vector<PfrgArc> arcs, const BuildOptions& options,
                   bool with_symmetries) {
   model.graph = Pfrg{};
   model.graph.name = model.name;
   model.total_area = 0;
+  model.graph.nodes.reserve(model.faces.size());
   for (std::size_t i = 0; i < model.faces.size(); ++i) {
     const ModelFace& f = model.faces[i];
     PfrgNode n;
@@ -35,7 +36,7 @@ void finish_model(Model& model, const std::vector<PfrgArc>& arcs, const BuildOpt
     model.graph.nodes.push_back(n);
     model.total_area += f.area;
   }
-  model.graph.arcs = arcs;
+  model.graph.arcs = std::move(arcs);
 
   // Volume and its centroid from the faces (divergence theorem), relative to a reference point for accuracy.
   Vec3 ref = Vec3::Zero();

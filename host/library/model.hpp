@@ -61,7 +61,7 @@ Model build_model(const Mesh& mesh, const BuildOptions& options = {}, const std:
 
 // Fills graph, center, totals and (when with_symmetries) symmetries from name + faces + arcs (used by
 // build_model, the polycube generator and the library reader). `arcs` are (a, b, border) with a < b.
-void finish_model(Model& model, const std::vector<PfrgArc>& arcs, const BuildOptions& options = {},
+void finish_model(Model& model, std::vector<PfrgArc> arcs, const BuildOptions& options = {},
                   bool with_symmetries = true);
 
 // The rotation group of a model computed from its faces (normals, areas, centroids, perimeters) and

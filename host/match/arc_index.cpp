@@ -6,6 +6,10 @@
 #include <numbers>
 #include <tuple>
 
+#include <fmt/format.h>
+
+#include "common/error.hpp"
+
 namespace fs::host::match {
 
 namespace {
@@ -62,6 +66,7 @@ void ArcIndex::add_reference(const Pfrg& g, std::uint32_t ref) {
     adj[static_cast<std::size_t>(b)].push_back(a);
     const PfrgNode& na = g.nodes[static_cast<std::size_t>(a)];
     const PfrgNode& nb = g.nodes[static_cast<std::size_t>(b)];
+    ++arcs_[ref];
     const auto t = static_cast<float>(angle_deg(na.normal, nb.normal));
     flattest = std::min(flattest, std::min(t, 180.0f - t));
     entries_.push_back({t, static_cast<float>(na.area), static_cast<float>(nb.area), ref});
@@ -107,9 +112,9 @@ void ArcIndex::add_reference(const Pfrg& g, std::uint32_t ref) {
 ArcIndex::ArcIndex(std::span<const Pfrg* const> references) : references_(references.size()) {
   path_start_.assign(references.size() + 1, 0);
   flattest_.assign(references.size(), 90.0f);
+  arcs_.assign(references.size(), 0);
   for (std::size_t k = 0; k < references.size(); ++k)
     add_reference(*references[k], static_cast<std::uint32_t>(k));
-  auto bucket = [](const Entry& e) { return std::clamp(static_cast<int>(e.angle), 0, kBuckets - 1); };
   // Within one reference and one angle, an arc whose two areas are both at most another's passes only where
   // that one passes too: keep the undominated ones.
   std::sort(entries_.begin(), entries_.end(), [&](const Entry& x, const Entry& y) {
@@ -130,15 +135,127 @@ ArcIndex::ArcIndex(std::span<const Pfrg* const> references) : references_(refere
   entries_.resize(kept);
   entries_.shrink_to_fit();
   paths_.shrink_to_fit();
-  std::sort(entries_.begin(), entries_.end(), [&](const Entry& x, const Entry& y) {
-    if (bucket(x) != bucket(y)) return bucket(x) < bucket(y);
-    if (x.a0 != y.a0) return x.a0 > y.a0;
-    return x.ref < y.ref;
-  });
+  sort_entries();
+}
+
+namespace {
+
+int bucket_of(float angle, int buckets) { return std::clamp(static_cast<int>(angle), 0, buckets - 1); }
+
+bool entry_before(const ArcIndex::Entry& x, const ArcIndex::Entry& y, int buckets) {
+  const int bx = bucket_of(x.angle, buckets), by = bucket_of(y.angle, buckets);
+  if (bx != by) return bx < by;
+  if (x.a0 != y.a0) return x.a0 > y.a0;
+  return x.ref < y.ref;
+}
+
+}  // namespace
+
+void ArcIndex::sort_entries() {
+  std::sort(entries_.begin(), entries_.end(),
+            [](const Entry& x, const Entry& y) { return entry_before(x, y, kBuckets); });
+  count_buckets();
+}
+
+void ArcIndex::count_buckets() {
   start_.fill(0);
-  for (const Entry& e : entries_) ++start_[static_cast<std::size_t>(bucket(e)) + 1];
+  for (const Entry& e : entries_) ++start_[static_cast<std::size_t>(bucket_of(e.angle, kBuckets)) + 1];
   for (int b = 0; b < kBuckets; ++b)
     start_[static_cast<std::size_t>(b) + 1] += start_[static_cast<std::size_t>(b)];
+}
+
+ArcIndex ArcIndex::concat(std::span<const ArcIndex* const> parts) {
+  ArcIndex out;
+  std::size_t entries = 0, paths = 0;
+  for (const ArcIndex* part : parts) {
+    out.references_ += part->references_;
+    entries += part->entries_.size();
+    paths += part->paths_.size();
+  }
+  out.entries_.reserve(entries);
+  out.paths_.reserve(paths);
+  out.path_start_.reserve(out.references_ + 1);  // holds the first start, 0
+  out.flattest_.reserve(out.references_);
+  out.arcs_.reserve(out.references_);
+  std::uint32_t base = 0;
+  for (const ArcIndex* part : parts) {
+    for (Entry e : part->entries_) {
+      e.ref += base;
+      out.entries_.push_back(e);
+    }
+    const auto path_base = static_cast<std::uint32_t>(out.paths_.size());
+    out.paths_.insert(out.paths_.end(), part->paths_.begin(), part->paths_.end());
+    for (std::size_t k = 1; k < part->path_start_.size(); ++k)
+      out.path_start_.push_back(path_base + part->path_start_[k]);
+    out.flattest_.insert(out.flattest_.end(), part->flattest_.begin(), part->flattest_.end());
+    out.arcs_.insert(out.arcs_.end(), part->arcs_.begin(), part->arcs_.end());
+    base += static_cast<std::uint32_t>(part->references_);
+  }
+  out.sort_entries();
+  return out;
+}
+
+ArcIndex ArcIndex::from_arrays(std::size_t references, std::vector<Entry> entries, std::vector<PathSig> paths,
+                               std::vector<std::uint32_t> path_start, std::vector<float> flattest,
+                               std::vector<std::uint32_t> arcs) {
+  auto angle_ok = [](float a) { return std::isfinite(a) && a >= 0.0f && a <= 180.0f; };
+  auto area_ok = [](float a) { return std::isfinite(a) && a >= 0.0f; };
+  if (path_start.size() != references + 1 || flattest.size() != references || arcs.size() != references)
+    throw Error(fmt::format("arc index: {} path starts, {} flattest angles, {} arc counts for {} references",
+                            path_start.size(), flattest.size(), arcs.size(), references));
+  for (std::size_t i = 0; i < entries.size(); ++i) {
+    const Entry& e = entries[i];
+    if (e.ref >= references || !angle_ok(e.angle) || !area_ok(e.a0) || !area_ok(e.a1))
+      throw Error(fmt::format("arc index: entry {} (reference {}, angle {}, areas {} {}) out of range", i,
+                              e.ref, e.angle, e.a0, e.a1));
+    if (i > 0 && entry_before(e, entries[i - 1], kBuckets))
+      throw Error(fmt::format("arc index: entry {} is out of order", i));
+  }
+  if (path_start[0] != 0 || path_start[references] != paths.size())
+    throw Error(fmt::format("arc index: path starts run from {} to {}, not 0 to {}", path_start[0],
+                            path_start[references], paths.size()));
+  for (std::size_t k = 0; k < references; ++k) {
+    if (path_start[k + 1] < path_start[k])
+      throw Error(fmt::format("arc index: path start of reference {} decreases", k + 1));
+    if (!(flattest[k] >= 0.0f && flattest[k] <= 90.0f))
+      throw Error(fmt::format("arc index: flattest angle {} of reference {} out of range", flattest[k], k));
+    for (std::uint32_t i = path_start[k]; i < path_start[k + 1]; ++i) {
+      const PathSig& g = paths[i];
+      if (!angle_ok(g.xy) || !angle_ok(g.yz) || !angle_ok(g.xz) || !area_ok(g.ax) || !area_ok(g.ay) ||
+          !area_ok(g.az))
+        throw Error(fmt::format("arc index: path {} of reference {} out of range", i, k));
+      if (i > path_start[k] && g.xy < paths[i - 1].xy)
+        throw Error(fmt::format("arc index: path {} of reference {} is out of order", i, k));
+    }
+  }
+  ArcIndex out;
+  out.references_ = references;
+  out.entries_ = std::move(entries);
+  out.paths_ = std::move(paths);
+  out.path_start_ = std::move(path_start);
+  out.flattest_ = std::move(flattest);
+  out.arcs_ = std::move(arcs);
+  out.count_buckets();
+  return out;
+}
+
+bool ArcIndex::describes(std::span<const Pfrg* const> references) const {
+  if (references.size() != references_) return false;
+  for (std::size_t k = 0; k < references.size(); ++k) {
+    std::uint32_t real = 0;
+    const Pfrg& g = *references[k];
+    auto node = [&](int id) {  // a model's node id is its index
+      const auto i = static_cast<std::size_t>(id);
+      return id >= 0 && i < g.nodes.size() && g.nodes[i].id == id ? &g.nodes[i] : g.find(id);
+    };
+    for (const PfrgArc& arc : g.arcs) {
+      const PfrgNode* a = node(arc.a);
+      const PfrgNode* b = node(arc.b);
+      real += a && b && !a->supernode && !b->supernode;
+    }
+    if (real != arcs_[k]) return false;
+  }
+  return true;
 }
 
 bool ArcIndex::applies(const MatchParams& p) {

@@ -35,14 +35,42 @@ namespace fs::host::match {
 
 class ArcIndex {
  public:
+  struct Entry {
+    float angle;   // degrees between the two faces' normals, [0, 180]
+    float a0, a1;  // areas of the arc's first and second face (mm^2)
+    std::uint32_t ref;
+  };
+  struct PathSig {
+    float xy, yz, xz;  // angles between the normals of x - y - z (degrees)
+    float ax, ay, az;  // the largest areas of the reference's paths with these angles
+  };
+
   ArcIndex() = default;
   explicit ArcIndex(std::span<const Pfrg* const> references);
+  // The index of several libraries one after the other (reference k of parts[1] becomes
+  // parts[0]->references() + k): the same candidates as an index built over all their references.
+  static ArcIndex concat(std::span<const ArcIndex* const> parts);
+
+  // Its arrays, as a library file stores them (.fslib), and an index made of them again: from_arrays checks
+  // sizes, ranges and order (what candidates() relies on) and throws fs::Error saying what is wrong.
+  std::span<const Entry> entry_array() const { return entries_; }
+  std::span<const PathSig> path_array() const { return paths_; }
+  std::span<const std::uint32_t> path_starts() const { return path_start_; }
+  std::span<const float> flattest_array() const { return flattest_; }
+  std::span<const std::uint32_t> arc_counts() const { return arcs_; }
+  static ArcIndex from_arrays(std::size_t references, std::vector<Entry> entries, std::vector<PathSig> paths,
+                              std::vector<std::uint32_t> path_start, std::vector<float> flattest,
+                              std::vector<std::uint32_t> arcs);
+  // True when reference k of the index was built from a graph with this many arcs between real faces, for
+  // every k (a stored index that no longer describes its library's models is not used).
+  bool describes(std::span<const Pfrg* const> references) const;
 
   std::size_t references() const { return references_; }
   std::size_t entries() const { return entries_.size(); }  // directed reference arcs kept
   std::size_t bytes() const {
     return entries_.capacity() * sizeof(Entry) + paths_.capacity() * sizeof(PathSig) +
-           path_start_.capacity() * sizeof(std::uint32_t) + flattest_.capacity() * sizeof(float);
+           (path_start_.capacity() + arcs_.capacity()) * sizeof(std::uint32_t) +
+           flattest_.capacity() * sizeof(float);
   }
 
   // The index applies to matches under p (else every reference is a candidate).
@@ -64,25 +92,19 @@ class ArcIndex {
                   Scratch& scratch) const;
 
  private:
-  struct Entry {
-    float angle;   // degrees between the two faces' normals, [0, 180]
-    float a0, a1;  // areas of the arc's first and second face (mm^2)
-    std::uint32_t ref;
-  };
-  struct PathSig {
-    float xy, yz, xz;  // angles between the normals of x - y - z (degrees)
-    float ax, ay, az;  // the largest areas of the reference's paths with these angles
-  };
   static constexpr int kBuckets = 181;  // 1 degree each
   std::size_t references_ = 0;
   std::vector<Entry> entries_;  // by bucket, a0 descending within one
   std::array<std::uint32_t, kBuckets + 1> start_{};
-  std::vector<PathSig> paths_;             // by reference
-  std::vector<std::uint32_t> path_start_;  // reference k: paths_[path_start_[k], path_start_[k + 1])
+  std::vector<PathSig> paths_;                // by reference
+  std::vector<std::uint32_t> path_start_{0};  // reference k: paths_[path_start_[k], path_start_[k + 1])
   // Reference k: its arc closest to parallel faces (min(angle, 180 - angle)); a level-2 state below the
   // degenerate angle has no rotation fit, so such a reference is not checked by paths.
   std::vector<float> flattest_;
+  std::vector<std::uint32_t> arcs_;  // reference k: its arcs between real faces
   void add_reference(const Pfrg& g, std::uint32_t ref);
+  void sort_entries();   // entries_ by bucket, then a0 descending; then count_buckets()
+  void count_buckets();  // start_ from entries_
   bool path_passes(const Scratch& scratch, std::size_t ref, double omega) const;
 };
 

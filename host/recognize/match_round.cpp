@@ -93,8 +93,8 @@ void Recognizer::Impl::match_references(const Library& lib, int round, Recognize
   if (use_arc_index) {
     for (std::size_t part = 0; part < nparts; ++part) {
       const bool small = round_small || part_faces[part] < mparams.th_minlevel;
-      arc_index.candidates(parts[part], small ? mparams_small : mparams, part_mask, std::uint64_t{1} << part,
-                           arc_scratch);
+      arc_index->candidates(parts[part], small ? mparams_small : mparams, part_mask, std::uint64_t{1} << part,
+                            arc_scratch);
     }
   }
   for (std::uint64_t m : part_mask) stats.references_searched += m != 0;

@@ -48,10 +48,15 @@ Recognizer::Impl::Impl(const Library& lib, const RecognizeParams& p, int threads
   worst.reserve(max_solutions);
   use_arc_index = p.arc_index;
   if (use_arc_index) {
-    std::vector<const Pfrg*> graphs;
-    graphs.reserve(lib.models.size());
-    for (const Model& m : lib.models) graphs.push_back(&m.graph);
-    arc_index = match::ArcIndex(graphs);
+    if (lib.index_describes_models()) {
+      arc_index = &lib.index;
+    } else {
+      std::vector<const Pfrg*> graphs;
+      graphs.reserve(lib.models.size());
+      for (const Model& m : lib.models) graphs.push_back(&m.graph);
+      own_arc_index = match::ArcIndex(graphs);
+      arc_index = &own_arc_index;
+    }
   }
   part_mask.reserve(lib.models.size());
   for (auto& h : hyps) {

@@ -68,7 +68,8 @@ struct Recognizer::Impl {
   static constexpr std::size_t kMatchBatch = 256;
   std::vector<ModelSlots> batch;
   // By model, bit k: model may hold a solution of parts[k] (match::ArcIndex; all bits when it is off).
-  match::ArcIndex arc_index;
+  const match::ArcIndex* arc_index = nullptr;  // the library's own (stored with it) or own_arc_index
+  match::ArcIndex own_arc_index;
   match::ArcIndex::Scratch arc_scratch;
   bool use_arc_index = false;
   std::vector<std::uint64_t> part_mask;

@@ -4,10 +4,14 @@
 #include <filesystem>
 #include <fstream>
 
+#include <fmt/format.h>
+#include <zlib.h>
+
 #include "common/error.hpp"
 #include "common/mesh.hpp"
 #include "host/library/library.hpp"
 #include "host/library/polycubes.hpp"
+#include "support/same_arc_index.hpp"
 #include "support/test_paths.hpp"
 
 namespace {
@@ -124,6 +128,97 @@ TEST(LibraryFile, CorruptionIsReportedWithOffsets) {
   nosym.models[0].symmetries[1](0, 0) = 3;
   EXPECT_NE(error_of(nosym.to_bytes()).find("not a rotation"), std::string::npos);
   EXPECT_THROW(Library::load("/nonexistent/dir/x.fslib"), fs::Error);
+}
+
+// Bytes as a version 1 file held them: no arc index after the models.
+std::vector<std::uint8_t> as_version_1(const Library& lib) {
+  auto bytes = lib.to_bytes();
+  const auto& ix = lib.index;
+  const std::size_t tail = 4 + 16 * ix.entry_array().size() + 4 + 24 * ix.path_array().size() +
+                           4 * (ix.references() + 1) + 8 * ix.references();
+  bytes.resize(bytes.size() - tail);
+  auto put32 = [&](std::size_t at, std::uint32_t v) {
+    for (int i = 0; i < 4; ++i)
+      bytes[at + static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(v >> (8 * i));
+  };
+  put32(8, 1);
+  const std::uint64_t payload = bytes.size() - 28;
+  put32(16, static_cast<std::uint32_t>(payload));
+  put32(20, static_cast<std::uint32_t>(payload >> 32));
+  put32(24, static_cast<std::uint32_t>(crc32(0, bytes.data() + 28, static_cast<uInt>(payload))));
+  return bytes;
+}
+
+// The payload CRC made right again after an edit (a structurally bad file that is not corrupt).
+std::vector<std::uint8_t> with_crc(std::vector<std::uint8_t> bytes) {
+  const auto c =
+      static_cast<std::uint32_t>(crc32(0, bytes.data() + 28, static_cast<uInt>(bytes.size() - 28)));
+  for (int i = 0; i < 4; ++i)
+    bytes[24 + static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(c >> (8 * i));
+  return bytes;
+}
+
+std::vector<const Pfrg*> graphs(const Library& lib) {
+  std::vector<const Pfrg*> g;
+  for (const auto& m : lib.models) g.push_back(&m.graph);
+  return g;
+}
+
+TEST(LibraryFile, TheArcIndexIsStoredAndReadBack) {
+  Library lib = small_library();
+  EXPECT_FALSE(lib.index_describes_models());                       // models added, no index built
+  const Library back = Library::from_bytes(lib.to_bytes(), "mem");  // to_bytes builds it for the file
+  ASSERT_TRUE(back.index_describes_models());
+  fs::test::expect_same_index(back.index, match::ArcIndex(graphs(back)));
+  lib.build_index();
+  EXPECT_TRUE(lib.index_describes_models());
+  EXPECT_EQ(lib.to_bytes(), back.to_bytes());
+  // A model added later: the index no longer describes the library.
+  Library more = back;
+  more.add(polycube_model({{0, 0, 0}, {0, 0, 1}}, 20, "pair"));
+  EXPECT_FALSE(more.index_describes_models());
+  EXPECT_TRUE(Library::from_bytes(more.to_bytes(), "mem").index_describes_models());
+}
+
+TEST(LibraryFile, VersionOneFilesAreStillRead) {
+  Library lib = small_library();
+  lib.build_index();
+  const Library v1 = Library::from_bytes(as_version_1(lib), "v1.fslib");
+  ASSERT_EQ(v1.models.size(), lib.models.size());
+  for (std::size_t i = 0; i < lib.models.size(); ++i) expect_same(lib.models[i], v1.models[i]);
+  EXPECT_EQ(v1.index.references(), 0u);
+  EXPECT_FALSE(v1.index_describes_models());
+  EXPECT_EQ(v1.to_bytes(), lib.to_bytes());  // written again as version 2, with the index
+}
+
+TEST(LibraryFile, ABadArcIndexIsReportedWithItsOffset) {
+  Library lib = small_library();
+  lib.build_index();
+  const auto good = lib.to_bytes();
+  const std::size_t index_at = as_version_1(lib).size();
+  const std::size_t refs = lib.models.size();
+  // The first entry's reference out of range (its u32 after three f32).
+  auto ref = good;
+  ref[index_at + 4 + 12] = 0xFF;
+  std::string e = error_of(with_crc(ref));
+  EXPECT_NE(e.find(fmt::format("bad.fslib: at byte {}: arc index: entry 0", index_at)), std::string::npos)
+      << e;
+  // An angle that is not a number.
+  auto nan = good;
+  for (int i = 0; i < 4; ++i) nan[index_at + 4 + static_cast<std::size_t>(i)] = 0xFF;
+  e = error_of(with_crc(nan));
+  EXPECT_NE(e.find("arc index entry angle is not a finite number"), std::string::npos) << e;
+  // Arc counts of other models (the last u32 of the file).
+  auto counts = good;
+  counts[counts.size() - 4] ^= 1;
+  e = error_of(with_crc(counts));
+  EXPECT_NE(e.find("the arc index does not describe the models"), std::string::npos) << e;
+  // Path starts that run past the paths.
+  auto starts = good;
+  const std::size_t last_start = good.size() - 8 * refs - 4;
+  starts[last_start] += 1;
+  e = error_of(with_crc(starts));
+  EXPECT_NE(e.find("arc index: path starts run from 0 to"), std::string::npos) << e;
 }
 
 }  // namespace

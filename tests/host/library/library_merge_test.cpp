@@ -14,6 +14,7 @@
 #include "host/library/mesh_files.hpp"
 #include "host/library/polycubes.hpp"
 #include "support/error_of.hpp"
+#include "support/same_arc_index.hpp"
 #include "support/test_paths.hpp"
 
 namespace {
@@ -71,7 +72,8 @@ TEST(LibraryMerge, SeveralLibrariesAndMeshesInTheOrderOfTheInputs) {
   EXPECT_EQ(names(mixed), (std::vector<std::string>{"corner", "cube", "wedge", "box", "hex_prism",
                                                     "polycube-3-001", "polycube-3-002"}));
   // The models are the files' models: the same bytes as each part on its own.
-  const Library a_part{{mixed.models[1], mixed.models[2]}};
+  Library a_part;
+  a_part.models = {mixed.models[1], mixed.models[2]};
   EXPECT_EQ(a_part.to_bytes(), Library::load(p.a).to_bytes());
   // Each model remembers its source.
   const LibraryMerge g = gather_library({mesh("corner"), p.a, d / "more", p.b});
@@ -83,6 +85,22 @@ TEST(LibraryMerge, SeveralLibrariesAndMeshesInTheOrderOfTheInputs) {
   ASSERT_NE(g.source_of("wedge"), nullptr);
   EXPECT_EQ(*g.source_of("wedge"), p.a);
   EXPECT_EQ(g.source_of("nothing"), nullptr);
+}
+
+TEST(LibraryMerge, TheMergedLibraryCarriesTheIndexOfAllItsModels) {
+  const Parts p;
+  // Stored indexes (a, b) and models built from meshes (corner, box) before, between and after them.
+  const Library mixed = load_or_build_library({mesh("corner"), p.a, mesh("box"), p.b, mesh("hex_prism")});
+  ASSERT_EQ(mixed.models.size(), 7u);
+  ASSERT_TRUE(mixed.index_describes_models());
+  std::vector<const Pfrg*> graphs;
+  for (const auto& m : mixed.models) graphs.push_back(&m.graph);
+  fs::test::expect_same_index(mixed.index, match::ArcIndex(graphs));
+  // Libraries only; a single library keeps its stored index.
+  const Library two = load_or_build_library({p.b, p.a});
+  ASSERT_TRUE(two.index_describes_models());
+  const Library one = load_or_build_library({p.a});
+  fs::test::expect_same_index(one.index, Library::load(p.a).index);
 }
 
 TEST(LibraryMerge, ExtensionIsCaseInsensitive) {

@@ -15,6 +15,7 @@
 #include "hw-sim/scene/ground_truth_grid.hpp"
 #include "hw-sim/scene/random_scene.hpp"
 #include "support/polyhedra_catalog.hpp"
+#include "support/same_arc_index.hpp"
 
 namespace {
 
@@ -128,6 +129,35 @@ TEST(ArcIndex, EveryReferenceWithASolutionIsACandidate) {
   EXPECT_GT(2 * skipped, checked - with_solution) << skipped << " of " << checked;
   std::cout << "ruled out " << skipped << " of " << checked << " (reference, scene) pairs, " << with_solution
             << " with a solution (" << cube_solutions << " polycubes)\n";
+}
+
+// Libraries gathered from several files: their indexes one after the other are the index of the whole.
+TEST(ArcIndex, ConcatenatedIndexesAreTheIndexOfTheWhole) {
+  using fs::host::match::ArcIndex;
+  const auto& lib = bench().library;
+  std::vector<const fs::host::Pfrg*> graphs;
+  for (const auto& m : lib.models) graphs.push_back(&m.graph);
+  const ArcIndex whole(graphs);
+  const std::span<const fs::host::Pfrg* const> all(graphs);
+  const ArcIndex a(all.subspan(0, 57)), b(all.subspan(57, 63)), c(all.subspan(120));
+  const ArcIndex* parts[] = {&a, &b, &c};
+  const ArcIndex joined = ArcIndex::concat(parts);
+  fs::test::expect_same_index(joined, whole);
+  ASSERT_TRUE(joined.describes(graphs));
+  EXPECT_FALSE(a.describes(graphs));
+  RecognizeParams rp;
+  const auto p = fs::host::rec::match_params(rp);
+  ArcIndex::Scratch scratch;
+  std::size_t own = 0, views = 0;
+  for (std::size_t k = 0; k < lib.models.size(); k += 7, ++views) {
+    const fs::host::Pfrg scene = view_of(lib.models[k]);
+    std::vector<std::uint64_t> m1(lib.models.size(), 0), m2(lib.models.size(), 0);
+    whole.candidates(scene, p, m1, 1, scratch);
+    joined.candidates(scene, p, m2, 1, scratch);
+    EXPECT_EQ(m1, m2) << lib.models[k].name;
+    own += m2[k];  // (a view of two faces has no solution of three: no candidate at all)
+  }
+  EXPECT_GT(2 * own, views) << "most models are candidates for their own view";
 }
 
 TEST(ArcIndex, RecognitionIsTheSameWithAndWithoutIt) {
