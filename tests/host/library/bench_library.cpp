@@ -20,6 +20,17 @@ fs::host::Library polyhedra_library() {
   return lib;
 }
 
+// All polycubes up to `volume` (edge 20 mm), as `facetscan library polycubes` makes them.
+fs::host::Library polycube_library(int volume) {
+  fs::host::Library lib;
+  const auto all = fs::host::enumerate_polycubes(volume);
+  for (std::size_t v = 0; v < all.size(); ++v)
+    for (std::size_t i = 0; i < all[v].size(); ++i)
+      lib.add(
+          fs::host::polycube_model(all[v][i], 20, fs::host::polycube_name(static_cast<int>(v + 1), i + 1)));
+  return lib;
+}
+
 void BM_BuildAllPolyhedra(benchmark::State& state) {
   for (auto _ : state) benchmark::DoNotOptimize(polyhedra_library());
   state.SetLabel("120 OFF solids: read + build_model (incl. symmetry)");
@@ -36,13 +47,7 @@ BENCHMARK(BM_LoadPolyhedraLibrary)->Unit(benchmark::kMillisecond);
 // The 8,152 polycubes of volume <= 8 with their arc index, from memory (what `-l cubes8.fslib` reads after
 // the file): CRC, parse and validation, index; the library freed outside the timing.
 void BM_LoadPolycubeLibrary8(benchmark::State& state) {
-  fs::host::Library lib;
-  const auto all = fs::host::enumerate_polycubes(8);
-  for (std::size_t v = 0; v < all.size(); ++v)
-    for (std::size_t i = 0; i < all[v].size(); ++i)
-      lib.add(
-          fs::host::polycube_model(all[v][i], 20, fs::host::polycube_name(static_cast<int>(v + 1), i + 1)));
-  const auto bytes = lib.to_bytes();
+  const auto bytes = polycube_library(8).to_bytes();
   for (auto _ : state) {
     auto loaded = fs::host::Library::from_bytes(bytes, "bench");
     state.PauseTiming();
@@ -60,15 +65,7 @@ void BM_EnumeratePolycubes(benchmark::State& state) {
 BENCHMARK(BM_EnumeratePolycubes)->Arg(6)->Arg(8)->Unit(benchmark::kMillisecond);
 
 void BM_PolycubeLibrary6(benchmark::State& state) {
-  for (auto _ : state) {
-    fs::host::Library lib;
-    const auto all = fs::host::enumerate_polycubes(6);
-    for (std::size_t v = 0; v < all.size(); ++v)
-      for (std::size_t i = 0; i < all[v].size(); ++i)
-        lib.add(
-            fs::host::polycube_model(all[v][i], 20, fs::host::polycube_name(static_cast<int>(v + 1), i + 1)));
-    benchmark::DoNotOptimize(lib);
-  }
+  for (auto _ : state) benchmark::DoNotOptimize(polycube_library(6));
 }
 BENCHMARK(BM_PolycubeLibrary6)->Unit(benchmark::kMillisecond);
 
