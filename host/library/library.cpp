@@ -155,7 +155,7 @@ void write_index(Writer& p, const match::ArcIndex& index) {
     for (float v : {g.xy, g.yz, g.xz, g.ax, g.ay, g.az}) p.f32(v);
   for (std::uint32_t v : index.path_starts()) p.u32(v);
   for (float v : index.flattest_array()) p.f32(v);
-  for (std::uint32_t v : index.arc_counts()) p.u32(v);
+  for (std::uint32_t v : index.fingerprints()) p.u32(v);
 }
 
 match::ArcIndex read_index(Reader& r, std::size_t references) {
@@ -171,14 +171,14 @@ match::ArcIndex read_index(Reader& r, std::size_t references) {
   for (auto& g : paths)
     for (float* v : {&g.xy, &g.yz, &g.xz, &g.ax, &g.ay, &g.az}) *v = r.f32("arc index path value");
   r.need((references + 1) * 4 + references * 8, "arc index per-reference arrays");
-  std::vector<std::uint32_t> path_start(references + 1), arcs(references);
+  std::vector<std::uint32_t> path_start(references + 1), fingerprints(references);
   std::vector<float> flattest(references);
   for (auto& v : path_start) v = r.u32("arc index path start");
   for (auto& v : flattest) v = r.f32("arc index flattest angle");
-  for (auto& v : arcs) v = r.u32("arc index arc count");
+  for (auto& v : fingerprints) v = r.u32("arc index fingerprint");
   try {
     return match::ArcIndex::from_arrays(references, std::move(entries), std::move(paths),
-                                        std::move(path_start), std::move(flattest), std::move(arcs));
+                                        std::move(path_start), std::move(flattest), std::move(fingerprints));
   } catch (const Error& e) {
     throw error_at_offset(r.src, at, e.what());
   }
@@ -356,7 +356,7 @@ Library Library::from_bytes(std::span<const std::uint8_t> bytes, const std::stri
     const std::size_t at = r.pos;
     lib.index = read_index(r, nmodels);
     if (!lib.index_describes_models())
-      throw error_at_offset(source, at, "the arc index does not describe the models (arc counts differ)");
+      throw error_at_offset(source, at, "the arc index does not describe the models (fingerprints differ)");
   }
   if (r.pos != bytes.size())
     throw r.fail(fmt::format("{} unexpected bytes after the {}", bytes.size() - r.pos,

@@ -8,7 +8,7 @@
 // each (row major). Strings are u32 length + bytes. Totals, centre and radius are recomputed on load.
 // Version 2 adds the library's arc index (match::ArcIndex) after the models: u32 entry count, per entry
 // f32 angle, f32 a0, f32 a1, u32 reference; u32 path count, per path 6 f32; per reference + 1 u32 path start;
-// per reference f32 flattest angle; per reference u32 arc count.
+// per reference f32 flattest angle; per reference u32 fingerprint of the model's graph (ArcIndex::describes).
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>

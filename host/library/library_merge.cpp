@@ -41,10 +41,10 @@ void LibraryMerge::add(Model model, const std::string& source) {
 void LibraryMerge::add_all(Library library, const std::string& source) {
   const std::size_t first = library_.models.size();
   // (A loaded file's index describes its models: the reader checked. The recognizer checks the joined one.)
-  if (library.index.references() == library.models.size() && !library.models.empty())
-    indexes_.emplace_back(first, std::move(library.index));
+  const bool indexed = library.index.references() == library.models.size() && !library.models.empty();
   library_.models.reserve(first + library.models.size());
   for (Model& m : library.models) add(std::move(m), source);
+  if (indexed) indexes_.emplace_back(first, std::move(library.index));
 }
 
 Library LibraryMerge::release() {

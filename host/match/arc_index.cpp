@@ -2,6 +2,7 @@
 #include "host/match/arc_index.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <numbers>
 #include <tuple>
@@ -66,7 +67,6 @@ void ArcIndex::add_reference(const Pfrg& g, std::uint32_t ref) {
     adj[static_cast<std::size_t>(b)].push_back(a);
     const PfrgNode& na = g.nodes[static_cast<std::size_t>(a)];
     const PfrgNode& nb = g.nodes[static_cast<std::size_t>(b)];
-    ++arcs_[ref];
     const auto t = static_cast<float>(angle_deg(na.normal, nb.normal));
     flattest = std::min(flattest, std::min(t, 180.0f - t));
     entries_.push_back({t, static_cast<float>(na.area), static_cast<float>(nb.area), ref});
@@ -112,9 +112,11 @@ void ArcIndex::add_reference(const Pfrg& g, std::uint32_t ref) {
 ArcIndex::ArcIndex(std::span<const Pfrg* const> references) : references_(references.size()) {
   path_start_.assign(references.size() + 1, 0);
   flattest_.assign(references.size(), 90.0f);
-  arcs_.assign(references.size(), 0);
-  for (std::size_t k = 0; k < references.size(); ++k)
+  fingerprints_.resize(references.size());
+  for (std::size_t k = 0; k < references.size(); ++k) {
     add_reference(*references[k], static_cast<std::uint32_t>(k));
+    fingerprints_[k] = fingerprint(*references[k]);
+  }
   // Within one reference and one angle, an arc whose two areas are both at most another's passes only where
   // that one passes too: keep the undominated ones.
   std::sort(entries_.begin(), entries_.end(), [&](const Entry& x, const Entry& y) {
@@ -146,7 +148,8 @@ bool entry_before(const ArcIndex::Entry& x, const ArcIndex::Entry& y, int bucket
   const int bx = bucket_of(x.angle, buckets), by = bucket_of(y.angle, buckets);
   if (bx != by) return bx < by;
   if (x.a0 != y.a0) return x.a0 > y.a0;
-  return x.ref < y.ref;
+  // The rest only makes the order total, so that an index has one byte image however it was put together.
+  return std::tie(x.ref, x.angle, x.a1) < std::tie(y.ref, y.angle, y.a1);
 }
 
 }  // namespace
@@ -176,7 +179,7 @@ ArcIndex ArcIndex::concat(std::span<const ArcIndex* const> parts) {
   out.paths_.reserve(paths);
   out.path_start_.reserve(out.references_ + 1);  // holds the first start, 0
   out.flattest_.reserve(out.references_);
-  out.arcs_.reserve(out.references_);
+  out.fingerprints_.reserve(out.references_);
   std::uint32_t base = 0;
   for (const ArcIndex* part : parts) {
     for (Entry e : part->entries_) {
@@ -188,7 +191,7 @@ ArcIndex ArcIndex::concat(std::span<const ArcIndex* const> parts) {
     for (std::size_t k = 1; k < part->path_start_.size(); ++k)
       out.path_start_.push_back(path_base + part->path_start_[k]);
     out.flattest_.insert(out.flattest_.end(), part->flattest_.begin(), part->flattest_.end());
-    out.arcs_.insert(out.arcs_.end(), part->arcs_.begin(), part->arcs_.end());
+    out.fingerprints_.insert(out.fingerprints_.end(), part->fingerprints_.begin(), part->fingerprints_.end());
     base += static_cast<std::uint32_t>(part->references_);
   }
   out.sort_entries();
@@ -197,12 +200,14 @@ ArcIndex ArcIndex::concat(std::span<const ArcIndex* const> parts) {
 
 ArcIndex ArcIndex::from_arrays(std::size_t references, std::vector<Entry> entries, std::vector<PathSig> paths,
                                std::vector<std::uint32_t> path_start, std::vector<float> flattest,
-                               std::vector<std::uint32_t> arcs) {
+                               std::vector<std::uint32_t> fingerprints) {
   auto angle_ok = [](float a) { return std::isfinite(a) && a >= 0.0f && a <= 180.0f; };
   auto area_ok = [](float a) { return std::isfinite(a) && a >= 0.0f; };
-  if (path_start.size() != references + 1 || flattest.size() != references || arcs.size() != references)
-    throw Error(fmt::format("arc index: {} path starts, {} flattest angles, {} arc counts for {} references",
-                            path_start.size(), flattest.size(), arcs.size(), references));
+  if (path_start.size() != references + 1 || flattest.size() != references ||
+      fingerprints.size() != references)
+    throw Error(
+        fmt::format("arc index: {} path starts, {} flattest angles, {} fingerprints for {} references",
+                    path_start.size(), flattest.size(), fingerprints.size(), references));
   for (std::size_t i = 0; i < entries.size(); ++i) {
     const Entry& e = entries[i];
     if (e.ref >= references || !angle_ok(e.angle) || !area_ok(e.a0) || !area_ok(e.a1))
@@ -214,9 +219,12 @@ ArcIndex ArcIndex::from_arrays(std::size_t references, std::vector<Entry> entrie
   if (path_start[0] != 0 || path_start[references] != paths.size())
     throw Error(fmt::format("arc index: path starts run from {} to {}, not 0 to {}", path_start[0],
                             path_start[references], paths.size()));
+  // Every start within the paths before any is used (a middle one may not point past the end).
+  for (std::size_t k = 0; k < references; ++k)
+    if (path_start[k + 1] < path_start[k] || path_start[k + 1] > paths.size())
+      throw Error(fmt::format("arc index: path start {} of reference {} is not between {} and {}",
+                              path_start[k + 1], k + 1, path_start[k], paths.size()));
   for (std::size_t k = 0; k < references; ++k) {
-    if (path_start[k + 1] < path_start[k])
-      throw Error(fmt::format("arc index: path start of reference {} decreases", k + 1));
     if (!(flattest[k] >= 0.0f && flattest[k] <= 90.0f))
       throw Error(fmt::format("arc index: flattest angle {} of reference {} out of range", flattest[k], k));
     for (std::uint32_t i = path_start[k]; i < path_start[k + 1]; ++i) {
@@ -234,27 +242,41 @@ ArcIndex ArcIndex::from_arrays(std::size_t references, std::vector<Entry> entrie
   out.paths_ = std::move(paths);
   out.path_start_ = std::move(path_start);
   out.flattest_ = std::move(flattest);
-  out.arcs_ = std::move(arcs);
+  out.fingerprints_ = std::move(fingerprints);
   out.count_buckets();
   return out;
 }
 
+std::uint32_t ArcIndex::fingerprint(const Pfrg& g) {
+  std::uint64_t h = 0x9E3779B97F4A7C15ull;
+  auto mix = [&h](std::uint64_t v) {  // one multiply-xorshift round per word
+    h = (h ^ v) * 0xBF58476D1CE4E5B9ull;
+    h ^= h >> 31;
+  };
+  auto node = [&](int id) {  // a model's node id is its index
+    const auto i = static_cast<std::size_t>(id);
+    return id >= 0 && i < g.nodes.size() && g.nodes[i].id == id ? &g.nodes[i] : g.find(id);
+  };
+  for (const PfrgNode& n : g.nodes) {
+    if (n.supernode) continue;
+    mix(static_cast<std::uint64_t>(static_cast<std::uint32_t>(n.id)));
+    mix(std::bit_cast<std::uint64_t>(n.area));
+    for (int i = 0; i < 3; ++i) mix(std::bit_cast<std::uint64_t>(n.normal[i]));
+  }
+  for (const PfrgArc& arc : g.arcs) {
+    const PfrgNode* a = node(arc.a);
+    const PfrgNode* b = node(arc.b);
+    if (!a || !b || a->supernode || b->supernode) continue;
+    mix(static_cast<std::uint64_t>(static_cast<std::uint32_t>(arc.a)) << 32 |
+        static_cast<std::uint32_t>(arc.b));
+  }
+  return static_cast<std::uint32_t>(h ^ (h >> 32));
+}
+
 bool ArcIndex::describes(std::span<const Pfrg* const> references) const {
   if (references.size() != references_) return false;
-  for (std::size_t k = 0; k < references.size(); ++k) {
-    std::uint32_t real = 0;
-    const Pfrg& g = *references[k];
-    auto node = [&](int id) {  // a model's node id is its index
-      const auto i = static_cast<std::size_t>(id);
-      return id >= 0 && i < g.nodes.size() && g.nodes[i].id == id ? &g.nodes[i] : g.find(id);
-    };
-    for (const PfrgArc& arc : g.arcs) {
-      const PfrgNode* a = node(arc.a);
-      const PfrgNode* b = node(arc.b);
-      real += a && b && !a->supernode && !b->supernode;
-    }
-    if (real != arcs_[k]) return false;
-  }
+  for (std::size_t k = 0; k < references.size(); ++k)
+    if (fingerprint(*references[k]) != fingerprints_[k]) return false;
   return true;
 }
 

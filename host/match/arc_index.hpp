@@ -57,19 +57,22 @@ class ArcIndex {
   std::span<const PathSig> path_array() const { return paths_; }
   std::span<const std::uint32_t> path_starts() const { return path_start_; }
   std::span<const float> flattest_array() const { return flattest_; }
-  std::span<const std::uint32_t> arc_counts() const { return arcs_; }
+  std::span<const std::uint32_t> fingerprints() const { return fingerprints_; }
   static ArcIndex from_arrays(std::size_t references, std::vector<Entry> entries, std::vector<PathSig> paths,
                               std::vector<std::uint32_t> path_start, std::vector<float> flattest,
-                              std::vector<std::uint32_t> arcs);
-  // True when reference k of the index was built from a graph with this many arcs between real faces, for
-  // every k (a stored index that no longer describes its library's models is not used).
+                              std::vector<std::uint32_t> fingerprints);
+  // True when reference k of the index was built from a graph with the same fingerprint (a hash of its real
+  // faces' ids, areas and normals and its arcs between them), for every k: a stored index that no longer
+  // describes its library's models is not used. A change to how the index is built must change
+  // kFslibVersion (host/library/library.hpp), so that stored indexes of the old kind are not read.
   bool describes(std::span<const Pfrg* const> references) const;
+  static std::uint32_t fingerprint(const Pfrg& g);
 
   std::size_t references() const { return references_; }
   std::size_t entries() const { return entries_.size(); }  // directed reference arcs kept
   std::size_t bytes() const {
     return entries_.capacity() * sizeof(Entry) + paths_.capacity() * sizeof(PathSig) +
-           (path_start_.capacity() + arcs_.capacity()) * sizeof(std::uint32_t) +
+           (path_start_.capacity() + fingerprints_.capacity()) * sizeof(std::uint32_t) +
            flattest_.capacity() * sizeof(float);
   }
 
@@ -101,7 +104,7 @@ class ArcIndex {
   // Reference k: its arc closest to parallel faces (min(angle, 180 - angle)); a level-2 state below the
   // degenerate angle has no rotation fit, so such a reference is not checked by paths.
   std::vector<float> flattest_;
-  std::vector<std::uint32_t> arcs_;  // reference k: its arcs between real faces
+  std::vector<std::uint32_t> fingerprints_;  // reference k: fingerprint(its graph)
   void add_reference(const Pfrg& g, std::uint32_t ref);
   void sort_entries();   // entries_ by bucket, then a0 descending; then count_buckets()
   void count_buckets();  // start_ from entries_

@@ -1,6 +1,7 @@
 #pragma once
 // Two match::ArcIndex objects hold the same data: the same entries (in any order among equal sort keys),
-// paths, path starts, flattest angles and arc counts. Then candidates() gives the same marks for every scene.
+// paths, path starts, flattest angles and fingerprints. Then candidates() gives the same marks for every
+// scene.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -35,7 +36,7 @@ inline void expect_same_index(const host::match::ArcIndex& a, const host::match:
   }
   EXPECT_TRUE(std::ranges::equal(a.path_starts(), b.path_starts()));
   EXPECT_TRUE(std::ranges::equal(a.flattest_array(), b.flattest_array()));
-  EXPECT_TRUE(std::ranges::equal(a.arc_counts(), b.arc_counts()));
+  EXPECT_TRUE(std::ranges::equal(a.fingerprints(), b.fingerprints()));
 }
 
 }  // namespace fs::test

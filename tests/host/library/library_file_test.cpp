@@ -173,6 +173,10 @@ TEST(LibraryFile, TheArcIndexIsStoredAndReadBack) {
   lib.build_index();
   EXPECT_TRUE(lib.index_describes_models());
   EXPECT_EQ(lib.to_bytes(), back.to_bytes());
+  // A model replaced by one of the same faces and arcs at another size: the index no longer describes it.
+  Library resized = back;
+  resized.models[3] = polycube_model({{0, 0, 0}, {1, 0, 0}, {2, 0, 0}, {1, 1, 0}}, 30, "T");
+  EXPECT_FALSE(resized.index_describes_models());
   // A model added later: the index no longer describes the library.
   Library more = back;
   more.add(polycube_model({{0, 0, 0}, {0, 0, 1}}, 20, "pair"));
@@ -213,6 +217,12 @@ TEST(LibraryFile, ABadArcIndexIsReportedWithItsOffset) {
   counts[counts.size() - 4] ^= 1;
   e = error_of(with_crc(counts));
   EXPECT_NE(e.find("the arc index does not describe the models"), std::string::npos) << e;
+  // A middle path start past the paths (the ends are right).
+  auto middle = good;
+  const std::size_t second_start = good.size() - 8 * refs - 4 * (refs + 1) + 4;
+  for (int i = 0; i < 4; ++i) middle[second_start + static_cast<std::size_t>(i)] = 0xFF;
+  e = error_of(with_crc(middle));
+  EXPECT_NE(e.find("arc index: path start 4294967295 of reference 1 is not between"), std::string::npos) << e;
   // Path starts that run past the paths.
   auto starts = good;
   const std::size_t last_start = good.size() - 8 * refs - 4;

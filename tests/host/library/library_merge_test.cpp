@@ -96,6 +96,10 @@ TEST(LibraryMerge, TheMergedLibraryCarriesTheIndexOfAllItsModels) {
   std::vector<const Pfrg*> graphs;
   for (const auto& m : mixed.models) graphs.push_back(&m.graph);
   fs::test::expect_same_index(mixed.index, match::ArcIndex(graphs));
+  Library fresh;  // the same models indexed at once: the same file, byte for byte
+  fresh.models = mixed.models;
+  fresh.build_index();
+  EXPECT_EQ(fresh.to_bytes(), mixed.to_bytes());
   // Libraries only; a single library keeps its stored index.
   const Library two = load_or_build_library({p.b, p.a});
   ASSERT_TRUE(two.index_describes_models());
