@@ -1,11 +1,8 @@
 #include "host/fleet/ids.hpp"
 
-#include <zlib.h>
-
-#include <algorithm>
-
 #include <fmt/format.h>
 
+#include "common/crc32_ieee.hpp"
 #include "common/error.hpp"
 
 namespace fs::host::fleet {
@@ -24,16 +21,7 @@ void check_scanner_id(std::string_view id, const char* what) {
   }
 }
 
-std::uint32_t image_digest(std::span<const std::uint8_t> image) {
-  uLong crc = crc32(0L, Z_NULL, 0);
-  // zlib takes at most UINT_MAX bytes per call.
-  for (std::size_t at = 0; at < image.size();) {
-    const auto n = static_cast<uInt>(std::min<std::size_t>(image.size() - at, 1u << 30));
-    crc = crc32(crc, image.data() + at, n);
-    at += n;
-  }
-  return static_cast<std::uint32_t>(crc);
-}
+std::uint32_t image_digest(std::span<const std::uint8_t> image) { return crc32_ieee(image); }
 
 std::string scan_message_id(std::string_view scanner_id, std::uint64_t scan_id, std::int64_t start_time_ns,
                             std::span<const std::uint8_t> image) {

@@ -9,8 +9,9 @@
 #include <unordered_set>
 
 #include <fmt/format.h>
-#include <zlib.h>
 
+#include "common/byte_io.hpp"
+#include "common/crc32_ieee.hpp"
 #include "common/error.hpp"
 #include "common/input_file.hpp"
 #include "host/library/library.hpp"
@@ -20,17 +21,6 @@ namespace {
 
 constexpr std::array<std::uint8_t, 8> kMagic{'F', 'S', 'L', 'I', 'B', '\r', '\n', 0x1a};
 constexpr std::size_t kHeaderSize = 8 + 4 + 4 + 8 + 4;
-
-// CRC-32 (IEEE, zlib's crc32), in pieces that fit zlib's 32-bit length.
-std::uint32_t crc32_ieee(const std::uint8_t* p, std::size_t n) {
-  uLong crc = crc32(0L, Z_NULL, 0);
-  for (std::size_t at = 0; at < n;) {
-    const auto k = static_cast<uInt>(std::min<std::size_t>(n - at, std::size_t{1} << 30));
-    crc = crc32(crc, p + at, k);
-    at += k;
-  }
-  return static_cast<std::uint32_t>(crc);
-}
 
 struct Writer {
   std::vector<std::uint8_t> out;
@@ -68,18 +58,6 @@ struct Reader {
     need(1, what);
     return b[pos++];
   }
-  // Little-endian integers at p (a plain load on little-endian machines).
-  template <typename T>
-  static T load_le(const std::uint8_t* p) {
-    T v;
-    if constexpr (std::endian::native == std::endian::little) {
-      std::memcpy(&v, p, sizeof v);
-    } else {
-      v = 0;
-      for (std::size_t i = 0; i < sizeof v; ++i) v |= static_cast<T>(T{p[i]} << (8 * i));
-    }
-    return v;
-  }
   std::uint32_t u32(const char* what) {
     need(4, what);
     pos += 4;
@@ -106,7 +84,7 @@ struct Reader {
     need(24, what);
     Vec3 v;
     for (int i = 0; i < 3; ++i) {
-      v[i] = std::bit_cast<double>(load_le<std::uint64_t>(b.data() + pos + 8 * static_cast<std::size_t>(i)));
+      v[i] = load_le<double>(b.data() + pos + 8 * static_cast<std::size_t>(i));
       if (!std::isfinite(v[i]))
         throw error_at_offset(src, pos + 8 * static_cast<std::size_t>(i),
                               fmt::format("{} is not a finite number", what));
@@ -186,7 +164,9 @@ match::ArcIndex read_index(Reader& r, std::size_t references) {
 
 }  // namespace
 
-void Library::build_index() { index = match::ArcIndex(graphs_of(models)); }
+match::ArcIndex Library::index_of_models() const { return match::ArcIndex(graphs_of(models)); }
+
+void Library::build_index() { index = index_of_models(); }
 
 bool Library::index_describes_models() const { return index.describes(graphs_of(models)); }
 
@@ -226,14 +206,14 @@ std::vector<std::uint8_t> Library::to_bytes() const {
   if (index_describes_models()) {
     write_index(p, index);
   } else {
-    write_index(p, match::ArcIndex(graphs_of(models)));
+    write_index(p, index_of_models());
   }
   Writer h;
   h.out.assign(kMagic.begin(), kMagic.end());
   h.u32(kFslibVersion);
   h.u32(static_cast<std::uint32_t>(models.size()));
   h.u64(p.out.size());
-  h.u32(crc32_ieee(p.out.data(), p.out.size()));
+  h.u32(crc32_ieee(p.out));
   h.out.insert(h.out.end(), p.out.begin(), p.out.end());
   return h.out;
 }
@@ -266,7 +246,7 @@ Library Library::from_bytes(std::span<const std::uint8_t> bytes, const std::stri
     throw error_at_offset(
         source, spos,
         fmt::format("payload size {} but {} bytes follow the header", size, bytes.size() - kHeaderSize));
-  if (crc32_ieee(bytes.data() + kHeaderSize, bytes.size() - kHeaderSize) != crc)
+  if (crc32_ieee(bytes.subspan(kHeaderSize)) != crc)
     throw error_at_offset(source, kHeaderSize, "payload CRC mismatch (file corrupt)");
   if (static_cast<std::uint64_t>(nmodels) * 17 > size)
     throw error_at_offset(source, 12, fmt::format("model count {} does not fit in the payload", nmodels));
@@ -275,7 +255,7 @@ Library Library::from_bytes(std::span<const std::uint8_t> bytes, const std::stri
   lib.models.reserve(nmodels);  // never reallocated below: the names' views stay valid
   std::unordered_set<std::string_view> names;
   names.reserve(nmodels);
-  std::vector<std::pair<std::uint64_t, std::size_t>> arc_keys;  // (faces, byte offset) of one model's arcs
+  std::unordered_set<std::uint64_t> arc_keys;  // one model's arcs (faces a < b), reused
   for (std::uint32_t mi = 0; mi < nmodels; ++mi) {
     Model m;
     const std::size_t name_pos = r.pos;
@@ -324,18 +304,8 @@ Library Library::from_bytes(std::span<const std::uint8_t> bytes, const std::stri
       if (a.border < 0) throw error_at_offset(source, apos + 8, "negative arc border");
       a.a = static_cast<int>(x);
       a.b = static_cast<int>(y);
-      arc_keys.emplace_back(std::uint64_t{std::min(x, y)} << 32 | std::max(x, y), apos);
-    }
-    // The first arc (in file order) that repeats an earlier one.
-    std::sort(arc_keys.begin(), arc_keys.end());
-    std::size_t dup = bytes.size();
-    for (std::size_t i = 1; i < arc_keys.size(); ++i)
-      if (arc_keys[i].first == arc_keys[i - 1].first) dup = std::min(dup, arc_keys[i].second);
-    if (dup != bytes.size()) {
-      const std::uint64_t key = std::find_if(arc_keys.begin(), arc_keys.end(), [&](const auto& k) {
-                                  return k.second == dup;
-                                })->first;
-      throw error_at_offset(source, dup, fmt::format("duplicate arc ({}, {})", key >> 32, key & 0xFFFFFFFFu));
+      if (!arc_keys.insert(std::uint64_t{std::min(x, y)} << 32 | std::max(x, y)).second)
+        throw error_at_offset(source, apos, fmt::format("duplicate arc ({}, {})", x, y));
     }
     const std::size_t sympos = r.pos;
     const std::uint32_t ns = r.count("symmetry count", 72);

@@ -30,7 +30,8 @@ class Library {
   // it describes the models (ArcIndex::describes) and builds its own otherwise.
   match::ArcIndex index;
 
-  void build_index();
+  match::ArcIndex index_of_models() const;  // built now
+  void build_index();                       // index = index_of_models()
   bool index_describes_models() const;
 
   const Model* find(const std::string& name) const;  // nullptr when absent

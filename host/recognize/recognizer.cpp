@@ -51,10 +51,7 @@ Recognizer::Impl::Impl(const Library& lib, const RecognizeParams& p, int threads
     if (lib.index_describes_models()) {
       arc_index = &lib.index;
     } else {
-      std::vector<const Pfrg*> graphs;
-      graphs.reserve(lib.models.size());
-      for (const Model& m : lib.models) graphs.push_back(&m.graph);
-      own_arc_index = match::ArcIndex(graphs);
+      own_arc_index = lib.index_of_models();
       arc_index = &own_arc_index;
     }
   }
