@@ -372,6 +372,13 @@ double prescore(const HypothesisContext& c, const Hypothesis& h) {
   return std::min(1.0, explained / predicted) * penalty;
 }
 
+double matched_scene_area(const HypothesisContext& c, const Hypothesis& h) {
+  double area = 0.0;
+  for (const FaceMatch& m : h.matches)
+    if (const PfrgNode* n = scene_node(c, m.scene)) area += n->area;
+  return area;
+}
+
 double support_factor(const Model& model, const Mat3& R, const Vec3& t, const Plane& table,
                       std::span<const Eigen::Vector3f> points, const SupportParams& p, double* lowest) {
   double low = std::numeric_limits<double>::infinity();

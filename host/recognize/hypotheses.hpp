@@ -92,8 +92,12 @@ std::size_t convex_hull_in_place(std::vector<Eigen::Vector2d>& pts, std::vector<
 // the model's predicted visible area (front faces, weighted down toward grazing view) that matched scene
 // faces explain, times a penalty for every matched scene face larger than its model face (a face cannot be
 // seen bigger than it is). Ranks the hypotheses of all references so that verification looks at the plausible
-// ones first even when the matching costs tie (preset t9.3 has no attribute costs).
+// ones first even when the matching costs tie.
 double prescore(const HypothesisContext& c, const Hypothesis& h);
+
+// Area of the scene faces the hypothesis matches (mm^2): of two hypotheses with the same prescore, the one
+// that explains more of the scene (look-alikes whose visible faces all fit: polycubes).
+double matched_scene_area(const HypothesisContext& c, const Hypothesis& h);
 
 // Support (beyond the thesis): a solid object rests on the table or on something measured just below its
 // lowest point. Returns 1 when the model's lowest point in pose (R, t) lies within tol_mm of the table plane

@@ -14,6 +14,7 @@ void override_match(const RecognizeParams& params, match::MatchParams& m) {
   m.max_states = std::min<std::int64_t>(params.match.max_states, params.max_states);
   m.th_minlevel = params.min_level;
   if (params.max_solutions > 0) m.max_solutions = params.max_solutions;
+  if (params.area_cost >= 0) m.alpha = params.area_cost;
   if (params.rigidity_pairs) m.rigidity_pairs = true;
   if (params.rigidity_deg > 0) m.th_omega_deg = params.rigidity_deg;
   if (params.match_area_ratio > 0) {

@@ -52,6 +52,13 @@ struct RecognizeParams {
   // is the most accurate setting and faster than a search to exhaustion (measured by bench_recognition).
   // Overrides the match parameters' TH_solutions; 0 = keep theirs.
   std::int64_t max_solutions = 1;
+  // Weight of the area dissimilarity in the search cost (alpha, ch. 7.6; t9.3 has 0 because occlusion makes a
+  // scene face smaller than its model face). With no attribute in the cost, every correspondence a view
+  // allows costs the same and the first solution of a search (max_solutions) is an arbitrary one: among
+  // look-alikes (polycubes, every angle 90 deg) the true correspondence is then rarely found. A small weight
+  // makes the best-first search try the correspondences whose areas agree first; it adds at most 0.01 to a
+  // cost whose threshold (t9.3's TH_cost) is 0.1. Overrides the match parameters' alpha; < 0 = keep theirs.
+  double area_cost = 0.01;
   // Rigidity from level-1 parents (match::MatchParams::rigidity_pairs): the angle between two matched normals
   // is the same in the scene and the reference. Overrides the match parameters' switch when set.
   bool rigidity_pairs = true;
@@ -170,10 +177,11 @@ struct Hypothesis {
   double rotfit_error = 0.0;
   bool degenerate = false;
   VerifyResult verify;
-  double key = 0.0;       // ordering key
-  double prescore = 0.0;  // geometric plausibility before verification (see hypotheses.hpp)
-  int instance = 0;       // 0 = first instance of its model, 1 = second, ...
-  bool merged = false;    // a compatible solution was merged into it
+  double key = 0.0;           // ordering key
+  double prescore = 0.0;      // geometric plausibility before verification (see hypotheses.hpp)
+  double matched_area = 0.0;  // area of the scene faces it matches (mm^2): ties of the prescore
+  int instance = 0;           // 0 = first instance of its model, 1 = second, ...
+  bool merged = false;        // a compatible solution was merged into it
   // Other models that fit this view as well (same scene faces, confidence and inliers within
   // RecognizeParams::alternative_*): the parts where they differ are out of view. Accepted objects only.
   struct Alternative {

@@ -1,6 +1,7 @@
 // Recognizer step 4 (beyond the thesis, its outlook ch. 10): low-level verification of the hypotheses against
-// the measured cloud, in parallel: a coarse check of the most plausible ones (prescore, then matching cost,
-// every scene face its share), then ICP refinement and the fine check of those that pass it.
+// the measured cloud, in parallel: a coarse check of the most plausible ones (prescore, matched scene area,
+// then matching cost; every scene face its share), then ICP refinement and the fine check of those that pass
+// it.
 #include <algorithm>
 
 #include "host/recognize/recognizer_impl.hpp"
@@ -89,13 +90,17 @@ void Recognizer::Impl::verify_hypotheses(Recognizer& rz, const HypothesisContext
   order.clear();
   for (std::size_t i = 0; i < nhyp; ++i)
     if (alive[i]) order.push_back(i);
-  for (std::size_t i : order) hyps[i].prescore = prescore(hc, hyps[i]);
+  for (std::size_t i : order) {
+    hyps[i].prescore = prescore(hc, hyps[i]);
+    hyps[i].matched_area = matched_scene_area(hc, hyps[i]);
+  }
   reseated.assign(nhyp, 0);
   raw_confidence.assign(nhyp, 0.0);
   std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
     const Hypothesis& x = hyps[a];
     const Hypothesis& y = hyps[b];
     if (x.prescore != y.prescore) return x.prescore > y.prescore;
+    if (x.matched_area != y.matched_area) return x.matched_area > y.matched_area;
     return x.cost != y.cost ? x.cost < y.cost : a < b;
   });
   // Keep the order but give every scene face its share: a hypothesis is checked when one of its matched

@@ -486,6 +486,9 @@ Args parse_args(CLI::App& app, int argc, char** argv) {
   app.add_option("--solutions", a.params.solutions_per_model,
                  "RecognizeParams::solutions_per_model (default 32): hypotheses kept per reference")
       ->check(CLI::Range(1, 1024));
+  app.add_option(
+      "--area-cost", a.params.area_cost,
+      "RecognizeParams::area_cost (default 0.01): area dissimilarity in the search cost, < 0 = none");
   app.add_option("--max-hypotheses", a.params.max_hypotheses,
                  "RecognizeParams::max_hypotheses (default 8192): search solutions kept per round")
       ->check(CLI::Range(1, 1 << 24));

@@ -144,6 +144,8 @@ Args parse_args(CLI::App& app, int argc, char** argv) {
       "match every reference (RecognizeParams::arc_index off)");
   app.add_option("--max-states", p.max_states, "state budget of one match")->check(positive);
   app.add_option("--area-ratio", p.match_area_ratio, "match_area_ratio (0 = off)")->check(non_negative);
+  app.add_option("--area-cost", p.area_cost,
+                 "weight of the area dissimilarity in the search cost (< 0 = the preset's)");
   app.add_option("--omega", p.rigidity_deg, "rigidity cone TH_omega, degrees (0 = the preset's)")
       ->check(non_negative);
   app.add_option("--max-solutions", p.max_solutions, "TH_solutions of one match")->check(positive);
