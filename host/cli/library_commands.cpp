@@ -218,13 +218,9 @@ void add_library_commands(CLI::App& app) {
     for (const auto& v : all) total += v.size();
     Library out;
     Progress progress(total, c->quiet);
-    std::size_t done = 0;
-    for (std::size_t v = 0; v < all.size(); ++v)
-      for (std::size_t i = 0; i < all[v].size(); ++i) {
-        const std::string name = polycube_name(static_cast<int>(v + 1), i + 1);
-        progress.update(done++, name);
-        out.add(polycube_model(all[v][i], c->edge, name));
-      }
+    for (Model& m : polycube_models(
+             all, c->edge, [&](std::size_t done, const std::string&name) { progress.update(done, name); }))
+      out.add(std::move(m));
     progress.update(total, "done");
     progress.finish();
     out.save(c->out);

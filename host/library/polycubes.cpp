@@ -137,6 +137,18 @@ Model polycube_model(const Polycube& cells, double edge, const std::string& name
   return build_model(polycube_mesh(cells, edge, name));
 }
 
+std::vector<Model> polycube_models(const std::vector<std::vector<Polycube>>& all, double edge,
+                                   const std::function<void(std::size_t, const std::string&)>& before) {
+  std::vector<Model> out;
+  for (std::size_t v = 0; v < all.size(); ++v)
+    for (std::size_t i = 0; i < all[v].size(); ++i) {
+      const std::string name = polycube_name(static_cast<int>(v + 1), i + 1);
+      if (before) before(out.size(), name);
+      out.push_back(polycube_model(all[v][i], edge, name));
+    }
+  return out;
+}
+
 std::optional<PolycubeId> parse_polycube_name(std::string_view name) {
   constexpr std::string_view kPrefix = "polycube-";
   if (name.substr(0, kPrefix.size()) != kPrefix) return std::nullopt;

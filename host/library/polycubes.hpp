@@ -3,6 +3,7 @@
 // exactly once up to rotation and translation (mirror images are distinct), as cell sets, surface meshes and
 // models (coplanar unit squares merged into faces).
 #include <array>
+#include <functional>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -39,6 +40,12 @@ std::string polycube_name(int volume, std::size_t index);
 
 // The model of a polycube (build_model on polycube_mesh).
 Model polycube_model(const Polycube& cells, double edge, const std::string& name);
+
+// The models of every polycube of `all` (enumerate_polycubes), volume by volume, named by polycube_name: what
+// `facetscan library polycubes` writes. `before(done, name)`, when given, is called before each model is
+// built.
+std::vector<Model> polycube_models(const std::vector<std::vector<Polycube>>& all, double edge,
+                                   const std::function<void(std::size_t, const std::string&)>& before = {});
 
 // (volume, index from 1) of a name "polycube-<volume>-<index>"; nullopt for any other name.
 struct PolycubeId {

@@ -23,11 +23,7 @@ fs::host::Library polyhedra_library() {
 // All polycubes up to `volume` (edge 20 mm), as `facetscan library polycubes` makes them.
 fs::host::Library polycube_library(int volume) {
   fs::host::Library lib;
-  const auto all = fs::host::enumerate_polycubes(volume);
-  for (std::size_t v = 0; v < all.size(); ++v)
-    for (std::size_t i = 0; i < all[v].size(); ++i)
-      lib.add(
-          fs::host::polycube_model(all[v][i], 20, fs::host::polycube_name(static_cast<int>(v + 1), i + 1)));
+  for (auto& m : fs::host::polycube_models(fs::host::enumerate_polycubes(volume), 20)) lib.add(std::move(m));
   return lib;
 }
 

@@ -128,12 +128,7 @@ void prepare(const Args& a, Inputs& in, bool poly, bool cubes) {
     in.cubes_fslib = a.cubes_fslib;
     all = Library::load(a.cubes_fslib);
   } else {
-    const auto gen = fs::host::enumerate_polycubes(a.max_volume);
-    for (std::size_t v = 0; v < gen.size(); ++v)
-      for (std::size_t i = 0; i < gen[v].size(); ++i) {
-        const std::string name = fs::host::polycube_name(static_cast<int>(v + 1), i + 1);
-        all.models.push_back(fs::host::polycube_model(gen[v][i], 20.0, name));
-      }
+    all.models = fs::host::polycube_models(fs::host::enumerate_polycubes(a.max_volume), 20.0);
     in.cubes_fslib = (in.work / ("cubes" + std::to_string(a.max_volume) + ".fslib")).string();
     all.save(in.cubes_fslib);
     std::printf("generated %zu polycubes of volume <= %d in %.1f s: %s\n", all.models.size(), a.max_volume,
@@ -185,22 +180,8 @@ std::vector<BenchScene> polyhedra_scenes(const Args& a, const Inputs& in) {
 }
 
 std::vector<BenchScene> polycube_scenes(const Args& a, const Inputs& in, int& tried) {
-  const Library lib = Library::load(in.cubes_small_fslib);
-  std::unordered_map<std::string, std::size_t> index;
-  for (std::size_t i = 0; i < lib.models.size(); ++i) index[lib.models[i].name] = i;
-  std::vector<BenchScene> out;
-  tried = 0;
-  for (std::uint64_t seed = a.seed; static_cast<int>(out.size()) < a.scenes; ++seed) {
-    if (++tried > 50 * a.scenes) throw fs::Error("polycube scenes: too few seen with enough faces");
-    const auto rs = fs::sim::make_random_scene(in.cube_catalog,
-                                               {.category = SceneCategory::single, .steps = a.steps}, seed);
-    fs::sim::GroundTruthGrid grid;
-    BenchScene s = fs::bench::capture(rs, in.cube_catalog, seed, a.noise, &grid);
-    const auto& model = lib.models[index.at(s.objects.at(0).model)];
-    s.faces_seen = fs::bench::faces_seen(grid, rs.scene.objects[0], 0, model, a.min_face_cells);
-    if (s.faces_seen >= a.min_faces) out.push_back(std::move(s));
-  }
-  return out;
+  return fs::bench::polycube_scenes(Library::load(in.cubes_small_fslib), in.cube_catalog, a.scenes, a.seed,
+                                    a.steps, a.noise, a.min_faces, a.min_face_cells, &tried);
 }
 
 // ---------------------------------------------------------------------------------------------- the runs

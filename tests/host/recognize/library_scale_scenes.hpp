@@ -8,8 +8,10 @@
 #include <cstdint>
 #include <map>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
+#include "common/error.hpp"
 #include "host/io/organized_cloud.hpp"
 #include "host/library/library.hpp"
 #include "hw-sim/scene/ground_truth_grid.hpp"
@@ -93,6 +95,32 @@ inline int faces_seen(const sim::GroundTruthGrid& grid, const sim::SceneObject& 
   int seen = 0;
   for (const auto& [f, n] : per_face) seen += n >= min_cells ? 1 : 0;
   return seen;
+}
+
+// Single polycubes of `catalog` (the models of `lib` by name) drawn with seeds first_seed, first_seed + 1,
+// ...: the first `count` whose scan sees at least min_faces of the model's faces with min_face_cells points
+// each. *tried counts the draws; more than 50 per scene is an error.
+inline std::vector<BenchScene> polycube_scenes(const host::Library& lib,
+                                               const std::vector<sim::CatalogEntry>& catalog, int count,
+                                               std::uint64_t first_seed, std::uint32_t steps, double noise,
+                                               int min_faces, std::size_t min_face_cells,
+                                               int* tried = nullptr) {
+  std::unordered_map<std::string, std::size_t> index;
+  for (std::size_t i = 0; i < lib.models.size(); ++i) index[lib.models[i].name] = i;
+  std::vector<BenchScene> out;
+  int draws = 0;
+  for (std::uint64_t seed = first_seed; static_cast<int>(out.size()) < count; ++seed) {
+    if (++draws > 50 * count) throw Error("polycube scenes: too few seen with enough faces");
+    const auto rs =
+        sim::make_random_scene(catalog, {.category = sim::SceneCategory::single, .steps = steps}, seed);
+    sim::GroundTruthGrid grid;
+    BenchScene s = capture(rs, catalog, seed, noise, &grid);
+    const auto& model = lib.models[index.at(s.objects.at(0).model)];
+    s.faces_seen = faces_seen(grid, rs.scene.objects[0], 0, model, min_face_cells);
+    if (s.faces_seen >= min_faces) out.push_back(std::move(s));
+  }
+  if (tried) *tried = draws;
+  return out;
 }
 
 }  // namespace fs::bench

@@ -1,11 +1,13 @@
-// Recognition among look-alikes: single polycubes (volume 5-7, seen with >= 3 faces) against the library of
-// all 1,230 polycubes of volume <= 7, where every angle is 90 deg and many models share every visible face.
-// The search cost's area term (RecognizeParams::area_cost) makes the search try the correspondences whose
-// areas agree first; without it (t9.3's cost) the first solution of a search is an arbitrary one.
+// Recognition among look-alikes: single polycubes seen with >= 3 faces (the first 12 scenes of
+// bench_library_scale's polycube set) against the library of all 1,230 polycubes of volume <= 7, where every
+// angle is 90 deg and many models share every visible face. The search cost's area term
+// (RecognizeParams::area_cost) makes the search try the correspondences whose areas agree first; without it
+// (t9.3's cost) the first solution of a search is an arbitrary one and the true correspondence is often not
+// among the hypotheses.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <string>
-#include <unordered_map>
 
 #include "host/library/polycubes.hpp"
 #include "host/recognize/recognizer.hpp"
@@ -27,26 +29,12 @@ const Polycubes& polycubes() {
   static const Polycubes p = [] {
     Polycubes out;
     const auto gen = fs::host::enumerate_polycubes(7);
+    out.library.models = fs::host::polycube_models(gen, 20.0);
+    // Scene polycubes: the mesh in the model's frame (placing it at (R, t) places the model there).
     std::vector<fs::Mesh> meshes;
-    for (std::size_t v = 0; v < gen.size(); ++v)
-      for (std::size_t i = 0; i < gen[v].size(); ++i) {
-        const std::string name = fs::host::polycube_name(static_cast<int>(v + 1), i + 1);
-        out.library.models.push_back(fs::host::polycube_model(gen[v][i], 20.0, name));
-        // Scene polycubes: the mesh in the model's frame (placing it at (R, t) places the model there).
-        meshes.push_back(fs::host::polycube_mesh_of(out.library.models.back(), gen, "test"));
-      }
+    for (const auto& m : out.library.models) meshes.push_back(fs::host::polycube_mesh_of(m, gen, "test"));
     out.catalog = fs::sim::make_polycube_catalog(meshes);
-    std::unordered_map<std::string, std::size_t> index;
-    for (std::size_t i = 0; i < out.library.models.size(); ++i) index[out.library.models[i].name] = i;
-    for (std::uint64_t seed = 1; out.scenes.size() < 12 && seed < 200; ++seed) {
-      const auto rs = fs::sim::make_random_scene(
-          out.catalog, {.category = fs::sim::SceneCategory::single, .steps = 500}, seed);
-      fs::sim::GroundTruthGrid grid;
-      fs::bench::BenchScene s = fs::bench::capture(rs, out.catalog, seed, 0.05, &grid);
-      const auto& model = out.library.models[index.at(s.objects.at(0).model)];
-      if (fs::bench::faces_seen(grid, rs.scene.objects[0], 0, model, 40) >= 3)
-        out.scenes.push_back(std::move(s));
-    }
+    out.scenes = fs::bench::polycube_scenes(out.library, out.catalog, 12, 1, 500, 0.05, 3, 40);
     return out;
   }();
   return p;
