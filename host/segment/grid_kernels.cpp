@@ -26,13 +26,13 @@ void soa_row(const float* __restrict S, int w, Viewpoint vp, float jump_abs, flo
 }
 
 void normals_row_fast(const float* __restrict X, const float* __restrict Y, const float* __restrict Z,
-                      const float* __restrict J2, int c0, int c1, std::size_t s, std::size_t ws, Viewpoint vp,
-                      float* __restrict NX, float* __restrict NY, float* __restrict NZ, float* __restrict AR,
-                      float* __restrict LU, float* __restrict LV) {
+                      const float* __restrict J2, int c0, int c1, std::ptrdiff_t s, std::ptrdiff_t ws,
+                      Viewpoint vp, float* __restrict NX, float* __restrict NY, float* __restrict NZ,
+                      float* __restrict AR, float* __restrict LU, float* __restrict LV) {
   const float nan = std::numeric_limits<float>::quiet_NaN();
   const float inv = 0.5f / float(s), s2 = float(s * s);
   for (int c = c0; c < c1; ++c) {
-    const std::size_t i = std::size_t(c);
+    const std::ptrdiff_t i = c;
     const float px = X[i], py = Y[i], pz = Z[i];
     const float xl = X[i - s], yl = Y[i - s], zl = Z[i - s];
     const float xr = X[i + s], yr = Y[i + s], zr = Z[i + s];
@@ -61,10 +61,10 @@ void normals_row_fast(const float* __restrict X, const float* __restrict Y, cons
 
 void cont_seeds_row_fast(const float* __restrict X, const float* __restrict Y, const float* __restrict Z,
                          const float* __restrict J2, const float* __restrict NX, const float* __restrict NY,
-                         const float* __restrict NZ, int c0, int c1, std::size_t W, Viewpoint vp, float jmax2,
-                         float cos2, float cos_seed, std::uint8_t* __restrict CT) {
+                         const float* __restrict NZ, int c0, int c1, std::ptrdiff_t W, Viewpoint vp,
+                         float jmax2, float cos2, float cos_seed, std::uint8_t* __restrict CT) {
   for (int c = c0; c < c1; ++c) {
-    const std::size_t i = std::size_t(c);
+    const std::ptrdiff_t i = c;
     const bool l = continuous(X, Y, Z, J2, i, i - 1, vp, jmax2, cos2);
     const bool r = continuous(X, Y, Z, J2, i, i + 1, vp, jmax2, cos2);
     const bool u = continuous(X, Y, Z, J2, i, i - W, vp, jmax2, cos2);

@@ -27,14 +27,14 @@ void soa_row(const float* __restrict S, int w, Viewpoint vp, float jump_abs, flo
 // where that fast path does not apply. All pointers point at the row's first cell. Normal toward the
 // viewpoint; AR = |du x dv|, LU = |du|^2, LV = |dv|^2.
 void normals_row_fast(const float* __restrict X, const float* __restrict Y, const float* __restrict Z,
-                      const float* __restrict J2, int c0, int c1, std::size_t s, std::size_t ws, Viewpoint vp,
-                      float* __restrict NX, float* __restrict NY, float* __restrict NZ, float* __restrict AR,
-                      float* __restrict LU, float* __restrict LV);
+                      const float* __restrict J2, int c0, int c1, std::ptrdiff_t s, std::ptrdiff_t ws,
+                      Viewpoint vp, float* __restrict NX, float* __restrict NY, float* __restrict NZ,
+                      float* __restrict AR, float* __restrict LU, float* __restrict LV);
 
 // Depth continuity of cell i toward cell j: |d| <= jump, or |d| <= jump_max at more than the jump angle to
 // the viewing ray (cos2 = cos^2 of that angle).
-inline bool continuous(const float* X, const float* Y, const float* Z, const float* J2, std::size_t i,
-                       std::size_t j, Viewpoint vp, float jmax2, float cos2) {
+inline bool continuous(const float* X, const float* Y, const float* Z, const float* J2, std::ptrdiff_t i,
+                       std::ptrdiff_t j, Viewpoint vp, float jmax2, float cos2) {
   const float dx = X[j] - X[i], dy = Y[j] - Y[i], dz = Z[j] - Z[i];
   const float dd = dx * dx + dy * dy + dz * dz;
   const float rx = X[i] - vp.x, ry = Y[i] - vp.y, rz = Z[i] - vp.z;
@@ -47,7 +47,7 @@ inline bool continuous(const float* X, const float* Y, const float* Z, const flo
 // the cell's normal agrees with its 4 neighbours' (dot >= cos_seed) and all 4 are continuous.
 void cont_seeds_row_fast(const float* __restrict X, const float* __restrict Y, const float* __restrict Z,
                          const float* __restrict J2, const float* __restrict NX, const float* __restrict NY,
-                         const float* __restrict NZ, int c0, int c1, std::size_t W, Viewpoint vp, float jmax2,
-                         float cos2, float cos_seed, std::uint8_t* __restrict CT);
+                         const float* __restrict NZ, int c0, int c1, std::ptrdiff_t W, Viewpoint vp,
+                         float jmax2, float cos2, float cos_seed, std::uint8_t* __restrict CT);
 
 }  // namespace fs::host::seg::kernels

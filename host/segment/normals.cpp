@@ -118,8 +118,8 @@ void Segmenter::compute_normals(const OrganizedCloud& cloud) {
     const bool inner_row = r >= span && r + span < h && w > 2 * span;
     const int c0 = inner_row ? span : 0, c1 = inner_row ? w - span : 0;
     if (inner_row) {
-      normals_row_fast(X + b, Y + b, Z + b, J2 + b, c0, c1, std::size_t(span), W * std::size_t(span), vpk,
-                       NX + b, NY + b, NZ + b, AR + b, LU + b, LV + b);
+      normals_row_fast(X + b, Y + b, Z + b, J2 + b, c0, c1, span, std::ptrdiff_t(W) * span, vpk, NX + b,
+                       NY + b, NZ + b, AR + b, LU + b, LV + b);
     }
     for (int c = 0; c < w; ++c) {
       const std::size_t i = b + std::size_t(c);
@@ -153,11 +153,12 @@ void Segmenter::compute_normals(const OrganizedCloud& cloud) {
     const bool inner_row = r >= 1 && r + 1 < h && w > 2;
     const int c0 = inner_row ? 1 : 0, c1 = inner_row ? w - 1 : 0;
     if (inner_row) {
-      cont_seeds_row_fast(X + b, Y + b, Z + b, J2 + b, NX + b, NY + b, NZ + b, c0, c1, W, vpk, jump_max2_,
-                          cos2_jump_, cs, CT + b);
+      cont_seeds_row_fast(X + b, Y + b, Z + b, J2 + b, NX + b, NY + b, NZ + b, c0, c1, std::ptrdiff_t(W), vpk,
+                          jump_max2_, cos2_jump_, cs, CT + b);
     }
+    const std::ptrdiff_t sW = std::ptrdiff_t(W);
     for (int c = 0; c < w; ++c) {
-      const std::size_t i = b + std::size_t(c);
+      const std::ptrdiff_t i = std::ptrdiff_t(b) + c;
       if (c >= c0 && c < c1) {
         ST[i] |= (CT[i] & kContSeed) ? kSeed : 0;
         CT[i] &= std::uint8_t(~kContSeed);
@@ -167,8 +168,8 @@ void Segmenter::compute_normals(const OrganizedCloud& cloud) {
       if (c > 0 && kernels::continuous(X, Y, Z, J2, i, i - 1, vpk, jump_max2_, cos2_jump_)) bits |= kContL;
       if (c + 1 < w && kernels::continuous(X, Y, Z, J2, i, i + 1, vpk, jump_max2_, cos2_jump_))
         bits |= kContR;
-      if (r > 0 && kernels::continuous(X, Y, Z, J2, i, i - W, vpk, jump_max2_, cos2_jump_)) bits |= kContU;
-      if (r + 1 < h && kernels::continuous(X, Y, Z, J2, i, i + W, vpk, jump_max2_, cos2_jump_))
+      if (r > 0 && kernels::continuous(X, Y, Z, J2, i, i - sW, vpk, jump_max2_, cos2_jump_)) bits |= kContU;
+      if (r + 1 < h && kernels::continuous(X, Y, Z, J2, i, i + sW, vpk, jump_max2_, cos2_jump_))
         bits |= kContD;
       CT[i] = bits;
     }
