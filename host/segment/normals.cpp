@@ -49,6 +49,7 @@ void Segmenter::compute_normals(const OrganizedCloud& cloud) {
   const int w = int(width_), h = int(height_);
   if (w == 0 || h == 0) return;
   const std::size_t W = std::size_t(w);
+  const std::ptrdiff_t sW = std::ptrdiff_t(W);  // row offsets for the kernels (signed: rows above)
   const auto& P = cloud.points;
   const float nan = std::numeric_limits<float>::quiet_NaN();
   const int span = std::max(1, params_.normal_span);
@@ -118,8 +119,8 @@ void Segmenter::compute_normals(const OrganizedCloud& cloud) {
     const bool inner_row = r >= span && r + span < h && w > 2 * span;
     const int c0 = inner_row ? span : 0, c1 = inner_row ? w - span : 0;
     if (inner_row) {
-      normals_row_fast(X + b, Y + b, Z + b, J2 + b, c0, c1, span, std::ptrdiff_t(W) * span, vpk, NX + b,
-                       NY + b, NZ + b, AR + b, LU + b, LV + b);
+      normals_row_fast(X + b, Y + b, Z + b, J2 + b, c0, c1, span, sW * span, vpk, NX + b, NY + b, NZ + b,
+                       AR + b, LU + b, LV + b);
     }
     for (int c = 0; c < w; ++c) {
       const std::size_t i = b + std::size_t(c);
@@ -153,10 +154,9 @@ void Segmenter::compute_normals(const OrganizedCloud& cloud) {
     const bool inner_row = r >= 1 && r + 1 < h && w > 2;
     const int c0 = inner_row ? 1 : 0, c1 = inner_row ? w - 1 : 0;
     if (inner_row) {
-      cont_seeds_row_fast(X + b, Y + b, Z + b, J2 + b, NX + b, NY + b, NZ + b, c0, c1, std::ptrdiff_t(W), vpk,
-                          jump_max2_, cos2_jump_, cs, CT + b);
+      cont_seeds_row_fast(X + b, Y + b, Z + b, J2 + b, NX + b, NY + b, NZ + b, c0, c1, sW, vpk, jump_max2_,
+                          cos2_jump_, cs, CT + b);
     }
-    const std::ptrdiff_t sW = std::ptrdiff_t(W);
     for (int c = 0; c < w; ++c) {
       const std::ptrdiff_t i = std::ptrdiff_t(b) + c;
       if (c >= c0 && c < c1) {
