@@ -21,7 +21,7 @@ struct NearSymmetry {
 };
 
 struct NearSymmetryParams {
-  double min_share = 0.5;   // of the model's area
+  double min_share = 0.4;   // of the model's area (RecognizeParams::near_symmetry_share)
   double tolerance = 5e-3;  // relative: lengths / bounding radius, areas / largest face; normals in rad
   int seeds = 4;            // reference face pairs spread over the model (farthest faces first)
   int max_count = 64;

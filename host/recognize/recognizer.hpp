@@ -123,10 +123,11 @@ struct RecognizeParams {
   int max_part_faces = 0;
   // Look-alike placements (beyond the thesis, near_symmetry.hpp): a model whose surface a rigid motion maps
   // onto itself for at least this share of its area, without a symmetry (the gyrate rhombicosidodecahedron
-  // and the rhombicosidodecahedron's rotations), fits the matched faces in several placements that differ
-  // elsewhere. A plausible hypothesis of such a model (coarse confidence >= min_confidence / 2) is checked in
-  // each of them and moves to the one the points fit best. 0 = off.
-  double near_symmetry_share = 0.5;
+  // and the rhombicosidodecahedron's rotations; the augmented truncated tetrahedron's body, 49 %), fits the
+  // matched faces in several placements that differ elsewhere. A plausible hypothesis of such a model (coarse
+  // confidence >= min_confidence / 2) is checked in each of them and moves to the one that scores best (fit x
+  // the support test's factor). 0 = off.
+  double near_symmetry_share = 0.4;
   int max_verified = 96;  // hypotheses checked against the cloud (highest prescore first)
   double prescore_area_slack =
       1.1;                   // a scene face may be this much larger than its model face (segmentation)

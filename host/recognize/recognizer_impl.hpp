@@ -239,8 +239,9 @@ struct Recognizer::Impl {
   // Scales h's confidence by the share of its matched scene regions' samples among `cells` (its inliers).
   void scale_by_explained(Hypothesis& h, const std::vector<std::uint32_t>& cells, bool fine_samples) const;
   // reseat.cpp: after its coarse check (scaled by the explained share), hyps[index], a plausible hypothesis
-  // of a model with near symmetries, moves to the near-symmetric placement the points fit best, if one fits
-  // better (worker: the worker's verifier and plane scratch); then the duplicates this makes leave `order`.
+  // of a model with near symmetries, moves to the near-symmetric placement that scores best (fit x support
+  // factor), if one scores better (worker: the worker's verifier and plane scratch); then the duplicates this
+  // makes leave `order`.
   const HypothesisContext* hctx = nullptr;
   double reseat_min_confidence = 0.0;
   std::vector<std::vector<PlanePair>> worker_pairs;  // by worker

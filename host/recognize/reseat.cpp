@@ -1,8 +1,9 @@
 // Recognizer step 4a (beyond the thesis): look-alike placements. A model with near symmetries
 // (near_symmetry.hpp) fits the matched faces in several placements; the search keeps a few of them, not
 // necessarily the right one (the gyrate rhombicosidodecahedron placed with its gyrated cupola where the scan
-// shows an ordinary one). After its coarse check, each plausible hypothesis of such a model is checked in its
-// near-symmetric placements too and moves to the one the measured points fit best.
+// shows an ordinary one; an augmented solid with its augmentation on a hidden side, floating). After its
+// coarse check, each plausible hypothesis of such a model is checked in its near-symmetric placements too and
+// moves to the one that scores best: the measured points' fit times the support test's factor.
 #include <algorithm>
 
 #include "host/recognize/recognizer_impl.hpp"
@@ -43,7 +44,15 @@ void Recognizer::Impl::reseat(std::size_t index, int worker) {
   if (near_sym[model].empty() || raw_confidence[index] < reseat_min_confidence) return;
   Verifier& v = verifiers[static_cast<std::size_t>(worker)];
   const ModelGeometry& g = geometry[model];
-  double best = raw_confidence[index] + kReseatMargin;
+  // A placement is scored as the recognizer will judge it: its fit times the support test's factor, so of
+  // placements that fit alike the one resting on the table (or on something measured) wins over one that
+  // floats (an augmented solid whose augmentation the search put on a hidden side instead of underneath).
+  const Model& mdl = library->models[model];
+  const SupportParams sp{support_tol, support_radius, unsupported_factor};
+  auto support = [&](const Mat3& R, const Vec3& t) {
+    return have_table ? support_factor(mdl, R, t, table, coarse.points(), sp) : 1.0;
+  };
+  double best = raw_confidence[index] * support(h.R, h.t) + kReseatMargin;
   const NearSymmetry* pick = nullptr;
   for (const NearSymmetry& T : near_sym[model]) {
     if (!remapped_matches_hold(T, h)) continue;
@@ -51,8 +60,10 @@ void Recognizer::Impl::reseat(std::size_t index, int worker) {
     Vec3 t = h.t;
     apply_near_symmetry(T, R, t);
     const VerifyResult r = v.verify(coarse, g, R, t, false);
-    if (r.confidence > best) {
-      best = r.confidence;
+    if (r.confidence <= best) continue;  // the support factor is at most 1
+    const double score = r.confidence * support(R, t);
+    if (score > best) {
+      best = score;
       pick = &T;
     }
   }
