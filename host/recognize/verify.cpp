@@ -362,4 +362,38 @@ VerifyResult Verifier::verify(const SampleSet& samples, const ModelGeometry& g, 
   return r;
 }
 
+VerifyResult Verifier::verify_sliding(const SampleSet& samples, const SampleSet& search,
+                                      const ModelGeometry& g, Mat3& R, Vec3& t, const Vec3& free_dir) {
+  VerifyResult r = verify(samples, g, R, t, true);
+  const double step = params_.slide_step_mm;
+  if (step <= 0.0 || params_.slide_range_mm < step || free_dir.squaredNorm() < 0.25) return r;
+  // The planes fix the other directions; the free one came from face centroids, biased when a face is seen
+  // only in part (occluded, shadowed, cut by the segmentation). The best fit among the offsets that explain
+  // at least as many points: sliding off the seen faces also removes violations (a pose turned a little too
+  // far), but loses the points it was matched to.
+  const Vec3 u = free_dir.normalized();
+  const Vec3 t0 = t;
+  const VerifyResult here = evaluate(search, g, R, t0);
+  double best = here.confidence, best_off = 0.0;
+  auto score = [&](double off) {
+    const VerifyResult e = evaluate(search, g, R, t0 + off * u);
+    if (e.inliers >= here.inliers && e.confidence > best) best = e.confidence, best_off = off;
+  };
+  const int n = static_cast<int>(params_.slide_range_mm / step);
+  for (int k = -n; k <= n; ++k)
+    if (k != 0) score(k * step);
+  const double centre = best_off;
+  score(centre - 0.5 * step);
+  score(centre + 0.5 * step);
+  if (best_off == 0.0 || best <= here.confidence + params_.slide_gain) {
+    evaluate(samples, g, R, t);  // the inlier lists of the pose kept
+    return r;
+  }
+  t = t0 + best_off * u;
+  const int iterations = r.refine_iterations;
+  r = verify(samples, g, R, t, true);  // ICP at the new offset (it may turn the pose a little)
+  r.refine_iterations += iterations;
+  return r;
+}
+
 }  // namespace fs::host::rec

@@ -27,6 +27,11 @@ struct VerifyParams {
   double icp_max_dist_mm = 4.0;    // point-to-plane distance for ICP correspondences
   double occluded_weight = 0.25;
   int min_inliers = 30;  // fewer inliers scale the confidence down linearly
+  // Line search along an unconstrained translation direction (verify_sliding): offsets up to slide_range_mm
+  // in slide_step_mm steps, then half steps around the best; kept if the confidence gains > slide_gain.
+  double slide_range_mm = 8.0;
+  double slide_step_mm = 1.0;
+  double slide_gain = 0.005;
 };
 
 struct VerifyResult {
@@ -178,6 +183,13 @@ class Verifier {
   }
   // Verifies (and, with refine, refines R and t in place). Reuses internal buffers (no allocation once warm).
   VerifyResult verify(const SampleSet& samples, const ModelGeometry& geometry, Mat3& R, Vec3& t, bool refine);
+  // verify() with refine, then a line search along `free_dir` (unit, scene frame), a translation direction
+  // the matched planes left open and ICP cannot fix (point-to-plane terms do not constrain it): the pose
+  // slides to the offset the points fit best with at least as many inliers (VerifyParams::slide_*), when that
+  // fits better by more than slide_gain.
+  // The search runs on `search` (the coarse samples: cheaper), the result is verify()'s on `samples`.
+  VerifyResult verify_sliding(const SampleSet& samples, const SampleSet& search,
+                              const ModelGeometry& geometry, Mat3& R, Vec3& t, const Vec3& free_dir);
   // Cell indices of the inliers of the last verify() call (for colouring the cloud by object).
   const std::vector<std::uint32_t>& inlier_cells() const { return inlier_cells_; }
   // Cell indices of the measured points in front of the predicted surface (occluded) in the last evaluation.

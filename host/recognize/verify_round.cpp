@@ -41,8 +41,10 @@ void verify_task(void* ctx, std::size_t task, int worker) {
   auto& m = *static_cast<Recognizer::Impl*>(ctx);
   Hypothesis& h = m.hyps[m.order[task]];
   Verifier& v = m.verifiers[static_cast<std::size_t>(worker)];
-  h.verify = v.verify(m.refine_phase ? m.fine : m.coarse, m.geometry[static_cast<std::size_t>(h.model)], h.R,
-                      h.t, m.refine_phase);
+  const ModelGeometry& g = m.geometry[static_cast<std::size_t>(h.model)];
+  h.verify = m.refine_phase && h.free_dims == 1
+                 ? v.verify_sliding(m.fine, m.coarse, g, h.R, h.t, h.free_dir)
+                 : v.verify(m.refine_phase ? m.fine : m.coarse, g, h.R, h.t, m.refine_phase);
   const std::vector<std::uint32_t>* cells = &v.inlier_cells();
   if (m.refine_phase) {
     m.slot_owner[task] = m.order[task];

@@ -137,4 +137,51 @@ TEST(SampleSet, StepsFollowTheGridSpacingInMillimetres) {
   EXPECT_EQ(sample_steps(fs::host::rec::grid_spacing_mm(cloud), 2, 1.5).col, 2u);
 }
 
+// A cube seen from the front and above shows two faces: their planes fix y and z of the translation, not x.
+// The matcher fills x from the face centroids, which are off when a face is seen only in part; ICP cannot fix
+// it either (point-to-plane terms along x are zero). verify_sliding searches along that direction.
+TEST(Verifier, SlidingFindsTheTranslationThePlanesLeaveOpen) {
+  const fs::host::Model cube =
+      fs::host::build_model(fs::read_mesh(fs::test::source_dir() / "hw-sim/scenes/meshes/cube.off"));
+  const fs::host::rec::ModelGeometry g(cube);
+  // The scan: rays from the sensor through a grid on the table (z = 0), onto the cube (resting on z = 0,
+  // centred on x = y = 0, the model frame) or the table.
+  const Vec3 sensor(0, -250, 250);
+  fs::host::OrganizedCloud cloud;
+  cloud.reset(160, 160);
+  for (std::uint32_t r = 0; r < cloud.height; ++r)
+    for (std::uint32_t c = 0; c < cloud.width; ++c) {
+      const Vec3 on_table(-60.0 + 0.75 * c, -80.0 + 1.0 * r, 0.0);
+      const Vec3 dir = (on_table - sensor).normalized();
+      double s = 0.0;
+      const Vec3 p = g.cast(sensor, dir, s) >= 0 ? Vec3(sensor + s * dir) : on_table;
+      cloud.at(r, c) = p.cast<float>();
+    }
+  cloud.viewpoint = sensor;
+  fs::host::rec::SampleSet samples;
+  samples.build(cloud, fs::host::rec::sample_steps(fs::host::rec::grid_spacing_mm(cloud), 2, 1.5));
+  fs::host::rec::Verifier v;
+  v.reserve(samples.points().size(), cube.faces.size());
+  const fs::Mat3 I = fs::Mat3::Identity();
+  const Vec3 off(4.0, 0.0, 0.0);  // the pose 4 mm off along x
+  fs::Mat3 R = I;
+  Vec3 t = off;
+  const auto plain = v.verify(samples, g, R, t, true);
+  EXPECT_GT(std::abs(t.x()), 3.0) << "ICP moved along the free direction";
+  EXPECT_GT(plain.violations, 20);
+  R = I;
+  t = off;
+  const auto slid = v.verify_sliding(samples, samples, g, R, t, Vec3::UnitX());
+  EXPECT_NEAR(t.x(), 0.0, 0.5);
+  EXPECT_NEAR(t.y(), 0.0, 0.1);
+  EXPECT_NEAR(t.z(), 0.0, 0.1);
+  EXPECT_LT(slid.violations, plain.violations / 4);
+  EXPECT_GT(slid.confidence, plain.confidence + 0.02);
+  // The true pose stays where it is (no gain elsewhere along x).
+  R = I;
+  t = Vec3::Zero();
+  v.verify_sliding(samples, samples, g, R, t, Vec3::UnitX());
+  EXPECT_NEAR(t.norm(), 0.0, 1e-6);
+}
+
 }  // namespace
