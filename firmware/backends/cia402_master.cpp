@@ -415,8 +415,10 @@ GalvoStatus Cia402Master::poll(Nanos now) {
                diag_.drive_state == DriveState::OperationEnabled;
   st.moving = homing || (phase_ == Phase::Ready &&
                          (sp_ != SetPoint::Idle || pending_move_ || !(sw & kSwTargetReached)));
+  // In 64 bits: the drive may report any int32 position, however far from the target.
   st.in_position = phase_ == Phase::Ready && sp_ == SetPoint::Idle && !pending_move_ &&
-                   (sw & kSwTargetReached) && std::abs(position_ - target_) <= cfg_.position_window;
+                   (sw & kSwTargetReached) &&
+                   std::abs(static_cast<std::int64_t>(position_) - target_) <= cfg_.position_window;
   return st;
 }
 
