@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
+#include <limits>
 
 namespace fs::sim {
 
@@ -497,7 +498,14 @@ void Cia402Twin::handle_controlword(std::uint16_t cw, Nanos now) {
   halted_ = cw & kCwHalt;
   if (mode_ == kModeProfilePosition) {
     if (rising & kCwNewSetPoint) {
-      const std::int32_t t = (cw & kCwRelative) ? target_ + target_obj_ : target_obj_;
+      // A relative set-point adds to the last target in 64 bits and saturates at the int32 range (any
+      // target object the master sends is valid; the sum must not overflow).
+      const std::int32_t t =
+          (cw & kCwRelative)
+              ? static_cast<std::int32_t>(std::clamp<std::int64_t>(std::int64_t{target_} + target_obj_,
+                                                                   std::numeric_limits<std::int32_t>::min(),
+                                                                   std::numeric_limits<std::int32_t>::max()))
+              : target_obj_;
       target_ = t;
       ack_ = true;
       ++stats_.setpoints;

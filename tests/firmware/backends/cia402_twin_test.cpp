@@ -4,6 +4,7 @@
 #include <linux/can/error.h>
 #include <unistd.h>
 
+#include <limits>
 #include <optional>
 
 #include "common/cia402_protocol.hpp"
@@ -225,6 +226,30 @@ TEST(Cia402Twin, MalformedFramesAreCountedNotFatal) {
   r.send(f);
   EXPECT_EQ(r.twin.stats().bad_frames, 3u);
   EXPECT_EQ(r.read(kStatusword).first, 0x4B);
+}
+
+// Relative set-points add to the last target; one that would pass the int32 range saturates (the sum was an
+// int32 overflow, undefined behaviour, for any master sending large relative targets).
+TEST(Cia402Twin, RelativeSetPointsSaturateAtTheInt32Range) {
+  TwinRig r;
+  r.write(kModesOfOperation, 0, static_cast<std::uint8_t>(kModeProfilePosition), 1);
+  r.write(kControlword, 0, kCwShutdown, 2);
+  r.write(kControlword, 0, kCwSwitchOn, 2);
+  r.write(kControlword, 0, kCwEnableOperation, 2);
+  auto set_point = [&](std::int32_t target, std::uint16_t extra) {
+    r.write(kTargetPosition, 0, static_cast<std::uint32_t>(target), 4);
+    r.write(kControlword, 0, kCwEnableOperation | kCwNewSetPoint | extra, 2);
+    r.write(kControlword, 0, kCwEnableOperation, 2);
+  };
+  set_point(2'000'000'000, 0);
+  EXPECT_EQ(r.twin.target(), 2'000'000'000);
+  set_point(500, kCwRelative);
+  EXPECT_EQ(r.twin.target(), 2'000'000'500);
+  set_point(2'000'000'000, kCwRelative);
+  EXPECT_EQ(r.twin.target(), std::numeric_limits<std::int32_t>::max());
+  set_point(-2'000'000'000, 0);
+  set_point(-2'000'000'000, kCwRelative);
+  EXPECT_EQ(r.twin.target(), std::numeric_limits<std::int32_t>::min());
 }
 
 }  // namespace
