@@ -318,11 +318,8 @@ TEST(Cia402Master, PositionFarFromTheTargetIsNotInPositionWithoutOverflow) {
   ASSERT_TRUE(rig.move(1000));
   ASSERT_TRUE(rig.status.in_position);
   can_frame f = cia402::make_frame(0x181, 6);  // TPDO1 of node 1: statusword, position
-  const std::uint16_t sw = 0x0427;             // operation enabled, target reached
-  const auto pos = static_cast<std::uint32_t>(std::numeric_limits<std::int32_t>::min() + 5);
-  f.data[0] = static_cast<std::uint8_t>(sw & 0xff);
-  f.data[1] = static_cast<std::uint8_t>(sw >> 8);
-  for (int k = 0; k < 4; ++k) f.data[2 + k] = static_cast<std::uint8_t>(pos >> (8 * k));
+  cia402::put_u16(f.data, 0x0427);             // operation enabled, target reached
+  cia402::put_u32(f.data + 2, static_cast<std::uint32_t>(std::numeric_limits<std::int32_t>::min() + 5));
   ASSERT_EQ(::write(rig.fds[1], &f, sizeof f), static_cast<ssize_t>(sizeof f));
   const fw::GalvoStatus st = rig.master.poll(rig.clock.now());  // the frame above is the last one read
   EXPECT_EQ(st.measured_step, static_cast<double>(std::numeric_limits<std::int32_t>::min() + 5));

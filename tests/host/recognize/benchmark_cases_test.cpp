@@ -20,7 +20,6 @@
 #include "hw-sim/scene/ground_truth_grid.hpp"
 #include "hw-sim/scene/random_scene.hpp"
 #include "support/polyhedra_catalog.hpp"
-#include "support/test_paths.hpp"
 
 namespace {
 
@@ -154,17 +153,7 @@ TEST(RecognizeBenchmarkCases, ThePoseSlidesAlongTheDirectionItsPlanesLeaveOpen) 
 }
 
 // The catalog of `bench_recognition --seed 1000` (its solids sized with seed 1000).
-const Bench& bench_seed_1000() {
-  static const Bench b = [] {
-    Bench x;
-    x.catalog = fs::sim::make_catalog(
-        fs::sim::read_catalog_meshes(fs::test::shared_data() / "polyhedra/polyhedra-viewer/off"),
-        {.seed = 1000});
-    for (const auto& e : x.catalog) x.library.add(fs::host::build_model(e.mesh));
-    return x;
-  }();
-  return b;
-}
+const Bench& bench_seed_1000() { return fs::test::polyhedra_catalog(1000); }
 
 // `bench_recognition --steps 250 --categories single --seed 1000 --only 11`: the augmented truncated
 // tetrahedron stands on its cupola and shows two hexagons and a triangle of its body. The search placed the
