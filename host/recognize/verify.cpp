@@ -164,6 +164,38 @@ int ModelGeometry::cast(const Vec3& origin, const Vec3& dir, double& distance,
   return best;
 }
 
+void ModelGeometry::heights(const Vec3& origin, std::vector<double>& out) const {
+  out.clear();
+  for (const Face& f : faces_) out.push_back(f.n.dot(origin) - f.offset);
+}
+
+int ModelGeometry::cast_convex(const Vec3& origin, const Vec3& dir, double& distance,
+                               std::span<const double> heights) const {
+  distance = std::numeric_limits<double>::infinity();
+  const Vec3 oc = center_ - origin;
+  const double along = oc.dot(dir);
+  if ((oc - along * dir).squaredNorm() > radius_ * radius_ * 1.0001 + 1e-9) return -1;
+  // The ray o + s d is inside face i's half-space where h_i + s (n_i . d) <= 0.
+  int best = -1;
+  double enter = 0.0, leave = std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < faces_.size(); ++i) {
+    const double den = faces_[i].n.dot(dir);
+    const double h = heights[i];
+    if (den < -1e-9) {
+      const double s = -h / den;  // enters here
+      if (s > enter) enter = s, best = static_cast<int>(i);
+    } else if (den > 1e-9) {
+      leave = std::min(leave, -h / den);  // leaves here
+    } else if (h > 0.0) {
+      return -1;  // parallel to the plane, outside it (grazing counts as a miss, as in cast())
+    }
+    if (enter > leave) return -1;
+  }
+  if (best < 0 || heights[static_cast<std::size_t>(best)] <= 0.0) return -1;  // the origin inside
+  distance = enter;
+  return best;
+}
+
 int ModelGeometry::cast(const Vec3& origin, const Vec3& dir, double& distance) const {
   return cast(origin, dir, distance, all_faces_);
 }
@@ -261,7 +293,10 @@ VerifyResult Verifier::evaluate(const SampleSet& samples, const ModelGeometry& g
   const Mat3 Rt = R.transpose();
   const Vec3& view = samples.viewpoint();
   const Vec3 origin_m = Rt * (view - t);
-  g.front_faces(origin_m, front_);
+  if (g.convex())
+    g.heights(origin_m, heights_);
+  else
+    g.front_faces(origin_m, front_);
   const double tol = params_.inlier_mm;
   // The object's bounding sphere as seen from the viewpoint.
   const Vec3 cs = R * g.center() + t;
@@ -280,7 +315,7 @@ VerifyResult Verifier::evaluate(const SampleSet& samples, const ModelGeometry& g
       if (range <= 1e-9) continue;
       d /= range;
       double s = 0.0;
-      const int face = g.cast(origin_m, d, s, front_);
+      const int face = g.convex() ? g.cast_convex(origin_m, d, s, heights_) : g.cast(origin_m, d, s, front_);
       if (face < 0) continue;
       ++r.hits;
       if (range > s + tol) {

@@ -56,6 +56,12 @@ class ModelGeometry {
   // origin on its outer side: no other face can be hit from the front).
   int cast(const Vec3& origin, const Vec3& dir, double& distance, std::span<const std::uint32_t> faces) const;
   void front_faces(const Vec3& origin, std::vector<std::uint32_t>& out) const;
+  // Convex models: the same hit as cast() without a polygon test, by clipping the ray against every face's
+  // half-space (the ray enters through the face of the latest entry, and hits when no face lets it out
+  // before). heights: heights(origin) (each face's n . origin - offset, positive outside its plane).
+  int cast_convex(const Vec3& origin, const Vec3& dir, double& distance,
+                  std::span<const double> heights) const;
+  void heights(const Vec3& origin, std::vector<double>& out) const;
   const Model& model() const { return *model_; }
   double radius() const { return radius_; }
   const Vec3& center() const { return center_; }
@@ -176,6 +182,7 @@ class Verifier {
   // then never allocates).
   void reserve(std::size_t samples, std::size_t faces) {
     front_.reserve(faces);
+    heights_.reserve(faces);
     inlier_cells_.reserve(samples);
     occluded_cells_.reserve(samples);
     inlier_sample_.reserve(samples);
@@ -203,6 +210,7 @@ class Verifier {
   std::vector<std::uint32_t> inlier_sample_;
   std::vector<std::int32_t> inlier_face_;
   std::vector<std::uint32_t> front_;  // front_faces() of the current pose's viewpoint
+  std::vector<double> heights_;       // ... or its heights() (convex models)
 };
 
 }  // namespace fs::host::rec
