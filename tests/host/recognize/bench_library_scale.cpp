@@ -285,7 +285,7 @@ void evaluate(const BenchScene& sc, const std::vector<fs::host::rec::Hypothesis>
 // Recall before acceptance: a hypothesis of the true model near its true place (centre < 10 mm) among all
 // hypotheses of the last recognize(), and among the verified ones.
 void truth_among_hypotheses(const BenchScene& sc, const fs::host::rec::Recognizer& rec, const Library& lib,
-                            const std::unordered_map<std::string, int>& index, Stats& s) {
+                            const std::unordered_map<std::string, int>& index, Stats& s, bool verbose) {
   const auto all = rec.all_hypotheses();
   const auto verified = rec.candidates();
   for (const auto& o : sc.objects) {
@@ -296,8 +296,23 @@ void truth_among_hypotheses(const BenchScene& sc, const fs::host::rec::Recognize
     auto near = [&](const fs::host::rec::Hypothesis* h) {
       return h->model == truth && (h->R * tm.center + h->t - centre).norm() < 10.0;
     };
-    s.truth_hypothesis += std::any_of(all.begin(), all.end(), near) ? 1 : 0;
-    s.truth_verified += std::any_of(verified.begin(), verified.end(), near) ? 1 : 0;
+    const bool in_all = std::any_of(all.begin(), all.end(), near);
+    const bool in_verified = std::any_of(verified.begin(), verified.end(), near);
+    s.truth_hypothesis += in_all ? 1 : 0;
+    s.truth_verified += in_verified ? 1 : 0;
+    if (verbose && in_all && !in_verified) {
+      // Why it was not verified: its best prescore and how many hypotheses scored higher.
+      double best = -1.0;
+      for (const auto* h : all)
+        if (near(h)) best = std::max(best, h->prescore);
+      const auto above =
+          std::count_if(all.begin(), all.end(), [&](const auto* h) { return h->prescore > best; });
+      const auto ties =
+          std::count_if(all.begin(), all.end(), [&](const auto* h) { return h->prescore == best; });
+      std::printf(
+          "    %s: not verified; prescore %.3f, %td of %zu hypotheses above it, %td equal; %zu verified\n",
+          o.model.c_str(), best, above, all.size(), ties, verified.size());
+    }
   }
 }
 
@@ -361,7 +376,7 @@ LibraryRun run_library(const Args& a, const LibrarySpec& spec, const std::vector
           static_cast<unsigned long long>(sc.seed), fs::sim::to_string(sc.category), cpu, r.stats.match_ms,
           r.stats.verify_ms, static_cast<long long>(r.stats.states), r.stats.rounds, found.size());
     evaluate(sc, found, lib, index, s, a.verbose);
-    truth_among_hypotheses(sc, *rec, lib, index, s);
+    truth_among_hypotheses(sc, *rec, lib, index, s, a.verbose);
     // Every K-th scene of each category (its first included).
     if (a.alloc_every > 0 && (s.scenes - 1) % a.alloc_every == 0) {
       fs::AllocCounter counter;
@@ -473,6 +488,12 @@ Args parse_args(CLI::App& app, int argc, char** argv) {
   app.add_option("--max-hypotheses", a.params.max_hypotheses,
                  "RecognizeParams::max_hypotheses (default 8192): search solutions kept per round")
       ->check(CLI::Range(1, 1 << 24));
+  app.add_option("--max-verified", a.params.max_verified,
+                 "RecognizeParams::max_verified (default 256): hypotheses checked against the cloud")
+      ->check(CLI::Range(1, 1 << 20));
+  app.add_option("--verify-per-face", a.params.verify_per_face,
+                 "RecognizeParams::verify_per_face (default 64): a scene face's share of the checks")
+      ->check(CLI::Range(1, 1 << 20));
   app.add_flag(
       "--no-arc-index", [&a](std::int64_t) { a.params.arc_index = false; },
       "match every reference (RecognizeParams::arc_index off)");
