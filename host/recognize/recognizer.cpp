@@ -41,7 +41,7 @@ Recognizer::Impl::Impl(const Library& lib, const RecognizeParams& p, int threads
   // The search solutions (all of every reference's, up to max_hypotheses), plus room for the single-face
   // hypotheses of kLoneFaceRoom lone faces.
   max_solutions = std::min(lib.models.size() * static_cast<std::size_t>(std::max(p.solutions_per_model, 0)),
-                           static_cast<std::size_t>(std::max(p.max_hypotheses, 1)));
+                           static_cast<std::size_t>(p.hypothesis_pool(lib.models.size())));
   const std::size_t max_h =
       max_solutions + kLoneFaceRoom * static_cast<std::size_t>(std::max(p.single_face_max, 0));
   hyps.resize(max_h);
@@ -130,6 +130,12 @@ Recognizer::Recognizer(const Library& library, const RecognizeParams& params, st
   impl_->conflict_faces.reserve(result_.objects.capacity());
   impl_->conflict_depth.reserve(result_.objects.capacity());
   impl_->conflict_share.reserve(result_.objects.capacity());
+}
+
+int RecognizeParams::hypothesis_pool(std::size_t models) const {
+  if (max_hypotheses > 0) return max_hypotheses;
+  const std::size_t want = models * static_cast<std::size_t>(kAutoSolutionsPerModel);
+  return static_cast<int>(std::clamp<std::size_t>(want, kAutoMinHypotheses, kAutoMaxHypotheses));
 }
 
 Recognizer::~Recognizer() = default;

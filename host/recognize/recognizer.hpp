@@ -38,8 +38,16 @@ struct RecognizeParams {
   // of a large library fits, e.g. a box among polycubes), the lowest matching costs are kept (ties: the
   // earlier model in the library) and the others counted (RecognizeStats::solutions_dropped). The
   // recognizer's memory is sized by this, not by the library: references are matched in batches of
-  // kMatchBatch.
-  int max_hypotheses = 8192;
+  // kMatchBatch. 0 = by the library: room for kAutoSolutionsPerModel solutions of every reference, at least
+  // kAutoMinHypotheses and at most kAutoMaxHypotheses (8,192 up to 2,048 models; 32,608 for the 8,152
+  // polycubes, whose look-alikes fit the same view in several correspondences and need more than their best
+  // one each: bench_library_scale top-1 50 % with a pool of 8,192, 73 % with 32,768).
+  int max_hypotheses = 0;
+  static constexpr int kAutoSolutionsPerModel = 4;
+  static constexpr int kAutoMinHypotheses = 8192;
+  static constexpr int kAutoMaxHypotheses = 65536;
+  // The pool size max_hypotheses gives for a library of `models` references.
+  int hypothesis_pool(std::size_t models) const;
   // Match only the references that can hold a solution of the scene part (match::ArcIndex: a reference arc
   // whose normals' angle and face areas pass the rigidity and one-sided area conditions against one of the
   // part's arcs). Exact: the results are those of matching every reference. false = match every reference.

@@ -486,7 +486,8 @@ Args parse_args(CLI::App& app, int argc, char** argv) {
       "--area-cost", a.params.area_cost,
       "RecognizeParams::area_cost (default 0.01): area dissimilarity in the search cost, < 0 = none");
   app.add_option("--max-hypotheses", a.params.max_hypotheses,
-                 "RecognizeParams::max_hypotheses (default 8192): search solutions kept per round")
+                 "RecognizeParams::max_hypotheses: search solutions kept per round (default: 4 per model, "
+                 "8192 to 65536)")
       ->check(CLI::Range(1, 1 << 24));
   app.add_option("--max-verified", a.params.max_verified,
                  "RecognizeParams::max_verified (default 256): hypotheses checked against the cloud")

@@ -137,7 +137,8 @@ Args parse_args(CLI::App& app, int argc, char** argv) {
   app.add_option("--preset", preset, "matching preset (match::preset)");
   app.add_option("--min-level", p.min_level, "TH_minlevel")->check(positive);
   app.add_option("--solutions", p.solutions_per_model, "solutions kept per model")->check(positive);
-  app.add_option("--max-hypotheses", p.max_hypotheses, "search solutions kept per round (all models)")
+  app.add_option("--max-hypotheses", p.max_hypotheses,
+                 "search solutions kept per round (all models; default: 4 per model, 8192 to 65536)")
       ->check(positive);
   app.add_flag(
       "--no-arc-index", [&p](std::int64_t) { p.arc_index = false; },

@@ -125,6 +125,18 @@ TEST(RecognizeScenes, OneRoundMissesTheTouchingTwoFaceCube) {
   EXPECT_EQ(r.stats.rounds, 1);
 }
 
+// By default the pool has room for four solutions of every reference (a look-alike may fit the view in
+// several correspondences), within fixed bounds; a set max_hypotheses is taken as it is.
+TEST(RecognizeScenes, HypothesisPoolGrowsWithTheLibraryWithinBounds) {
+  fs::host::rec::RecognizeParams params;
+  EXPECT_EQ(params.hypothesis_pool(120), 8192);
+  EXPECT_EQ(params.hypothesis_pool(2048), 8192);
+  EXPECT_EQ(params.hypothesis_pool(8152), 32608);
+  EXPECT_EQ(params.hypothesis_pool(56583), 65536);
+  params.max_hypotheses = 1000;
+  EXPECT_EQ(params.hypothesis_pool(8152), 1000);
+}
+
 // The hypothesis pool (RecognizeParams::max_hypotheses) bounds the recognizer's memory whatever the library
 // size. When more solutions come, every model keeps the same number of its best ones in every scene part (the
 // most that fit), and at one each, the lowest matching costs; whatever the thread count.
