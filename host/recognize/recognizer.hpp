@@ -38,10 +38,11 @@ struct RecognizeParams {
   // of a large library fits, e.g. a box among polycubes), the lowest matching costs are kept (ties: the
   // earlier model in the library) and the others counted (RecognizeStats::solutions_dropped). The
   // recognizer's memory is sized by this (bounded), not by all references' solutions: references are matched
-  // in batches of kMatchBatch. 0 = by the library: room for kAutoSolutionsPerModel solutions of every
+  // in batches of kMatchBatch. <= 0 = by the library: room for kAutoSolutionsPerModel solutions of every
   // reference, at least kAutoMinHypotheses and at most kAutoMaxHypotheses (8,192 up to 2,048 models; 32,608
   // for the 8,152 polycubes, whose look-alikes fit the same view in several correspondences and need more
-  // than their best one each: bench_library_scale top-1 50 % with a pool of 8,192, 73 % with 32,768).
+  // than their best one each: bench_library_scale, 30 scans: top-1 50 % with a pool of 8,192, 73 % with
+  // 32,608).
   int max_hypotheses = 0;
   static constexpr int kAutoSolutionsPerModel = 4;
   static constexpr int kAutoMinHypotheses = 8192;

@@ -49,9 +49,10 @@ ModelGeometry::ModelGeometry(const Model& model)
     faces_.push_back(std::move(f));
     all_faces_.push_back(static_cast<std::uint32_t>(all_faces_.size()));
   }
-  // Convex: every vertex on the inner side of every face plane. A ray then enters through exactly one front
-  // face, so cast() may stop at the first front face that contains its hit.
-  convex_ = true;
+  // Convex: closed, and every vertex on the inner side of every face plane. A ray then enters through exactly
+  // one front face, so cast() may stop at the first front face that contains its hit, and cast_convex() may
+  // clip. An open model (a face missing) is no solid: a clip would close it.
+  convex_ = !model.open;
   for (const Face& f : faces_)
     for (const ModelFace& mf : model.faces)
       for (const auto& loop : mf.loops)
@@ -191,7 +192,7 @@ int ModelGeometry::cast_convex(const Vec3& origin, const Vec3& dir, double& dist
     }
     if (enter > leave) return -1;
   }
-  if (best < 0 || heights[static_cast<std::size_t>(best)] <= 0.0) return -1;  // the origin inside
+  if (best < 0) return -1;  // no face entered ahead: the origin inside, or the ray points away
   distance = enter;
   return best;
 }

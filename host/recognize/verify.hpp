@@ -56,9 +56,10 @@ class ModelGeometry {
   // origin on its outer side: no other face can be hit from the front).
   int cast(const Vec3& origin, const Vec3& dir, double& distance, std::span<const std::uint32_t> faces) const;
   void front_faces(const Vec3& origin, std::vector<std::uint32_t>& out) const;
-  // Convex models: the same hit as cast() without a polygon test, by clipping the ray against every face's
-  // half-space (the ray enters through the face of the latest entry, and hits when no face lets it out
-  // before). heights: heights(origin) (each face's n . origin - offset, positive outside its plane).
+  // Convex models (closed: convex() is false for an open one): the same hit as cast() without a polygon test,
+  // by clipping the ray against every face's half-space (the ray enters through the face of the latest entry,
+  // and hits when no face lets it out before). heights: heights(origin) (each face's n . origin - offset,
+  // positive outside its plane).
   int cast_convex(const Vec3& origin, const Vec3& dir, double& distance,
                   std::span<const double> heights) const;
   void heights(const Vec3& origin, std::vector<double>& out) const;

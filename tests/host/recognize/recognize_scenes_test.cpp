@@ -131,6 +131,7 @@ TEST(RecognizeScenes, HypothesisPoolGrowsWithTheLibraryWithinBounds) {
   fs::host::rec::RecognizeParams params;
   EXPECT_EQ(params.hypothesis_pool(120), 8192);
   EXPECT_EQ(params.hypothesis_pool(2048), 8192);
+  EXPECT_EQ(params.hypothesis_pool(3000), 12000);
   EXPECT_EQ(params.hypothesis_pool(8152), 32608);
   EXPECT_EQ(params.hypothesis_pool(56583), 65536);
   params.max_hypotheses = 1000;
