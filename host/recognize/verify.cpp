@@ -136,6 +136,12 @@ bool ModelGeometry::inside(const Face& f, const Eigen::Vector2d& q) const {
   return in;
 }
 
+bool ModelGeometry::misses_bounding_sphere(const Vec3& origin, const Vec3& dir) const {
+  const Vec3 oc = center_ - origin;
+  const double along = oc.dot(dir);
+  return (oc - along * dir).squaredNorm() > radius_ * radius_ * 1.0001 + 1e-9;
+}
+
 void ModelGeometry::front_faces(const Vec3& origin, std::vector<std::uint32_t>& out) const {
   out.clear();
   for (std::size_t i = 0; i < faces_.size(); ++i)
@@ -144,9 +150,7 @@ void ModelGeometry::front_faces(const Vec3& origin, std::vector<std::uint32_t>& 
 
 int ModelGeometry::cast(const Vec3& origin, const Vec3& dir, double& distance,
                         std::span<const std::uint32_t> faces) const {
-  const Vec3 oc = center_ - origin;
-  const double along = oc.dot(dir);
-  if ((oc - along * dir).squaredNorm() > radius_ * radius_ * 1.0001 + 1e-9) return -1;
+  if (misses_bounding_sphere(origin, dir)) return -1;
   int best = -1;
   double best_s = std::numeric_limits<double>::infinity();
   for (const std::uint32_t i : faces) {
@@ -173,9 +177,7 @@ void ModelGeometry::heights(const Vec3& origin, std::vector<double>& out) const 
 int ModelGeometry::cast_convex(const Vec3& origin, const Vec3& dir, double& distance,
                                std::span<const double> heights) const {
   distance = std::numeric_limits<double>::infinity();
-  const Vec3 oc = center_ - origin;
-  const double along = oc.dot(dir);
-  if ((oc - along * dir).squaredNorm() > radius_ * radius_ * 1.0001 + 1e-9) return -1;
+  if (misses_bounding_sphere(origin, dir)) return -1;
   // The ray o + s d is inside face i's half-space where h_i + s (n_i . d) <= 0.
   int best = -1;
   double enter = 0.0, leave = std::numeric_limits<double>::infinity();

@@ -100,6 +100,7 @@ class ModelGeometry {
     std::vector<Eigen::Vector3d> edges;  // (inward normal x, y, offset) per edge
   };
   bool inside(const Face& f, const Eigen::Vector2d& q) const;
+  bool misses_bounding_sphere(const Vec3& origin, const Vec3& dir) const;  // the ray (unit dir) passes it by
   template <class F>
   bool each_surface_point(F&& f) const;
   void sample_surface();
