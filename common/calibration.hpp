@@ -57,6 +57,10 @@ struct LaserModel {
   double mirror_angle(double step) const { return mirror_angle_at_step0 + step * rad_per_step; }
   Plane plane_at_mirror_angle(double mirror_angle_rad) const;
   Plane plane_at_step(double step) const { return plane_at_mirror_angle(mirror_angle(step)); }
+  // The (fractional) galvo step whose light plane passes through x: the inverse of plane_at_step. The light
+  // leaves the axis toward x, so the plane's angle is that of the direction from the axis to x. NaN for a
+  // point on the axis.
+  double step_through(const Vec3& x) const;
 };
 
 struct ScannerCalibration {
@@ -70,6 +74,9 @@ struct ScannerCalibration {
   // 200 mm to its side (+x) at the same height, axis along y, sweeping the stripe over x in [-150, 150] mm on
   // the table in step_count steps.
   static ScannerCalibration bench_default(std::uint32_t step_count = 500);
+  // Whether the scan can measure x at all: it projects into the camera image and the sweep's steps reach it
+  // (first_step .. first_step + step_count - 1). Shadows are not tested.
+  bool covers(const Vec3& x) const;
 };
 
 // Intersection of the ray origin + s * dir (s > 0) with a plane. Returns false when the ray is parallel to

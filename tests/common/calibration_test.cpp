@@ -53,4 +53,41 @@ TEST(Calibration, UndistortInvertsDistort) {
     }
 }
 
+TEST(Calibration, StepThroughInvertsPlaneAtStep) {
+  auto c = fs::ScannerCalibration::bench_default();
+  for (int flip = 0; flip < 2; ++flip) {
+    // A plane's normal has two signs: either one gives the same step.
+    if (flip) c.laser.normal_at_zero = -c.laser.normal_at_zero;
+    for (double k : {0.0, 17.5, 250.0, 499.0}) {
+      const fs::Plane p = c.laser.plane_at_step(k);
+      // Points of that plane at several heights and depths.
+      const fs::Vec3 dir = p.n.cross(c.laser.axis_dir).normalized();
+      for (double s : {200.0, 450.0, 600.0})
+        for (double y : {-80.0, 0.0, 90.0}) {
+          const fs::Vec3 x =
+              c.laser.axis_point + s * (dir.z() < 0 ? dir : fs::Vec3(-dir)) + y * c.laser.axis_dir;
+          EXPECT_NEAR(c.laser.step_through(x), k, 1e-6) << "flip " << flip << " step " << k;
+        }
+    }
+  }
+  EXPECT_TRUE(std::isnan(c.laser.step_through(c.laser.axis_point + 5.0 * c.laser.axis_dir)));
+}
+
+TEST(Calibration, CoversWhatTheSweepAndTheImageReach) {
+  const auto c = fs::ScannerCalibration::bench_default();
+  // The table line the sweep covers (x in [-150, 150]) and just beyond it.
+  EXPECT_TRUE(c.covers(fs::Vec3(-149.0, 0.0, 0.0)));
+  EXPECT_TRUE(c.covers(fs::Vec3(149.0, 20.0, 0.0)));
+  EXPECT_FALSE(c.covers(fs::Vec3(-152.0, 0.0, 0.0)));
+  EXPECT_FALSE(c.covers(fs::Vec3(152.0, 0.0, 0.0)));
+  // The mirror is at x = 200, z = 500: at 100 mm above the table the first plane is at x = -80.
+  EXPECT_TRUE(c.covers(fs::Vec3(-78.0, 0.0, 100.0)));
+  EXPECT_FALSE(c.covers(fs::Vec3(-82.0, 0.0, 100.0)));
+  // Outside the camera image (1024 rows at 1600 px focal length, 500 mm: y within about +-160 mm).
+  EXPECT_TRUE(c.covers(fs::Vec3(0.0, 150.0, 0.0)));
+  EXPECT_FALSE(c.covers(fs::Vec3(0.0, 175.0, 0.0)));
+  // Behind the camera.
+  EXPECT_FALSE(c.covers(fs::Vec3(0.0, 0.0, 600.0)));
+}
+
 }  // namespace
