@@ -9,7 +9,10 @@
 #include <Eigen/Geometry>
 #include <cstdint>
 #include <limits>
+#include <optional>
 #include <vector>
+
+#include "common/calibration.hpp"
 
 namespace fs::host {
 
@@ -22,6 +25,9 @@ struct OrganizedCloud {
   Eigen::Quaterniond viewpoint_orientation =
       Eigen::Quaterniond::Identity();  // sensor orientation (PCD VIEWPOINT)
   bool organized = true;               // false: points have no grid neighbourhood (height == 1)
+  // The scanner that measured it, when known (a .fscan's calibration, hw-sim): where the laser comes from and
+  // what the sweep reaches, so that recognition expects surfaces only where the scan could measure them.
+  std::optional<ScannerCalibration> scanner;
 
   void reserve(std::size_t max_points) {
     points.reserve(max_points);
@@ -31,6 +37,7 @@ struct OrganizedCloud {
     width = w;
     height = h;
     organized = true;
+    scanner.reset();
     const float nan = std::numeric_limits<float>::quiet_NaN();
     points.assign(static_cast<std::size_t>(w) * h, Eigen::Vector3f(nan, nan, nan));
     if (with_labels)

@@ -87,6 +87,7 @@ void Triangulator::begin(OrganizedCloud& out) const {
   out.reset(calib_.step_count, rows_, false);
   out.viewpoint = calib_.camera.t_world_cam;
   out.viewpoint_orientation = Eigen::Quaterniond(calib_.camera.R_world_cam);
+  out.scanner = calib_;
 }
 
 void Triangulator::add_stripe(const msg::StripeHeader& header, std::span<const msg::StripePoint> points,

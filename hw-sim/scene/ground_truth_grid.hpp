@@ -58,7 +58,8 @@ class GroundTruthGrid {
   std::size_t count_face(std::int32_t object, std::int32_t face) const;
 
   // Fills an organized cloud (duck-typed: fs::host::OrganizedCloud) with columns = steps and rows = image
-  // rows, NaN where there is nothing, labels = GroundTruthCell::label(), viewpoint = camera centre.
+  // rows, NaN where there is nothing, labels = GroundTruthCell::label(), viewpoint = camera centre,
+  // scanner = the calibration.
   template <typename Cloud>
   void export_to(Cloud& cloud, bool with_labels = true) const {
     cloud.reset(steps_, rows_, with_labels);
@@ -71,6 +72,7 @@ class GroundTruthGrid {
         if (with_labels) cloud.labels[i] = c.label();
       }
     cloud.viewpoint = calibration_.camera.center();
+    cloud.scanner = calibration_;
   }
 
  private:

@@ -2,6 +2,8 @@
 // casts.
 #include <gtest/gtest.h>
 
+#include <optional>
+
 #include <cmath>
 
 #include "hw-sim/scene/ground_truth_grid.hpp"
@@ -301,6 +303,7 @@ TEST(GroundTruthGrid, ExportsAnOrganizedCloud) {
     std::vector<Eigen::Vector3f> points;
     std::vector<std::int32_t> labels;
     Eigen::Vector3d viewpoint;
+    std::optional<fs::ScannerCalibration> scanner;
     void reset(std::uint32_t w, std::uint32_t h, bool with_labels) {
       width = w;
       height = h;
@@ -318,6 +321,8 @@ TEST(GroundTruthGrid, ExportsAnOrganizedCloud) {
   ASSERT_TRUE(c.valid());
   EXPECT_TRUE(cloud.points[512 * 20 + 7].isApprox(c.point.cast<float>()));
   EXPECT_EQ(cloud.labels[512 * 20 + 7], c.label());
+  ASSERT_TRUE(cloud.scanner.has_value());
+  EXPECT_EQ(cloud.scanner->step_count, 20u);
   EXPECT_EQ(cloud.viewpoint, s.calibration.camera.center());
 }
 
