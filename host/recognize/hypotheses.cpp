@@ -348,6 +348,28 @@ int top_face_hypotheses(const Library& library, const PfrgNode& face, const Plan
   return written;
 }
 
+namespace {
+
+// How much of a posed model face (centre: its posed centroid) the scan can measure, in [0, 1]: the light's
+// incidence (full from 30 degrees above grazing, none below 10, as for the camera), times the share of its
+// points (centroid and vertices drawn a quarter toward it) that the sweep and the camera image reach.
+double measurable_share(const ScannerCalibration& s, const ModelFace& mf, const Mat3& R, const Vec3& t,
+                        const Vec3& centre) {
+  const Vec3 to_light = s.laser.axis_point - centre;
+  const double cs = (R * mf.normal).dot(to_light) / std::max(to_light.norm(), 1e-9);
+  const double lit = std::clamp((cs - 0.17) / 0.33, 0.0, 1.0);
+  if (lit <= 0.0) return 0.0;
+  int n = 1, in = s.covers(centre) ? 1 : 0;
+  for (const auto& loop : mf.loops)
+    for (const Vec3& v : loop) {
+      ++n;
+      in += s.covers(R * (0.75 * v + 0.25 * mf.centroid) + t) ? 1 : 0;
+    }
+  return lit * static_cast<double>(in) / static_cast<double>(n);
+}
+
+}  // namespace
+
 double prescore(const HypothesisContext& c, const Hypothesis& h) {
   const Model& model = c.library.models[static_cast<std::size_t>(h.model)];
   double predicted = 0.0, explained = 0.0, penalty = 1.0;
@@ -357,7 +379,8 @@ double prescore(const HypothesisContext& c, const Hypothesis& h) {
     const Vec3 to_view = c.viewpoint - centre;
     const double cs = (h.R * mf.normal).dot(to_view) / std::max(to_view.norm(), 1e-9);
     // Full weight from 30 degrees above grazing, none below 10 degrees (such faces are barely sampled).
-    const double w = std::clamp((cs - 0.17) / 0.33, 0.0, 1.0);
+    double w = std::clamp((cs - 0.17) / 0.33, 0.0, 1.0);
+    if (c.scanner && w > 0.0) w *= measurable_share(*c.scanner, mf, h.R, h.t, centre);
     predicted += w * mf.area;
     for (const FaceMatch& m : h.matches) {
       if (m.ref != static_cast<int>(f)) continue;

@@ -16,6 +16,7 @@ struct HypothesisContext {
   const std::vector<int>& scene_index;  // scene node id -> index in scene.nodes, -1 when absent
   Vec3 viewpoint;
   const RecognizeParams& params;
+  const ScannerCalibration* scanner = nullptr;  // when known: the laser and the sweep (prescore)
 };
 
 // Sets h.t (and free_dims/free_dir) from the planes of h.matches under h.R.
@@ -92,7 +93,9 @@ std::size_t convex_hull_in_place(std::vector<Eigen::Vector2d>& pts, std::vector<
 // the model's predicted visible area (front faces, weighted down toward grazing view) that matched scene
 // faces explain, times a penalty for every matched scene face larger than its model face (a face cannot be
 // seen bigger than it is). Ranks the hypotheses of all references so that verification looks at the plausible
-// ones first even when the matching costs tie.
+// ones first even when the matching costs tie. With the scanner known, a face is predicted only as far as the
+// laser lights it (facing the mirror, weighted down toward grazing light) and the sweep and the camera's
+// image reach it (share of its points that ScannerCalibration::covers).
 double prescore(const HypothesisContext& c, const Hypothesis& h);
 
 // Area of the scene faces the hypothesis matches (mm^2): of two hypotheses with the same prescore, the one

@@ -110,6 +110,8 @@ void Recognizer::Impl::prepare_samples(Recognizer& rz, const OrganizedCloud& clo
   const VerifyParams& vp = rz.params_.verify;
   coarse.build(cloud, sample_steps(grid, 2 * vp.sample_step, 2.0 * vp.sample_spacing_mm));
   fine.build(cloud, sample_steps(grid, vp.sample_step, vp.sample_spacing_mm));
+  if (rz.params_.max_screened > 0)
+    screen.build(cloud, sample_steps(grid, 4 * vp.sample_step, 4.0 * vp.sample_spacing_mm));
   labels = &segmentation.labels;
   auto count_regions = [&](const SampleSet& set, std::vector<std::uint32_t>& counts) {
     counts.assign(segmentation.regions.size(), 0);
@@ -120,6 +122,7 @@ void Recognizer::Impl::prepare_samples(Recognizer& rz, const OrganizedCloud& clo
   };
   count_regions(coarse, region_coarse);
   count_regions(fine, region_fine);
+  if (rz.params_.max_screened > 0) count_regions(screen, region_screen);
   stats.verify_ms += ms_since(t_samples);
   nhyp = 0;  // no part: no hypothesis (not last scan's)
 }

@@ -65,9 +65,13 @@ Recognizer::Impl::Impl(const Library& lib, const RecognizeParams& p, int threads
   dropped.reserve(max_h);
   raw_confidence.reserve(max_h);
   picked.reserve(max_h);
+  unscreened.reserve(max_h);
+  coarse_order.reserve(max_h);
+  refined.reserve(max_h);
   deferred.reserve(max_h);
   hidden_wait.reserve(max_h);
   face_cover.reserve(kMaxNodeIds);
+  face_best.reserve(kMaxNodeIds);
   alive.reserve(max_h);
   pairs.reserve(256);
   node_used.reserve(kMaxNodeIds);
@@ -85,6 +89,7 @@ Recognizer::Recognizer(const Library& library, const RecognizeParams& params, st
   impl_->cell_owner.assign(max_cells, -1);
   impl_->coarse.reserve(max_cells);
   impl_->fine.reserve(max_cells);
+  impl_->screen.reserve(max_cells);
   impl_->parts.resize(Impl::kMaxParts);
   impl_->part_faces.resize(Impl::kMaxParts);
   for (Pfrg& part : impl_->parts) {
@@ -151,7 +156,8 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
     return out;
   }
   Impl::Scan scan = im.prepare_matching(*this, cloud);
-  const HypothesisContext hc{library_, scene_, im.scene_index, cloud.viewpoint, params_};
+  const HypothesisContext hc{library_,        scene_,  im.scene_index,
+                             cloud.viewpoint, params_, cloud.scanner ? &*cloud.scanner : nullptr};
   im.prepare_samples(*this, cloud, out.stats);
   // Rounds: the scene graph, then (beyond the thesis) the faces no accepted object explains, searched again
   // with TH_minlevel lowered to small_part_min_level (an object showing two faces next to another object),

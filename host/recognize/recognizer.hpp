@@ -146,7 +146,16 @@ struct RecognizeParams {
       1.1;                   // a scene face may be this much larger than its model face (segmentation)
   int max_refined = 24;      // of those, the most plausible refined by ICP and verified finely
   int verify_per_face = 64;  // a scene face stops drawing hypotheses into verification after this many
-  int refine_per_face = 3;   // ... and into refinement
+  // Screening: when the budget above cannot take every hypothesis, up to max_screened of them (highest
+  // prescore first, screen_per_face per scene face) are first checked on a sparse sample set (a quarter of
+  // the coarse one) and the budget goes to the best screened. Look-alikes tie in the prescore (a polycube's
+  // visible faces fit hundreds of others); the measured points tell them apart. 0 = no screening.
+  int max_screened = 2048;
+  int screen_per_face = 512;
+  int refine_per_face = 3;  // ... and into refinement
+  // A scene face whose refined hypotheses all fail the fine check gets refine_per_face more of those whose
+  // coarse confidence is within this margin of its best (in the refinement slots left). < 0 = off.
+  double refine_again_margin = 0.05;
   // Matching prunes a pair whose scene face is larger than area_ratio x its model face + slack (a face cannot
   // be seen bigger than it is; segmentation may add a rim): match::MatchParams::th_area_ratio. <= 0 = off.
   double match_area_ratio = 1.3;
@@ -194,6 +203,8 @@ struct Hypothesis {
   double key = 0.0;           // ordering key
   double prescore = 0.0;      // geometric plausibility before verification (see hypotheses.hpp)
   double matched_area = 0.0;  // area of the scene faces it matches (mm^2): ties of the prescore
+  double screened = -1.0;     // confidence on the screening samples (-1: not screened; RecognizeParams)
+  int screened_inliers = 0;   // ... and its inliers there
   int instance = 0;           // 0 = first instance of its model, 1 = second, ...
   bool merged = false;        // a compatible solution was merged into it
   // Other models that fit this view as well (same scene faces, confidence and inliers within

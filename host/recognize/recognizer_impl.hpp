@@ -95,8 +95,13 @@ struct Recognizer::Impl {
   // in when reported, swapped back at the next scan), so reporting never allocates.
   std::vector<Hypothesis> spare_objects;
   std::vector<std::size_t> slot_owner;
-  std::vector<std::size_t> picked;  // scratch of select_covering
-  std::vector<int> face_cover;      // by scene node id
+  std::vector<std::size_t> picked;        // scratch of select_covering
+  std::vector<std::size_t> unscreened;    // scratch of screen_hypotheses: the order before screening
+  std::vector<std::size_t> coarse_order;  // the coarse-checked hypotheses, best first (refine_again)
+  std::vector<char> refined;              // by hypothesis index (refine_again)
+  std::vector<double> face_best;          // best coarse confidence by scene node id (refine_again)
+  std::size_t slot_base = 0;              // slot of refine task 0 (refine_again's second pass)
+  std::vector<int> face_cover;            // by scene node id
   // Conflicts of one hypothesis with each accepted object (accept.cpp): shared inlier cells, shared scene
   // faces, interpenetration depth (mm).
   std::vector<int> conflict_cells, conflict_faces;
@@ -121,11 +126,11 @@ struct Recognizer::Impl {
   match::MatchParams mparams;
   match::MatchParams mparams_small;  // parts with fewer faces than mparams.th_minlevel (TH_minlevel lowered)
   // Verification context.
-  SampleSet coarse, fine;
+  SampleSet coarse, fine, screen;
   bool refine_phase = false;
   // Samples per segmentation region (coarse / fine), to measure how much of its matched regions a hypothesis
   // explains.
-  std::vector<std::uint32_t> region_coarse, region_fine;
+  std::vector<std::uint32_t> region_coarse, region_fine, region_screen;
   std::vector<std::uint32_t> region_hits;
   const std::vector<std::int32_t>* labels = nullptr;
   // Connected parts of the scene graph (supernode arcs do not connect), each with >= min_level faces; the
@@ -238,6 +243,11 @@ struct Recognizer::Impl {
                          RecognizeStats& stats);
   // Scales h's confidence by the share of its matched scene regions' samples among `cells` (its inliers).
   void scale_by_explained(Hypothesis& h, const std::vector<std::uint32_t>& cells, bool fine_samples) const;
+  // The share of h's matched scene regions' samples (counts: per region) that cells (inliers) explain.
+  double explained_share(const Hypothesis& h, const std::vector<std::uint32_t>& cells,
+                         const std::vector<std::uint32_t>& counts) const;
+  void screen_hypotheses(const RecognizeParams& params);
+  void refine_again(const RecognizeParams& params, double min_plausible);
   // reseat.cpp: after its coarse check (scaled by the explained share), hyps[index], a plausible hypothesis
   // of a model with near symmetries, moves to the near-symmetric placement that scores best (fit x support
   // factor), if one scores better (worker: the worker's verifier and plane scratch); then the duplicates this

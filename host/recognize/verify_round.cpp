@@ -12,14 +12,19 @@ using detail::ms_since;
 
 namespace {
 
+// The largest scene node id any hypothesis in order holds.
+int max_scene_id_of(const Recognizer::Impl& im) {
+  int max_id = 0;
+  for (std::size_t i : im.order)
+    for (const FaceMatch& m : im.hyps[i].matches) max_id = std::max(max_id, m.scene);
+  return max_id;
+}
+
 // Filters im.order (kept in order) to at most `limit` hypotheses that pass `ok` and hold a scene face that
 // fewer than `per_face` earlier picks hold.
 template <class Ok>
 void select_covering(Recognizer::Impl& im, int per_face, std::size_t limit, Ok ok) {
-  int max_id = 0;
-  for (std::size_t i : im.order)
-    for (const FaceMatch& m : im.hyps[i].matches) max_id = std::max(max_id, m.scene);
-  im.face_cover.assign(static_cast<std::size_t>(max_id) + 1, 0);
+  im.face_cover.assign(static_cast<std::size_t>(max_scene_id_of(im)) + 1, 0);
   im.picked.clear();
   for (std::size_t i : im.order) {
     if (im.picked.size() >= limit) break;
@@ -47,8 +52,8 @@ void verify_task(void* ctx, std::size_t task, int worker) {
                  : v.verify(m.refine_phase ? m.fine : m.coarse, g, h.R, h.t, m.refine_phase);
   const std::vector<std::uint32_t>* cells = &v.inlier_cells();
   if (m.refine_phase) {
-    m.slot_owner[task] = m.order[task];
-    std::swap(h.inlier_cells, m.slot_cells[task]);
+    m.slot_owner[m.slot_base + task] = m.order[task];
+    std::swap(h.inlier_cells, m.slot_cells[m.slot_base + task]);
     h.inlier_cells.assign(v.inlier_cells().begin(), v.inlier_cells().end());
     cells = &h.inlier_cells;
   } else {
@@ -61,7 +66,75 @@ void verify_task(void* ctx, std::size_t task, int worker) {
     m.reseat(m.order[task], worker);
 }
 
+// The order of verification before any check: prescore, then matched scene area, then cost (a, b: the
+// hypotheses' indices, the last tie-break).
+bool prescore_before(const Hypothesis& x, const Hypothesis& y, std::size_t a, std::size_t b) {
+  if (x.prescore != y.prescore) return x.prescore > y.prescore;
+  if (x.matched_area != y.matched_area) return x.matched_area > y.matched_area;
+  return x.cost != y.cost ? x.cost < y.cost : a < b;
+}
+
+// Worker task of the screening: hypothesis order[task] on the sparse samples, scaled by the share of its
+// matched scene regions it explains (h.verify is left as it was).
+void screen_task(void* ctx, std::size_t task, int worker) {
+  auto& m = *static_cast<Recognizer::Impl*>(ctx);
+  Hypothesis& h = m.hyps[m.order[task]];
+  Verifier& v = m.verifiers[static_cast<std::size_t>(worker)];
+  const ModelGeometry& g = m.geometry[static_cast<std::size_t>(h.model)];
+  const VerifyResult r = v.verify(m.screen, g, h.R, h.t, false);
+  h.screened = r.confidence * m.explained_share(h, v.inlier_cells(), m.region_screen);
+  h.screened_inliers = r.inliers;
+}
+
 }  // namespace
+
+double Recognizer::Impl::explained_share(const Hypothesis& h, const std::vector<std::uint32_t>& cells,
+                                         const std::vector<std::uint32_t>& counts) const {
+  std::uint64_t total = 0, explained = 0;
+  for (const FaceMatch& fm : h.matches) {
+    const int r = fm.scene - 1;
+    if (r >= 0 && static_cast<std::size_t>(r) < counts.size()) total += counts[static_cast<std::size_t>(r)];
+  }
+  for (std::uint32_t cell : cells) {
+    const std::int32_t r = (*labels)[cell];
+    for (const FaceMatch& fm : h.matches)
+      if (fm.scene - 1 == r) {
+        ++explained;
+        break;
+      }
+  }
+  return total > 0 ? std::min(1.0, static_cast<double>(explained) / static_cast<double>(total)) : 0.0;
+}
+
+// When the verification budget cannot take every hypothesis in order: the first max_screened (screen_per_face
+// per scene face) are checked on the sparse samples and move ahead of the rest, best screened first (by the
+// coarse check's ordering key).
+void Recognizer::Impl::screen_hypotheses(const RecognizeParams& params) {
+  if (params.max_screened <= 0 || order.size() <= static_cast<std::size_t>(params.max_verified)) return;
+  unscreened.assign(order.begin(), order.end());
+  select_covering(*this, params.screen_per_face, static_cast<std::size_t>(params.max_screened),
+                  [](const Hypothesis&) { return true; });
+  if (order.size() <= static_cast<std::size_t>(params.max_verified)) {
+    order.assign(unscreened.begin(), unscreened.end());
+    return;
+  }
+  pool.run(order.size(), screen_task, this);
+  // The coarse check's ordering key (rekey) on the screening's values; ties keep the prescore order.
+  int most_inliers = 1;
+  for (std::size_t i : order) most_inliers = std::max(most_inliers, hyps[i].screened_inliers);
+  for (std::size_t i : order) {
+    Hypothesis& h = hyps[i];
+    h.key =
+        h.cost + params.confidence_weight * (1.0 - h.screened) -
+        params.inlier_weight * static_cast<double>(h.screened_inliers) / static_cast<double>(most_inliers);
+  }
+  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    const Hypothesis& x = hyps[a];
+    const Hypothesis& y = hyps[b];
+    if (x.key != y.key) return x.key < y.key;
+    return prescore_before(x, y, a, b);
+  });
+}
 
 // How much of the matched scene regions the model explains (cells: its inlier cells): a model smaller than
 // the faces it claims leaves measured points of those faces unexplained.
@@ -98,13 +171,10 @@ void Recognizer::Impl::verify_hypotheses(Recognizer& rz, const HypothesisContext
   }
   reseated.assign(nhyp, 0);
   raw_confidence.assign(nhyp, 0.0);
-  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
-    const Hypothesis& x = hyps[a];
-    const Hypothesis& y = hyps[b];
-    if (x.prescore != y.prescore) return x.prescore > y.prescore;
-    if (x.matched_area != y.matched_area) return x.matched_area > y.matched_area;
-    return x.cost != y.cost ? x.cost < y.cost : a < b;
-  });
+  std::sort(order.begin(), order.end(),
+            [&](std::size_t a, std::size_t b) { return prescore_before(hyps[a], hyps[b], a, b); });
+  for (std::size_t i : order) hyps[i].screened = -1.0;
+  screen_hypotheses(params);
   // Keep the order but give every scene face its share: a hypothesis is checked when one of its matched
   // scene faces has been claimed by fewer than verify_per_face better hypotheses (so the faces of a small
   // object are not crowded out by the many hypotheses of a large one).
@@ -121,14 +191,22 @@ void Recognizer::Impl::verify_hypotheses(Recognizer& rz, const HypothesisContext
   rekey(params);
   // Phase 2: the plausible ones are refined by ICP and verified on the fine sample set.
   const double min_plausible = 0.5 * params.min_confidence;
+  coarse_order.assign(order.begin(), order.end());
+  face_best.assign(static_cast<std::size_t>(max_scene_id_of(*this)) + 1, 0.0);
+  for (std::size_t i : coarse_order)
+    for (const FaceMatch& m : hyps[i].matches)
+      face_best[static_cast<std::size_t>(m.scene)] =
+          std::max(face_best[static_cast<std::size_t>(m.scene)], hyps[i].verify.confidence);
   select_covering(*this, params.refine_per_face, static_cast<std::size_t>(params.max_refined),
                   [&](const Hypothesis& h) { return h.verify.confidence >= min_plausible; });
   std::size_t plausible = order.size();
   refine_phase = true;
+  slot_base = 0;
   slot_owner.resize(std::min(plausible, slot_cells.size()));
   plausible = slot_owner.size();
   pool.run(plausible, verify_task, this);
   order.resize(plausible);
+  refine_again(params, min_plausible);
   rekey(params);
   for (std::size_t i : order) {
     Hypothesis& h = hyps[i];
@@ -136,6 +214,49 @@ void Recognizer::Impl::verify_hypotheses(Recognizer& rz, const HypothesisContext
         count_visible_faces(rz.library_.models[static_cast<std::size_t>(h.model)], h.R, h.t, cloud.viewpoint);
   }
   stats.verify_ms += ms_since(hyp_t0);
+}
+
+// A scene face whose refined hypotheses all failed the fine check (confidence < min_confidence) gets the next
+// plausible ones of the coarse order that hold it and tie with its best coarse confidence (within
+// refine_again_margin), refine_per_face of them, in the slots left: look-alikes that tie on the coarse
+// samples (polycubes) are told apart only by the fine check, and the true one may come fourth.
+void Recognizer::Impl::refine_again(const RecognizeParams& params, double min_plausible) {
+  const std::size_t used = order.size();
+  if (params.refine_again_margin < 0.0 || used >= slot_cells.size()) return;
+  // face_cover (sized by select_covering for every scene face of the coarse-checked hypotheses): -1 = the
+  // face has a passing refined hypothesis, else the count of the second pass.
+  std::fill(face_cover.begin(), face_cover.end(), 0);
+  refined.assign(nhyp, 0);
+  for (std::size_t i : order) {
+    refined[i] = 1;
+    if (hyps[i].verify.confidence >= params.min_confidence)
+      for (const FaceMatch& m : hyps[i].matches) face_cover[static_cast<std::size_t>(m.scene)] = -1;
+  }
+  picked.clear();
+  for (std::size_t i : coarse_order) {
+    if (picked.size() >= slot_cells.size() - used) break;
+    const Hypothesis& h = hyps[i];
+    if (refined[i] || h.verify.confidence < min_plausible) continue;
+    bool wanted = false;
+    for (const FaceMatch& m : h.matches) {
+      const auto f = static_cast<std::size_t>(m.scene);
+      wanted = wanted || (face_cover[f] >= 0 && face_cover[f] < params.refine_per_face &&
+                          h.verify.confidence >= face_best[f] - params.refine_again_margin);
+    }
+    if (!wanted) continue;
+    for (const FaceMatch& m : h.matches)
+      if (face_cover[static_cast<std::size_t>(m.scene)] >= 0) ++face_cover[static_cast<std::size_t>(m.scene)];
+    picked.push_back(i);
+  }
+  if (picked.empty()) return;
+  unscreened.assign(order.begin(), order.end());  // the first pass (scratch)
+  order.assign(picked.begin(), picked.end());
+  slot_base = used;
+  slot_owner.resize(used + picked.size());
+  pool.run(picked.size(), verify_task, this);
+  slot_base = 0;
+  order.assign(unscreened.begin(), unscreened.end());
+  order.insert(order.end(), picked.begin(), picked.end());
 }
 
 // Ordering key of the verified hypotheses (order sorted by it).
@@ -151,7 +272,10 @@ void Recognizer::Impl::rekey(const RecognizeParams& params) {
   }
   // std::sort with the index as tie-break (std::stable_sort would take a temporary buffer from the heap).
   std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
-    return hyps[a].key != hyps[b].key ? hyps[a].key < hyps[b].key : a < b;
+    const Hypothesis& x = hyps[a];
+    const Hypothesis& y = hyps[b];
+    if (x.key != y.key) return x.key < y.key;
+    return prescore_before(x, y, a, b);
   });
 }
 

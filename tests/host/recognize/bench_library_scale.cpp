@@ -312,6 +312,31 @@ void truth_among_hypotheses(const BenchScene& sc, const fs::host::rec::Recognize
       std::printf(
           "    %s: not verified; prescore %.3f, %td of %zu hypotheses above it, %td equal; %zu verified\n",
           o.model.c_str(), best, above, all.size(), ties, verified.size());
+      // The coarse check: the truth's best coarse confidence and how many coarse-checked hypotheses beat it.
+      double coarse = -1.0;
+      for (const auto* h : all)
+        if (near(h) && h->verify.hits > 0) coarse = std::max(coarse, h->verify.confidence);
+      const auto checked =
+          std::count_if(all.begin(), all.end(), [](const auto* h) { return h->verify.hits > 0; });
+      const auto beat = std::count_if(all.begin(), all.end(), [&](const auto* h) {
+        return h->verify.hits > 0 && h->verify.confidence > coarse;
+      });
+      double scr = -1.0;
+      for (const auto* h : all)
+        if (near(h)) scr = std::max(scr, h->screened);
+      const auto screened =
+          std::count_if(all.begin(), all.end(), [](const auto* h) { return h->screened >= 0.0; });
+      const auto scr_above =
+          std::count_if(all.begin(), all.end(), [&](const auto* h) { return h->screened > scr; });
+      const auto scr_equal =
+          std::count_if(all.begin(), all.end(), [&](const auto* h) { return h->screened == scr; });
+      std::printf("    %s: screened %.3f, %td of %td screened above it, %td equal\n", o.model.c_str(), scr,
+                  scr_above, screened, scr_equal);
+      if (coarse < 0.0)
+        std::printf("    %s: not coarse-checked (%td checked)\n", o.model.c_str(), checked);
+      else
+        std::printf("    %s: coarse confidence %.3f, %td of %td checked above it\n", o.model.c_str(), coarse,
+                    beat, checked);
     }
   }
 }
@@ -495,6 +520,27 @@ Args parse_args(CLI::App& app, int argc, char** argv) {
   app.add_option("--verify-per-face", a.params.verify_per_face,
                  "RecognizeParams::verify_per_face (default 64): a scene face's share of the checks")
       ->check(CLI::Range(1, 1 << 20));
+  app.add_option(
+         "--max-screened", a.params.max_screened,
+         "RecognizeParams::max_screened (default 2048): hypotheses screened on sparse samples, 0 = none")
+      ->check(CLI::Range(0, 1 << 24));
+  app.add_option("--screen-per-face", a.params.screen_per_face,
+                 "RecognizeParams::screen_per_face (default 512): a scene face's share of the screening")
+      ->check(CLI::Range(1, 1 << 24));
+  app.add_option("--max-refined", a.params.max_refined,
+                 "RecognizeParams::max_refined (default 24): coarse-verified hypotheses refined by ICP")
+      ->check(CLI::Range(1, 1 << 20));
+  app.add_option("--refine-per-face", a.params.refine_per_face,
+                 "RecognizeParams::refine_per_face (default 3): a scene face's share of the refinements")
+      ->check(CLI::Range(1, 1 << 20));
+  app.add_option(
+      "--refine-again-margin", a.params.refine_again_margin,
+      "RecognizeParams::refine_again_margin (default 0.05): a second refinement for a face whose "
+      "refined hypotheses all failed, among those within this coarse confidence of its best; < 0 = "
+      "none");
+  app.add_option("--rounds", a.params.rounds,
+                 "RecognizeParams::rounds (default 3): matching + verification rounds")
+      ->check(CLI::Range(1, 100));
   app.add_flag(
       "--no-arc-index", [&a](std::int64_t) { a.params.arc_index = false; },
       "match every reference (RecognizeParams::arc_index off)");

@@ -13,7 +13,7 @@
 //                     (--preset, --min-level, --solutions, --max-states, --area-ratio, --omega,
 //                     --max-solutions,
 //                     --no-rigidity-pairs, --max-verified, --verify-per-face, --refine-per-face,
-//                     --max-refined,
+//                     --max-refined, --max-screened, --screen-per-face,
 //                     --rounds, --inlier-weight, --sample-mm, --seg-dist, --seg-noise-factor,
 //                     --seg-merge-angle;
 //                     `--help` lists them with their meaning)
@@ -157,6 +157,11 @@ Args parse_args(CLI::App& app, int argc, char** argv) {
                  "a scene face draws at most this many into verification")
       ->check(positive);
   app.add_option("--refine-per-face", p.refine_per_face, "... and into refinement")->check(positive);
+  app.add_option("--max-screened", p.max_screened, "hypotheses screened on sparse samples first (0 = none)")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--screen-per-face", p.screen_per_face,
+                 "a scene face draws at most this many into screening")
+      ->check(positive);
   app.add_option("--max-refined", p.max_refined, "hypotheses refined by ICP")->check(positive);
   app.add_option("--rounds", p.rounds, "rounds of matching + verification")->check(positive);
   app.add_option("--inlier-weight", p.inlier_weight, "RecognizeParams::inlier_weight")->check(non_negative);
