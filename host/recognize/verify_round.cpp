@@ -66,6 +66,14 @@ void verify_task(void* ctx, std::size_t task, int worker) {
     m.reseat(m.order[task], worker);
 }
 
+// Ordering key of a checked hypothesis (lower first): cost + weight * (1 - confidence) - inlier_weight *
+// inliers / the most inliers among those ordered.
+double ordering_key(const RecognizeParams& params, double cost, double confidence, int inliers,
+                    int most_inliers) {
+  return cost + params.confidence_weight * (1.0 - confidence) -
+         params.inlier_weight * static_cast<double>(inliers) / static_cast<double>(most_inliers);
+}
+
 // The order of verification before any check: prescore, then matched scene area, then cost (a, b: the
 // hypotheses' indices, the last tie-break).
 bool prescore_before(const Hypothesis& x, const Hypothesis& y, std::size_t a, std::size_t b) {
@@ -122,12 +130,9 @@ void Recognizer::Impl::screen_hypotheses(const RecognizeParams& params) {
   // The coarse check's ordering key (rekey) on the screening's values; ties keep the prescore order.
   int most_inliers = 1;
   for (std::size_t i : order) most_inliers = std::max(most_inliers, hyps[i].screened_inliers);
-  for (std::size_t i : order) {
-    Hypothesis& h = hyps[i];
-    h.key =
-        h.cost + params.confidence_weight * (1.0 - h.screened) -
-        params.inlier_weight * static_cast<double>(h.screened_inliers) / static_cast<double>(most_inliers);
-  }
+  for (std::size_t i : order)
+    hyps[i].key =
+        ordering_key(params, hyps[i].cost, hyps[i].screened, hyps[i].screened_inliers, most_inliers);
   std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
     const Hypothesis& x = hyps[a];
     const Hypothesis& y = hyps[b];
@@ -140,22 +145,7 @@ void Recognizer::Impl::screen_hypotheses(const RecognizeParams& params) {
 // the faces it claims leaves measured points of those faces unexplained.
 void Recognizer::Impl::scale_by_explained(Hypothesis& h, const std::vector<std::uint32_t>& cells,
                                           bool fine_samples) const {
-  const auto& counts = fine_samples ? region_fine : region_coarse;
-  std::uint64_t total = 0, explained = 0;
-  for (const FaceMatch& fm : h.matches) {
-    const int r = fm.scene - 1;
-    if (r >= 0 && static_cast<std::size_t>(r) < counts.size()) total += counts[static_cast<std::size_t>(r)];
-  }
-  for (std::uint32_t cell : cells) {
-    const std::int32_t r = (*labels)[cell];
-    for (const FaceMatch& fm : h.matches)
-      if (fm.scene - 1 == r) {
-        ++explained;
-        break;
-      }
-  }
-  h.verify.explained =
-      total > 0 ? std::min(1.0, static_cast<double>(explained) / static_cast<double>(total)) : 0.0;
+  h.verify.explained = explained_share(h, cells, fine_samples ? region_fine : region_coarse);
   h.verify.confidence *= h.verify.explained;
 }
 
@@ -265,12 +255,11 @@ void Recognizer::Impl::rekey(const RecognizeParams& params) {
   // covers only part of an object (a prism for the augmented prism) leaves the rest unexplained.
   int most_inliers = 1;
   for (std::size_t i : order) most_inliers = std::max(most_inliers, hyps[i].verify.inliers);
-  for (std::size_t i : order) {
-    Hypothesis& h = hyps[i];
-    h.key = h.cost + params.confidence_weight * (1.0 - h.verify.confidence) -
-            params.inlier_weight * static_cast<double>(h.verify.inliers) / static_cast<double>(most_inliers);
-  }
-  // std::sort with the index as tie-break (std::stable_sort would take a temporary buffer from the heap).
+  for (std::size_t i : order)
+    hyps[i].key =
+        ordering_key(params, hyps[i].cost, hyps[i].verify.confidence, hyps[i].verify.inliers, most_inliers);
+  // Ties (look-alikes that fit alike) keep the prescore order; std::sort with that as its last key
+  // (std::stable_sort would take a temporary buffer from the heap).
   std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
     const Hypothesis& x = hyps[a];
     const Hypothesis& y = hyps[b];
