@@ -350,14 +350,18 @@ int top_face_hypotheses(const Library& library, const PfrgNode& face, const Plan
 
 namespace {
 
+// Weight of a face whose normal makes cosine cs with the direction to a sensor or light: full from 30 degrees
+// above grazing, none below 10 degrees (such faces are barely sampled or lit).
+double incidence_weight(double cs) { return std::clamp((cs - 0.17) / 0.33, 0.0, 1.0); }
+
 // How much of a posed model face (centre: its posed centroid) the scan can measure, in [0, 1]: the light's
-// incidence (full from 30 degrees above grazing, none below 10, as for the camera), times the share of its
-// points (centroid and vertices drawn a quarter toward it) that the sweep and the camera image reach.
+// incidence_weight (as for the camera), times the share of its points (centroid and vertices drawn a quarter
+// toward it) that the sweep and the camera image reach.
 double measurable_share(const ScannerCalibration& s, const ModelFace& mf, const Mat3& R, const Vec3& t,
                         const Vec3& centre) {
   const Vec3 to_light = s.laser.axis_point - centre;
   const double cs = (R * mf.normal).dot(to_light) / std::max(to_light.norm(), 1e-9);
-  const double lit = std::clamp((cs - 0.17) / 0.33, 0.0, 1.0);
+  const double lit = incidence_weight(cs);
   if (lit <= 0.0) return 0.0;
   int n = 1, in = s.covers(centre) ? 1 : 0;
   for (const auto& loop : mf.loops)
@@ -378,8 +382,7 @@ double prescore(const HypothesisContext& c, const Hypothesis& h) {
     const Vec3 centre = h.R * mf.centroid + h.t;
     const Vec3 to_view = c.viewpoint - centre;
     const double cs = (h.R * mf.normal).dot(to_view) / std::max(to_view.norm(), 1e-9);
-    // Full weight from 30 degrees above grazing, none below 10 degrees (such faces are barely sampled).
-    double w = std::clamp((cs - 0.17) / 0.33, 0.0, 1.0);
+    double w = incidence_weight(cs);
     if (c.scanner && w > 0.0) w *= measurable_share(*c.scanner, mf, h.R, h.t, centre);
     predicted += w * mf.area;
     for (const FaceMatch& m : h.matches) {

@@ -65,7 +65,7 @@ Recognizer::Impl::Impl(const Library& lib, const RecognizeParams& p, int threads
   dropped.reserve(max_h);
   raw_confidence.reserve(max_h);
   picked.reserve(max_h);
-  unscreened.reserve(max_h);
+  order_copy.reserve(max_h);
   coarse_order.reserve(max_h);
   refined.reserve(max_h);
   deferred.reserve(max_h);

@@ -96,7 +96,7 @@ struct Recognizer::Impl {
   std::vector<Hypothesis> spare_objects;
   std::vector<std::size_t> slot_owner;
   std::vector<std::size_t> picked;        // scratch of select_covering
-  std::vector<std::size_t> unscreened;    // scratch of screen_hypotheses: the order before screening
+  std::vector<std::size_t> order_copy;    // scratch: order kept aside (screening, second refinement)
   std::vector<std::size_t> coarse_order;  // the coarse-checked hypotheses, best first (refine_again)
   std::vector<char> refined;              // by hypothesis index (refine_again)
   std::vector<double> face_best;          // best coarse confidence by scene node id (refine_again)

@@ -82,6 +82,17 @@ bool prescore_before(const Hypothesis& x, const Hypothesis& y, std::size_t a, st
   return x.cost != y.cost ? x.cost < y.cost : a < b;
 }
 
+// Sorts im.order by the ordering key; ties (look-alikes that fit alike) keep the prescore order (std::sort
+// with that as its last key: std::stable_sort would take a temporary buffer from the heap).
+void sort_by_key(Recognizer::Impl& im) {
+  std::sort(im.order.begin(), im.order.end(), [&](std::size_t a, std::size_t b) {
+    const Hypothesis& x = im.hyps[a];
+    const Hypothesis& y = im.hyps[b];
+    if (x.key != y.key) return x.key < y.key;
+    return prescore_before(x, y, a, b);
+  });
+}
+
 // Worker task of the screening: hypothesis order[task] on the sparse samples, scaled by the share of its
 // matched scene regions it explains (h.verify is left as it was).
 void screen_task(void* ctx, std::size_t task, int worker) {
@@ -119,11 +130,11 @@ double Recognizer::Impl::explained_share(const Hypothesis& h, const std::vector<
 // coarse check's ordering key).
 void Recognizer::Impl::screen_hypotheses(const RecognizeParams& params) {
   if (params.max_screened <= 0 || order.size() <= static_cast<std::size_t>(params.max_verified)) return;
-  unscreened.assign(order.begin(), order.end());
+  order_copy.assign(order.begin(), order.end());
   select_covering(*this, params.screen_per_face, static_cast<std::size_t>(params.max_screened),
                   [](const Hypothesis&) { return true; });
   if (order.size() <= static_cast<std::size_t>(params.max_verified)) {
-    order.assign(unscreened.begin(), unscreened.end());
+    order.assign(order_copy.begin(), order_copy.end());
     return;
   }
   pool.run(order.size(), screen_task, this);
@@ -133,12 +144,7 @@ void Recognizer::Impl::screen_hypotheses(const RecognizeParams& params) {
   for (std::size_t i : order)
     hyps[i].key =
         ordering_key(params, hyps[i].cost, hyps[i].screened, hyps[i].screened_inliers, most_inliers);
-  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
-    const Hypothesis& x = hyps[a];
-    const Hypothesis& y = hyps[b];
-    if (x.key != y.key) return x.key < y.key;
-    return prescore_before(x, y, a, b);
-  });
+  sort_by_key(*this);
 }
 
 // How much of the matched scene regions the model explains (cells: its inlier cells): a model smaller than
@@ -239,13 +245,13 @@ void Recognizer::Impl::refine_again(const RecognizeParams& params, double min_pl
     picked.push_back(i);
   }
   if (picked.empty()) return;
-  unscreened.assign(order.begin(), order.end());  // the first pass (scratch)
+  order_copy.assign(order.begin(), order.end());  // the first pass
   order.assign(picked.begin(), picked.end());
   slot_base = used;
   slot_owner.resize(used + picked.size());
   pool.run(picked.size(), verify_task, this);
   slot_base = 0;
-  order.assign(unscreened.begin(), unscreened.end());
+  order.assign(order_copy.begin(), order_copy.end());
   order.insert(order.end(), picked.begin(), picked.end());
 }
 
@@ -258,14 +264,7 @@ void Recognizer::Impl::rekey(const RecognizeParams& params) {
   for (std::size_t i : order)
     hyps[i].key =
         ordering_key(params, hyps[i].cost, hyps[i].verify.confidence, hyps[i].verify.inliers, most_inliers);
-  // Ties (look-alikes that fit alike) keep the prescore order; std::sort with that as its last key
-  // (std::stable_sort would take a temporary buffer from the heap).
-  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
-    const Hypothesis& x = hyps[a];
-    const Hypothesis& y = hyps[b];
-    if (x.key != y.key) return x.key < y.key;
-    return prescore_before(x, y, a, b);
-  });
+  sort_by_key(*this);
 }
 
 void Recognizer::Impl::support_test(const Model& model, Hypothesis& h) const {
