@@ -44,17 +44,17 @@ Plane LaserModel::plane_at_mirror_angle(double mirror_angle_rad) const {
   return p;
 }
 
-double LaserModel::step_through(const Vec3& x) const {
+double LaserModel::step_through(const Vec3& x, double near_step) const {
   const Vec3 a = axis_dir.normalized();
   Vec3 v = x - axis_point;
   v -= v.dot(a) * a;
-  if (v.squaredNorm() < 1e-18) return std::nan("");
+  if (v.squaredNorm() < 1e-18 || rad_per_step == 0.0 || optical_gain == 0.0) return std::nan("");
   // A direction in the plane at angle 0, across the axis; the plane through x is at the angle of v from it,
-  // up to a half turn (a plane's normal has two signs): the one nearest the sweep's start.
+  // up to a half turn (a plane's normal has two signs): the one nearest the plane of near_step.
   const Vec3 d0 = normal_at_zero.cross(a).normalized();
   const double angle = std::atan2(d0.cross(v).dot(a), d0.dot(v));
-  const double start = optical_gain * mirror_angle_at_step0;
-  const double plane_angle = start + std::remainder(angle - start, M_PI);
+  const double ref = optical_gain * mirror_angle(near_step);
+  const double plane_angle = ref + std::remainder(angle - ref, M_PI);
   return (plane_angle / optical_gain - mirror_angle_at_step0) / rad_per_step;
 }
 
@@ -63,7 +63,7 @@ bool ScannerCalibration::covers(const Vec3& x) const {
   if (!camera.project(x, px)) return false;
   if (!(px.x() >= -0.5 && px.x() < camera.width - 0.5 && px.y() >= -0.5 && px.y() < camera.height - 0.5))
     return false;
-  const double step = laser.step_through(x);
+  const double step = laser.step_through(x, first_step + 0.5 * (static_cast<double>(step_count) - 1.0));
   return step >= first_step - 0.5 && step <= first_step + static_cast<double>(step_count) - 0.5;
 }
 

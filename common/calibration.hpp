@@ -57,10 +57,11 @@ struct LaserModel {
   double mirror_angle(double step) const { return mirror_angle_at_step0 + step * rad_per_step; }
   Plane plane_at_mirror_angle(double mirror_angle_rad) const;
   Plane plane_at_step(double step) const { return plane_at_mirror_angle(mirror_angle(step)); }
-  // The (fractional) galvo step whose light plane passes through x: the inverse of plane_at_step. The light
-  // leaves the axis toward x, so the plane's angle is that of the direction from the axis to x. NaN for a
-  // point on the axis.
-  double step_through(const Vec3& x) const;
+  // The (fractional) galvo step whose light plane passes through x: the inverse of plane_at_step. A plane
+  // through the axis is the same plane half a turn on, so of the steps whose plane contains x this is the one
+  // whose plane angle lies within a quarter turn of near_step's (pass the middle of the sweep: steps are
+  // absolute, and a sweep may start far from step 0). NaN for a point on the axis or a zero step size.
+  double step_through(const Vec3& x, double near_step = 0.0) const;
 };
 
 struct ScannerCalibration {

@@ -146,10 +146,11 @@ struct RecognizeParams {
       1.1;                   // a scene face may be this much larger than its model face (segmentation)
   int max_refined = 24;      // of those, the most plausible refined by ICP and verified finely
   int verify_per_face = 64;  // a scene face stops drawing hypotheses into verification after this many
-  // Screening: when the budget above cannot take every hypothesis, up to max_screened of them (highest
+  // Screening: when there are more hypotheses than max_verified, up to max_screened of them (highest
   // prescore first, screen_per_face per scene face) are first checked on a sparse sample set (a quarter of
-  // the coarse one) and the budget goes to the best screened. Look-alikes tie in the prescore (a polycube's
-  // visible faces fit hundreds of others); the measured points tell them apart. 0 = no screening.
+  // the coarse one) and the budget goes to the best screened (the others are not verified). Look-alikes tie
+  // in the prescore (a polycube's visible faces fit hundreds of others); the measured points tell them apart.
+  // 0 = no screening.
   int max_screened = 2048;
   int screen_per_face = 512;
   int refine_per_face = 3;  // ... and into refinement

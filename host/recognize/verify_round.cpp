@@ -125,9 +125,9 @@ double Recognizer::Impl::explained_share(const Hypothesis& h, const std::vector<
   return total > 0 ? std::min(1.0, static_cast<double>(explained) / static_cast<double>(total)) : 0.0;
 }
 
-// When the verification budget cannot take every hypothesis in order: the first max_screened (screen_per_face
-// per scene face) are checked on the sparse samples and move ahead of the rest, best screened first (by the
-// coarse check's ordering key).
+// When there are more hypotheses than max_verified: the first max_screened in prescore order (screen_per_face
+// per scene face) are checked on the sparse samples and only they go on, best screened first (by the coarse
+// check's ordering key); the rest are not verified this round.
 void Recognizer::Impl::screen_hypotheses(const RecognizeParams& params) {
   if (params.max_screened <= 0 || order.size() <= static_cast<std::size_t>(params.max_verified)) return;
   order_copy.assign(order.begin(), order.end());
@@ -218,7 +218,10 @@ void Recognizer::Impl::verify_hypotheses(Recognizer& rz, const HypothesisContext
 // samples (polycubes) are told apart only by the fine check, and the true one may come fourth.
 void Recognizer::Impl::refine_again(const RecognizeParams& params, double min_plausible) {
   const std::size_t used = order.size();
-  if (params.refine_again_margin < 0.0 || used >= slot_cells.size()) return;
+  // slot_cells holds at least one slot; max_refined bounds both passes together.
+  const std::size_t slots =
+      std::min(slot_cells.size(), static_cast<std::size_t>(std::max(params.max_refined, 0)));
+  if (params.refine_again_margin < 0.0 || used >= slots) return;
   // face_cover (sized by select_covering for every scene face of the coarse-checked hypotheses): -1 = the
   // face has a passing refined hypothesis, else the count of the second pass.
   std::fill(face_cover.begin(), face_cover.end(), 0);
@@ -230,7 +233,7 @@ void Recognizer::Impl::refine_again(const RecognizeParams& params, double min_pl
   }
   picked.clear();
   for (std::size_t i : coarse_order) {
-    if (picked.size() >= slot_cells.size() - used) break;
+    if (picked.size() >= slots - used) break;
     const Hypothesis& h = hyps[i];
     if (refined[i] || h.verify.confidence < min_plausible) continue;
     bool wanted = false;

@@ -73,6 +73,22 @@ TEST(Calibration, StepThroughInvertsPlaneAtStep) {
   EXPECT_TRUE(std::isnan(c.laser.step_through(c.laser.axis_point + 5.0 * c.laser.axis_dir)));
 }
 
+TEST(Calibration, CoversTheSameWhereverTheSweepsStepsStart) {
+  // The same physical sweep, its steps numbered from 20000 (a quarter turn of plane angle is 7854 steps at
+  // 1e-4 rad per step: beyond it, a fold around step 0 would pick the plane half a turn away).
+  const auto c = fs::ScannerCalibration::bench_default();
+  auto far = c;
+  far.first_step = 20000;
+  far.laser.mirror_angle_at_step0 = c.laser.mirror_angle_at_step0 - 20000 * c.laser.rad_per_step;
+  for (double x : {-160.0, -149.0, -60.0, 0.0, 90.0, 149.0, 160.0})
+    for (double z : {0.0, 40.0, 100.0}) {
+      const fs::Vec3 p(x, 10.0, z);
+      EXPECT_EQ(far.covers(p), c.covers(p)) << x << " " << z;
+      EXPECT_NEAR(far.laser.step_through(p, 20250.0), c.laser.step_through(p, 250.0) + 20000.0, 1e-6);
+    }
+  EXPECT_TRUE(far.covers(fs::Vec3(0.0, 0.0, 0.0)));
+}
+
 TEST(Calibration, CoversWhatTheSweepAndTheImageReach) {
   const auto c = fs::ScannerCalibration::bench_default();
   // The table line the sweep covers (x in [-150, 150]) and just beyond it.

@@ -173,6 +173,13 @@ TEST(PolycubeRecognition, AFaceWhoseRefinedHypothesesFailGetsItsNextTiesRefined)
       again.verified, again.reported, once.verified, once.reported);
   EXPECT_EQ(again.reported, 1);
   EXPECT_EQ(once.reported, 0);
+  // max_refined bounds both passes: 0 refines nothing, so nothing is verified finely or reported.
+  params.refine_again_margin = 0.05;
+  params.max_refined = 0;
+  fs::host::rec::Recognizer rec(p.library, params, scenes.at(0).cloud.points.size());
+  const auto& r = rec.recognize(scenes.at(0).cloud, &scenes.at(0).table);
+  EXPECT_TRUE(rec.candidates().empty());
+  EXPECT_TRUE(r.objects.empty());
 }
 
 }  // namespace
