@@ -405,17 +405,25 @@ double matched_scene_area(const HypothesisContext& c, const Hypothesis& h) {
   return area;
 }
 
-double support_factor(const Model& model, const Mat3& R, const Vec3& t, const Plane& table,
-                      std::span<const Eigen::Vector3f> points, const SupportParams& p, double* lowest) {
+double lowest_point(const Model& model, const Mat3& R, const Vec3& t, const Plane& table, Vec3* where) {
   double low = std::numeric_limits<double>::infinity();
-  Vec3 v_low = Vec3::Zero();
   for (const ModelFace& f : model.faces)
     for (const auto& loop : f.loops)
       for (const Vec3& v : loop) {
         const Vec3 w = R * v + t;
         const double z = table.signed_distance(w);
-        if (z < low) low = z, v_low = w;
+        if (z < low) {
+          low = z;
+          if (where) *where = w;
+        }
       }
+  return low;
+}
+
+double support_factor(const Model& model, const Mat3& R, const Vec3& t, const Plane& table,
+                      std::span<const Eigen::Vector3f> points, const SupportParams& p, double* lowest) {
+  Vec3 v_low = Vec3::Zero();
+  const double low = lowest_point(model, R, t, table, &v_low);
   if (lowest) *lowest = low;
   if (std::abs(low) <= p.tol_mm) return 1.0;
   if (low > 0) {

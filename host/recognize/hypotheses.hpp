@@ -116,6 +116,11 @@ double support_factor(const Model& model, const Mat3& R, const Vec3& t, const Pl
                       std::span<const Eigen::Vector3f> points, const SupportParams& p,
                       double* lowest = nullptr);
 
+// Height above the table of the posed model's lowest vertex (negative: it sinks into the table); where: that
+// vertex.
+double lowest_point(const Model& model, const Mat3& R, const Vec3& t, const Plane& table,
+                    Vec3* where = nullptr);
+
 // Model faces whose outward normal faces the viewpoint in pose (R, t).
 int count_visible_faces(const Model& model, const Mat3& R, const Vec3& t, const Vec3& viewpoint);
 

@@ -103,8 +103,10 @@ struct RecognizeParams {
   // accepted when those points belong to other objects (accepted, or waiting for an object to rest on) and
   // its confidence without them reaches this (an object explained together with others must fit clearly).
   double hidden_min_confidence = 0.9;
-  double confidence_weight = 0.2;   // ordering key = cost + weight * (1 - confidence)
-  double inlier_weight = 0.01;      //   - inlier_weight * inliers / (most inliers of the round's hypotheses)
+  double confidence_weight = 0.2;  // ordering key = cost + weight * (1 - confidence)
+  // - inlier_weight * inliers / (most inliers of the round's hypotheses): of look-alikes that fit the coarse
+  // samples alike, the one explaining the most measured points goes to refinement first.
+  double inlier_weight = 0.2;
   double max_shared_inliers = 0.3;  // two objects may not explain more than this share of the same points
   // An accepted object lists as alternatives the other models' verified hypotheses on at least half of its
   // scene faces whose confidence is within alternative_confidence and whose inliers are at least
@@ -148,7 +150,8 @@ struct RecognizeParams {
   int verify_per_face = 64;  // a scene face stops drawing hypotheses into verification after this many
   // Screening: when there are more hypotheses than max_verified, up to max_screened of them (highest
   // prescore first, screen_per_face per scene face) are first checked on a sparse sample set (a quarter of
-  // the coarse one) and the budget goes to the best screened (the others are not verified). Look-alikes tie
+  // the coarse one) and the budget goes to the best screened first, then to the unscreened rest in prescore
+  // order (a face the screening did not reach keeps its share). Look-alikes tie
   // in the prescore (a polycube's visible faces fit hundreds of others); the measured points tell them apart.
   // 0 = no screening.
   int max_screened = 2048;

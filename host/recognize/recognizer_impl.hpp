@@ -198,6 +198,7 @@ struct Recognizer::Impl {
   double support_tol = 3.0, support_radius = 6.0, unsupported_factor = 0.5;
 
   void support_test(const Model& model, Hypothesis& h) const;
+  void sink_test(const Model& model, Hypothesis& h) const;
   // h failed the support test but rests on an accepted object: its confidence is restored (true).
   bool supported_by_accepted(Hypothesis& h, const Recognition& out) const;
   static constexpr std::size_t kNoHypothesis = static_cast<std::size_t>(-1);

@@ -60,10 +60,12 @@ void verify_task(void* ctx, std::size_t task, int worker) {
     m.raw_confidence[m.order[task]] = h.verify.confidence;
   }
   m.scale_by_explained(h, *cells, m.refine_phase);
-  if (m.refine_phase)
+  if (m.refine_phase) {
     m.support_test(m.library->models[static_cast<std::size_t>(h.model)], h);
-  else
+  } else {
     m.reseat(m.order[task], worker);
+    m.sink_test(m.library->models[static_cast<std::size_t>(h.model)], h);
+  }
 }
 
 // Ordering key of a checked hypothesis (lower first): cost + weight * (1 - confidence) - inlier_weight *
@@ -126,8 +128,9 @@ double Recognizer::Impl::explained_share(const Hypothesis& h, const std::vector<
 }
 
 // When there are more hypotheses than max_verified: the first max_screened in prescore order (screen_per_face
-// per scene face) are checked on the sparse samples and only they go on, best screened first (by the coarse
-// check's ordering key); the rest are not verified this round.
+// per scene face) are checked on the sparse samples and go first, best screened first (by the coarse check's
+// ordering key); the unscreened rest follows in prescore order, so a scene face the screening budget did not
+// reach still gets its share of the checks.
 void Recognizer::Impl::screen_hypotheses(const RecognizeParams& params) {
   if (params.max_screened <= 0 || order.size() <= static_cast<std::size_t>(params.max_verified)) return;
   order_copy.assign(order.begin(), order.end());
@@ -145,6 +148,8 @@ void Recognizer::Impl::screen_hypotheses(const RecognizeParams& params) {
     hyps[i].key =
         ordering_key(params, hyps[i].cost, hyps[i].screened, hyps[i].screened_inliers, most_inliers);
   sort_by_key(*this);
+  for (std::size_t i : order_copy)
+    if (hyps[i].screened < 0.0) order.push_back(i);
 }
 
 // How much of the matched scene regions the model explains (cells: its inlier cells): a model smaller than
@@ -268,6 +273,14 @@ void Recognizer::Impl::rekey(const RecognizeParams& params) {
     hyps[i].key =
         ordering_key(params, hyps[i].cost, hyps[i].verify.confidence, hyps[i].verify.inliers, most_inliers);
   sort_by_key(*this);
+}
+
+// The coarse check's part of the support test (vertices only, no search of the measured points): a model
+// that sinks into the table is not a physical placement, though the table points its hidden part lies under
+// count as its inliers (a look-alike larger than the object, its extra part under the table).
+void Recognizer::Impl::sink_test(const Model& model, Hypothesis& h) const {
+  if (have_table && lowest_point(model, h.R, h.t, table) < -support_tol)
+    h.verify.confidence *= unsupported_factor;
 }
 
 void Recognizer::Impl::support_test(const Model& model, Hypothesis& h) const {

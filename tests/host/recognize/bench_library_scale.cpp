@@ -29,6 +29,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <memory>
 #include <string>
@@ -42,6 +43,7 @@
 #include "host/library/polycubes.hpp"
 #include "host/match/inexact.hpp"
 #include "host/match/node_set.hpp"
+#include "host/recognize/pose.hpp"
 #include "host/recognize/recognizer.hpp"
 #include "hw-sim/scene/polycube_catalog.hpp"
 #include "hw-sim/scene/random_scene.hpp"
@@ -300,6 +302,20 @@ void truth_among_hypotheses(const BenchScene& sc, const fs::host::rec::Recognize
     const bool in_verified = std::any_of(verified.begin(), verified.end(), near);
     s.truth_hypothesis += in_all ? 1 : 0;
     s.truth_verified += in_verified ? 1 : 0;
+    if (verbose && !in_all) {
+      // Why no hypothesis is near: the true model's hypotheses (all poses) and the nearest one's centre
+      // error.
+      int of_truth = 0;
+      double nearest = std::numeric_limits<double>::infinity();
+      for (const auto* h : all)
+        if (h->model == truth) {
+          ++of_truth;
+          nearest = std::min(nearest, (h->R * tm.center + h->t - centre).norm());
+        }
+      std::printf(
+          "    %s: no hypothesis near; %d of %zu hypotheses of the model, the nearest centre %.1f mm off\n",
+          o.model.c_str(), of_truth, all.size(), nearest);
+    }
     if (verbose && in_all && !in_verified) {
       // Why it was not verified: its best prescore and how many hypotheses scored higher.
       double best = -1.0;
@@ -330,8 +346,18 @@ void truth_among_hypotheses(const BenchScene& sc, const fs::host::rec::Recognize
           std::count_if(all.begin(), all.end(), [&](const auto* h) { return h->screened > scr; });
       const auto scr_equal =
           std::count_if(all.begin(), all.end(), [&](const auto* h) { return h->screened == scr; });
-      std::printf("    %s: screened %.3f, %td of %td screened above it, %td equal\n", o.model.c_str(), scr,
-                  scr_above, screened, scr_equal);
+      // The pose of the truth's best-screened hypothesis (its best prescore one when none was screened).
+      const fs::host::rec::Hypothesis* pick = nullptr;
+      for (const auto* h : all)
+        if (near(h) && (!pick || h->screened > pick->screened ||
+                        (h->screened == pick->screened && h->prescore > pick->prescore)))
+          pick = h;
+      std::printf(
+          "    %s: screened %.3f, %td of %td screened above it, %td equal; its pose %.1f mm, %.1f deg off, "
+          "%d free dims\n",
+          o.model.c_str(), scr, scr_above, screened, scr_equal,
+          (pick->R * tm.center + pick->t - centre).norm(),
+          fs::host::rec::rotation_angle_deg_sym(pick->R, o.R, tm), pick->free_dims);
       if (coarse < 0.0)
         std::printf("    %s: not coarse-checked (%td checked)\n", o.model.c_str(), checked);
       else
@@ -538,6 +564,11 @@ Args parse_args(CLI::App& app, int argc, char** argv) {
       "RecognizeParams::refine_again_margin (default 0.05): a second refinement for a face whose "
       "refined hypotheses all failed, among those within this coarse confidence of its best; < 0 = "
       "none");
+  app.add_option("--inlier-weight", a.params.inlier_weight,
+                 "RecognizeParams::inlier_weight (default 0.2): the ordering key's weight of the inliers");
+  app.add_option(
+      "--confidence-weight", a.params.confidence_weight,
+      "RecognizeParams::confidence_weight (default 0.2): the ordering key's weight of the confidence");
   app.add_option("--rounds", a.params.rounds,
                  "RecognizeParams::rounds (default 3): matching + verification rounds")
       ->check(CLI::Range(1, 100));
