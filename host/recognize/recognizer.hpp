@@ -151,9 +151,8 @@ struct RecognizeParams {
   // Screening: when there are more hypotheses than max_verified, up to max_screened of them (highest
   // prescore first, screen_per_face per scene face) are first checked on a sparse sample set (a quarter of
   // the coarse one) and the budget goes to the best screened first, then to the unscreened rest in prescore
-  // order (a face the screening did not reach keeps its share). Look-alikes tie
-  // in the prescore (a polycube's visible faces fit hundreds of others); the measured points tell them apart.
-  // 0 = no screening.
+  // order (a face the screening did not reach keeps its share). Look-alikes tie in the prescore (a
+  // polycube's visible faces fit hundreds of others); the measured points tell them apart. 0 = no screening.
   int max_screened = 2048;
   int screen_per_face = 512;
   int refine_per_face = 3;  // ... and into refinement
