@@ -78,6 +78,8 @@ void apply_config_json(FwConfig& c, const std::string& text, const std::string& 
       c.stream_buffer_kb = get_num<std::uint32_t>(v, src, k, 64, 1 << 20);
     else if (k == "host_heartbeat_timeout_ms")
       c.host_heartbeat_timeout_ms = get_num<std::uint32_t>(v, src, k, 0, 3.6e6);
+    else if (k == "stream_drain_ms")
+      c.stream_drain_ms = get_num<std::uint32_t>(v, src, k, 0, 3.6e6);
     else if (k == "faults") {
       if (!v.is_array()) bad(src, k, "expected an array of fault specs");
       c.faults.clear();

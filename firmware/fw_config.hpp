@@ -19,7 +19,7 @@
 //     "sim_camera": {"period_us": 5000, "exposure_us": 1000, "readout_us": 1000, "buffers": 4,
 //                    "speckle_grain_px": 0 (correlation length of the simulated speckle, 0..8; 0 = per
 //                    pixel)},
-//     "stream_buffer_kb": 16384, "host_heartbeat_timeout_ms": 0
+//     "stream_buffer_kb": 16384, "host_heartbeat_timeout_ms": 0, "stream_drain_ms": 2000
 //   }
 // Unknown keys and wrong types are errors: fs::Error "<file>: <field>: <problem>".
 #include <cstdint>
@@ -52,6 +52,7 @@ struct FwConfig {
   double sim_speckle_grain_px = 0.0;  // sim::RenderOptions::speckle_grain_px of the simulated camera's frames
   std::uint32_t stream_buffer_kb = 16384;
   std::uint32_t host_heartbeat_timeout_ms = 0;  // 0: host heartbeats not required
+  std::uint32_t stream_drain_ms = 2000;  // at the end, how long the host may take to read what is queued
   bool steps_given = false;
 };
 

@@ -39,6 +39,11 @@ using namespace fs;
 // itself completed; a fatal fault takes precedence: 2).
 constexpr int kExitUndelivered = 4;
 
+// "2 s", "500 ms": the drain time as the summary names it.
+std::string drain_text(std::uint32_t ms) {
+  return ms % 1000 == 0 ? std::to_string(ms / 1000) + " s" : std::to_string(ms) + " ms";
+}
+
 class NullSink final : public wire::FrameSink {
  public:
   void write(std::span<const std::uint8_t> b) override { bytes += b.size(); }
@@ -208,8 +213,8 @@ int run_scan(fw::FwConfig& cfg) {
   StreamOutcome so;
   if (tcp) {
     // Hand the last frames (the final stripes and ScanEnd) to the host before the process exits; what the
-    // host has not acknowledged after 2 s is undelivered.
-    const bool drained = tcp->drain(2'000'000'000);
+    // host has not acknowledged after stream_drain_ms is undelivered.
+    const bool drained = tcp->drain(static_cast<fw::Nanos>(cfg.stream_drain_ms) * 1'000'000);
     const std::size_t left = tcp->buffered_bytes();
     const bool connected = tcp->connected();
     tcp->close();
@@ -219,8 +224,8 @@ int run_scan(fw::FwConfig& cfg) {
     so.connections = tcp->connections();
     so.error = tcp->last_error();
     if (so.undelivered > 0 && connected && !drained)  // connected, but the host stopped reading
-      so.error = "the host did not take the stream (" + std::to_string(left) +
-                 " bytes still queued after 2 s, stripes unacknowledged)";
+      so.error = "the host did not take the stream (" + std::to_string(left) + " bytes still queued after " +
+                 drain_text(cfg.stream_drain_ms) + ", stripes unacknowledged)";
     else if (so.undelivered > 0 && so.error.empty())
       so.error = "not connected";
     if (hold) {

@@ -67,4 +67,15 @@ TEST(FwConfigFile, CpuLatencyLimitIsTakenAndChecked) {
             0u);
 }
 
+TEST(FwConfigFile, StreamDrainIsTakenAndChecked) {
+  fs::fw::FwConfig cfg;
+  EXPECT_EQ(cfg.stream_drain_ms, 2000u);
+  fs::fw::apply_config_json(cfg, R"({"stream_drain_ms": 30000})", "board.json");
+  EXPECT_EQ(cfg.stream_drain_ms, 30000u);
+  EXPECT_EQ(error_of([&] {
+              fs::fw::apply_config_json(cfg, R"({"stream_drain_ms": -1})", "board.json");
+            }).rfind("board.json: stream_drain_ms: out of range", 0),
+            0u);
+}
+
 }  // namespace

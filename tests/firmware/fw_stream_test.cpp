@@ -183,7 +183,11 @@ TEST(FwStream, HostThatNeverReadsLeavesStripesUndelivered) {
     if (c >= 0) close(c);
   });
   const stdfs::path rec = temp_path("noread.fscan");
-  const CmdResult r = run(hil() + " --steps 60 --stream " + l.address() + " --record " + rec.string());
+  // The host gets stream_drain_ms (300 ms here, 2 s by default) at the end to take what is queued.
+  const stdfs::path cfg = temp_path("noread.json");
+  std::ofstream(cfg) << R"({"stream_drain_ms": 300})";
+  const CmdResult r = run(hil() + " --config " + cfg.string() + " --steps 60 --stream " + l.address() +
+                          " --record " + rec.string());
   stop = true;
   host.join();
   EXPECT_EQ(r.code, 4) << r.out;
@@ -192,6 +196,7 @@ TEST(FwStream, HostThatNeverReadsLeavesStripesUndelivered) {
   EXPECT_EQ(u.m, 60u);
   EXPECT_GT(u.n, 0u);  // the host's small receive buffer holds a few stripes at most
   EXPECT_NE(u.error.find("the host did not take the stream"), std::string::npos) << u.error;
+  EXPECT_NE(u.error.find("still queued after 300 ms"), std::string::npos) << u.error;
   expect_recorded_count(rec, u.n, 60);
 }
 

@@ -6,6 +6,7 @@ gateway publishes every scan to SCANS through its disk spool; workers recognize.
 workers; the server away (scans spooled) and the gateway SIGKILLed and restarted on its spool; a full spool
 holding the scanners; a 3-node cluster (the shipped node configs) losing one node mid-batch.
 """
+import atexit
 import glob
 import json
 import os
@@ -14,6 +15,7 @@ import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 import unittest
 
@@ -27,10 +29,23 @@ def scene_file(scene):
     return os.path.join(fs.ARGS.source, "hw-sim", "scenes", f"{scene}.json")
 
 
+def drain_config():
+    """A firmware config that gives the host 60 s (not 2 s) to take the last queued frames: these tests are
+    about delivery through the gateway, and a loaded machine may keep the gateway from reading for seconds."""
+    fd, path = tempfile.mkstemp(prefix="fs_gateway_fw_", suffix=".json")
+    with os.fdopen(fd, "w") as f:
+        json.dump({"stream_drain_ms": 60000}, f)
+    atexit.register(os.remove, path)
+    return path
+
+
+DRAIN_CONFIG = drain_config()
+
+
 def stream_scan(gateway, scene, wait=True, scan_id=1):
     """One simulated scanner streams one 500-stripe scan of `scene` to the gateway."""
-    cmd = [fs.ARGS.fw_hil, "--scene", scene_file(scene), "--stream", f"127.0.0.1:{gateway.port}",
-           "--scan-id", str(scan_id)]
+    cmd = [fs.ARGS.fw_hil, "--config", DRAIN_CONFIG, "--scene", scene_file(scene), "--stream",
+           f"127.0.0.1:{gateway.port}", "--scan-id", str(scan_id)]
     if wait:
         return run(cmd)
     return subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
