@@ -2,8 +2,10 @@
 // hypothesis down (no shared scene face, few shared inliers, no interpenetrating solids; a reused model is a
 // second instance; an object is supported by the table, by measured points under it or by an accepted
 // object). Beyond the thesis's greedy extraction, a hypothesis that explains the points of the objects it
-// conflicts with, and more, replaces them; and the report of an empty result.
+// conflicts with, and more, or fits the same points better, replaces them; a look-alike met only across
+// rounds is listed as an alternative; and the report of an empty result.
 #include <algorithm>
+#include <array>
 #include <cstdio>
 
 #include "host/recognize/recognizer_impl.hpp"
@@ -36,6 +38,19 @@ void find_alternatives(const Recognizer::Impl& im, std::size_t self, const Recog
     if (listed) continue;
     h.alternative[static_cast<std::size_t>(h.alternatives++)] = {o.model, o.verify.confidence};
   }
+}
+
+// Lists model `model` (confidence `fit`, `inliers` inlier points) as an alternative of accepted object o when
+// it fits o's points as well (confidence within alternative_confidence, inliers >= alternative_inliers x
+// o's), is another model, is not listed yet and there is room: a look-alike that met o across rounds.
+void list_alternative(const RecognizeParams& params, int model, double fit, int inliers, Hypothesis& o) {
+  if (model == o.model || o.alternatives >= Hypothesis::kMaxAlternatives ||
+      fit < o.verify.confidence - params.alternative_confidence ||
+      static_cast<double>(inliers) < params.alternative_inliers * static_cast<double>(o.verify.inliers))
+    return;
+  for (const Hypothesis::Alternative& a : o.listed_alternatives())
+    if (a.model == model) return;
+  o.alternative[static_cast<std::size_t>(o.alternatives++)] = {model, fit};
 }
 
 }  // namespace
@@ -109,20 +124,31 @@ bool Recognizer::Impl::accept_one(const RecognizeParams& params, Recognizer& rz,
   clash =
       clash || solid_clash ||
       static_cast<double>(shared) > params.max_shared_inliers * static_cast<double>(h.inlier_cells.size());
+  // The objects h replaces (their models may fit as well: candidates of h).
+  struct Replaced {
+    int model = -1;
+    double fit = 0.0;
+    int inliers = 0;
+  };
+  std::array<Replaced, Hypothesis::kMaxAlternatives> replaced_models{};
+  std::size_t carried = 0;
   if (clash) {
     // One model that explains the points of the objects it conflicts with, and more, at least as well
     // replaces them (a larger model over a region that smaller ones split; the points decide).
+    // `better`: the other way to replace them, a better fit of the same points (below).
     double replaced_inliers = 0.0;
     int replaced_violations = 0;
-    bool replace = true;
+    bool replace = true, better = true;
     int conflicts = 0;
-    for (std::size_t k = 0; k < out.objects.size() && replace; ++k) {
+    for (std::size_t k = 0; k < out.objects.size(); ++k) {
       const Hypothesis& o = out.objects[k];
       const double own = static_cast<double>(o.inlier_cells.size());
       if (!conflicts_with(params, k, out)) continue;
       ++conflicts;
-      replace = h.verify.confidence >= o.verify.confidence - params.alternative_confidence &&
-                static_cast<double>(conflict_cells[k]) >= params.replace_cover * own;
+      const bool covers = static_cast<double>(conflict_cells[k]) >= params.replace_cover * own;
+      replace =
+          replace && covers && h.verify.confidence >= o.verify.confidence - params.alternative_confidence;
+      better = better && covers && h.verify.confidence >= o.verify.confidence + params.replace_better;
       replaced_violations += o.verify.violations;
       // The points the objects explain together (a cell counts once: for its owner).
       for (std::uint32_t c : o.inlier_cells)
@@ -132,12 +158,28 @@ bool Recognizer::Impl::accept_one(const RecognizeParams& params, Recognizer& rz,
     const double h_cells = static_cast<double>(h.inlier_cells.size());
     replace = replace && conflicts > 0 && h_cells >= params.replace_gain * replaced_inliers &&
               h.verify.violations <= replaced_violations + params.replace_violations * h_cells;
+    // ... or one that explains about as many of their points with fewer violations and a clearly higher
+    // confidence (a smaller model where a larger one claimed matter in seen free space).
+    better = better && conflicts > 0 && h_cells >= params.alternative_inliers * replaced_inliers &&
+             h.verify.violations < replaced_violations;
+    replace = replace || better;
     if (!replace) {
       out.stats.interpenetrating += solid_clash ? 1 : 0;
+      // A look-alike of the one object it conflicts with, on most of its points: an alternative of it.
+      if (conflicts == 1)
+        for (std::size_t k = 0; k < out.objects.size(); ++k)
+          if (conflicts_with(params, k, out) &&
+              static_cast<double>(conflict_cells[k]) >=
+                  params.replace_cover * static_cast<double>(out.objects[k].inlier_cells.size()))
+            list_alternative(params, h.model, h.verify.confidence, h.verify.inliers, out.objects[k]);
       return false;
     }
     for (std::size_t k = out.objects.size(); k-- > 0;) {
       if (conflicts_with(params, k, out)) {
+        // A replaced look-alike that fits as well stays a candidate (listed after this round's ones).
+        const Hypothesis& o = out.objects[k];
+        if (carried < replaced_models.size())
+          replaced_models[carried++] = {o.model, o.verify.confidence, o.verify.inliers};
         remove_object(out, k);
         ++out.stats.replaced;
       }
@@ -147,6 +189,8 @@ bool Recognizer::Impl::accept_one(const RecognizeParams& params, Recognizer& rz,
   const auto obj_index = static_cast<std::int32_t>(out.objects.size());
   for (std::uint32_t c : h.inlier_cells) cell_owner[c] = obj_index;
   find_alternatives(*this, i, params, h);
+  for (std::size_t k = 0; k < carried; ++k)
+    list_alternative(params, replaced_models[k].model, replaced_models[k].fit, replaced_models[k].inliers, h);
   canonical_pose(rz.library_.models[static_cast<std::size_t>(h.model)], h.R, h.t);
   out.objects.emplace_back();
   std::swap(out.objects.back(), spare_objects[out.objects.size() - 1]);

@@ -128,6 +128,9 @@ struct RecognizeParams {
   double replace_cover = 0.5;
   double replace_gain = 1.1;
   double replace_violations = 0.01;
+  // ... or when it explains at least alternative_inliers x their inliers with fewer violations and a
+  // confidence at least replace_better above each of theirs (a better fit of the same points).
+  double replace_better = 0.03;
   // Faces one searched part of the scene graph may hold; a connected part with more is searched in
   // overlapping windows of this many faces. 0 = the matcher's limit (match::kMaxNodes minus the supernodes);
   // a larger value is clamped to it.

@@ -14,7 +14,8 @@
 //                     --max-solutions,
 //                     --no-rigidity-pairs, --max-verified, --verify-per-face, --refine-per-face,
 //                     --max-refined, --max-screened, --screen-per-face,
-//                     --rounds, --inlier-weight, --sample-mm, --seg-dist, --seg-noise-factor,
+//                     --rounds, --inlier-weight, --replace-better, --sample-mm, --seg-dist,
+//                     --seg-noise-factor,
 //                     --seg-merge-angle;
 //                     `--help` lists them with their meaning)
 //
@@ -165,6 +166,8 @@ Args parse_args(CLI::App& app, int argc, char** argv) {
   app.add_option("--max-refined", p.max_refined, "hypotheses refined by ICP")->check(positive);
   app.add_option("--rounds", p.rounds, "rounds of matching + verification")->check(positive);
   app.add_option("--inlier-weight", p.inlier_weight, "RecognizeParams::inlier_weight")->check(non_negative);
+  app.add_option("--replace-better", p.replace_better, "RecognizeParams::replace_better (> 1 = off)")
+      ->check(non_negative);
   app.add_option(
          "--support-radius", p.support_radius_mm,
          "RecognizeParams::support_radius_mm (0 = only the table or an accepted object holds a solid up)")
