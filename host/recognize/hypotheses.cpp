@@ -1,12 +1,16 @@
 #include "host/recognize/hypotheses.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 
 namespace fs::host::rec {
 
 namespace {
+
+// Rays that must end in front of the space under a floating solid (look_below) for it to count as held up.
+constexpr int kMinHiddenRays = 3;
 
 const PfrgNode* scene_node(const HypothesisContext& c, int id) {
   if (id < 0 || static_cast<std::size_t>(id) >= c.scene_index.size()) return nullptr;
@@ -432,8 +436,48 @@ double support_factor(const Model& model, const Mat3& R, const Vec3& t, const Pl
       const Vec3 q = pf.cast<double>();
       if ((q - v_low).squaredNorm() <= r2 && table.signed_distance(q) < low - 1.0) return 1.0;
     }
+    if (p.look_below) {
+      const SpaceBelow below = look_below(v_low, table, p.viewpoint, points, p.tol_mm);
+      if (below.seen_through == 0 && below.hidden >= kMinHiddenRays) return 1.0;
+    }
   }
   return p.unsupported;
+}
+
+SpaceBelow look_below(const Vec3& lowest, const Plane& table, const Vec3& viewpoint,
+                      std::span<const Eigen::Vector3f> points, double tol_mm) {
+  constexpr double kStep = 2.0, kRay = 1.5, kMargin = 2.0;
+  SpaceBelow out;
+  const double low = table.signed_distance(lowest);
+  std::array<Vec3, 64> probe;
+  std::size_t n = 0;
+  for (double h = low - tol_mm; h >= 1.0 && n < probe.size(); h -= kStep)
+    probe[n++] = lowest - (low - h) * table.n;
+  if (n == 0) return out;
+  // Only rays toward the probe's neighbourhood: the cone from the viewpoint around its middle.
+  const Vec3 mid = 0.5 * (probe[0] + probe[n - 1]);
+  const double half = 0.5 * (probe[0] - probe[n - 1]).norm() + kRay;
+  const Vec3 to_mid = mid - viewpoint;
+  const double mid_dist = to_mid.norm();
+  const Vec3 axis = to_mid / mid_dist;
+  const double cos_cone = std::cos(std::atan2(half, std::max(mid_dist - half, 1.0)));
+  for (const Eigen::Vector3f& pf : points) {
+    const Vec3 d = pf.cast<double>() - viewpoint;
+    const double range = d.norm();
+    if (range <= 0.0) continue;
+    const Vec3 u = d / range;
+    if (u.dot(axis) < cos_cone) continue;
+    for (std::size_t k = 0; k < n; ++k) {
+      const Vec3 w = probe[k] - viewpoint;
+      const double s = w.dot(u);
+      if (s <= 0.0 || w.squaredNorm() - s * s > kRay * kRay) continue;
+      if (range > s + kMargin)
+        ++out.seen_through;
+      else if (range < s - kMargin)
+        ++out.hidden;
+    }
+  }
+  return out;
 }
 
 int count_visible_faces(const Model& model, const Mat3& R, const Vec3& t, const Vec3& viewpoint) {

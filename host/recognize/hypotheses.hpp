@@ -105,16 +105,32 @@ double matched_scene_area(const HypothesisContext& c, const Hypothesis& h);
 // Support (beyond the thesis): a solid object rests on the table or on something measured just below its
 // lowest point. Returns 1 when the model's lowest point in pose (R, t) lies within tol_mm of the table plane
 // (normal toward the sensor), or above it with a measured point within radius_mm of that point and more than
-// 1 mm lower; else `unsupported` (also when it sinks into the table). *lowest receives the lowest point's
-// height.
+// 1 mm lower, or (look_below) above it with the space under that point hidden from the sensor (at least 3
+// rays of look_below end in front of it, none beyond);
+// else `unsupported` (also when it sinks into the table). *lowest receives the lowest point's height.
 struct SupportParams {
   double tol_mm = 3.0;
   double radius_mm = 6.0;
   double unsupported = 0.5;
+  bool look_below = false;
+  Vec3 viewpoint = Vec3::Zero();  // the sensor, for look_below
 };
 double support_factor(const Model& model, const Mat3& R, const Vec3& t, const Plane& table,
                       std::span<const Eigen::Vector3f> points, const SupportParams& p,
                       double* lowest = nullptr);
+
+// The space under a floating solid's lowest point, seen from the sensor (beyond the thesis): probe points
+// every 2 mm from tol_mm below `lowest` down to 1 mm above the table. A measured point whose ray from the
+// viewpoint passes within 1.5 mm of a probe point ends in front of it (hides it: `hidden`) or beyond it (the
+// sensor saw through that space: `seen_through`), by more than 2 mm. A solid resting on an object nothing of
+// which is in view has only hidden space under it; one floating in front of the table may have the table
+// seen through it. (Probing under every base vertex instead was measured no better.)
+struct SpaceBelow {
+  int hidden = 0;
+  int seen_through = 0;
+};
+SpaceBelow look_below(const Vec3& lowest, const Plane& table, const Vec3& viewpoint,
+                      std::span<const Eigen::Vector3f> points, double tol_mm);
 
 // Height above the table of the posed model's lowest vertex (negative: it sinks into the table); where: that
 // vertex.

@@ -61,6 +61,9 @@ bool Recognizer::Impl::prepare_scene(Recognizer& rz, const OrganizedCloud& cloud
   support_tol = params.support_tol_mm;
   support_radius = params.support_radius_mm;
   unsupported_factor = params.unsupported_factor;
+  support_hidden_below = params.support_hidden_below;
+  hidden_below_min_faces = params.hidden_below_min_faces;
+  hidden_below_min_fit = params.hidden_below_min_fit;
   out.stats.pfrg_ms = ms_since(t0);
   int known_nodes = 0;
   for (const auto& n : rz.scene_.nodes) known_nodes += n.supernode ? 0 : 1;

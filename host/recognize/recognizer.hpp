@@ -97,6 +97,12 @@ struct RecognizeParams {
   double support_tol_mm = 3.0;
   double support_radius_mm = 6.0;
   double unsupported_factor = 0.5;
+  // ... or whose space under its lowest point is hidden from the sensor with none of it seen through
+  // (look_below in hypotheses.hpp): it may rest on an object nothing of which is in view.
+  bool support_hidden_below = true;
+  // ... when the solid is seen clearly: at least this many matched faces and this fit before the factor.
+  int hidden_below_min_faces = 3;
+  double hidden_below_min_fit = 0.9;
   // Acceptance.
   double min_confidence = 0.6;
   // A hypothesis below min_confidence only because of measured points in front of it (occluded rays) is

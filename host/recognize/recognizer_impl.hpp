@@ -196,6 +196,9 @@ struct Recognizer::Impl {
   bool have_table = false;
   Plane table;
   double support_tol = 3.0, support_radius = 6.0, unsupported_factor = 0.5;
+  bool support_hidden_below = true;
+  int hidden_below_min_faces = 3;
+  double hidden_below_min_fit = 0.9;
 
   void support_test(const Model& model, Hypothesis& h) const;
   void sink_test(const Model& model, Hypothesis& h) const;

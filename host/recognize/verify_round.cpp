@@ -285,9 +285,14 @@ void Recognizer::Impl::sink_test(const Model& model, Hypothesis& h) const {
 
 void Recognizer::Impl::support_test(const Model& model, Hypothesis& h) const {
   if (!have_table) return;
+  // Space hidden under a solid holds it up only when the solid itself is seen clearly: its pose fixed by
+  // enough matched faces, its fit high.
+  const bool look = support_hidden_below && static_cast<int>(h.matches.size()) >= hidden_below_min_faces &&
+                    h.verify.confidence >= hidden_below_min_fit;
   h.verify.support =
       support_factor(model, h.R, h.t, table, fine.points(),
-                     SupportParams{support_tol, support_radius, unsupported_factor}, &h.verify.lowest_mm);
+                     SupportParams{support_tol, support_radius, unsupported_factor, look, fine.viewpoint()},
+                     &h.verify.lowest_mm);
   h.verify.confidence *= h.verify.support;
 }
 

@@ -312,9 +312,14 @@ void truth_among_hypotheses(const BenchScene& sc, const fs::host::rec::Recognize
           ++of_truth;
           nearest = std::min(nearest, (h->R * tm.center + h->t - centre).norm());
         }
-      std::printf(
-          "    %s: no hypothesis near; %d of %zu hypotheses of the model, the nearest centre %.1f mm off\n",
-          o.model.c_str(), of_truth, all.size(), nearest);
+      if (of_truth == 0)
+        std::printf("    %s: no hypothesis near; none of the last round's %zu hypotheses is of the model\n",
+                    o.model.c_str(), all.size());
+      else
+        std::printf(
+            "    %s: no hypothesis near; %d of the last round's %zu hypotheses are of the model, the nearest "
+            "centre %.1f mm off\n",
+            o.model.c_str(), of_truth, all.size(), nearest);
     }
     if (verbose && in_all && !in_verified) {
       // Why it was not verified: its best prescore and how many hypotheses scored higher.

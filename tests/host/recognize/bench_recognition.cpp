@@ -172,6 +172,12 @@ Args parse_args(CLI::App& app, int argc, char** argv) {
          "--support-radius", p.support_radius_mm,
          "RecognizeParams::support_radius_mm (0 = only the table or an accepted object holds a solid up)")
       ->check(non_negative);
+  app.add_option("--min-confidence", p.min_confidence, "RecognizeParams::min_confidence")
+      ->check(non_negative);
+  app.add_option("--hidden-below-faces", p.hidden_below_min_faces, "RecognizeParams::hidden_below_min_faces");
+  app.add_option("--hidden-below-fit", p.hidden_below_min_fit, "RecognizeParams::hidden_below_min_fit");
+  app.add_flag("--no-hidden-below{false}", p.support_hidden_below,
+               "RecognizeParams::support_hidden_below off (space hidden under a solid does not hold it up)");
   app.add_option("--hidden-min-confidence", p.hidden_min_confidence, "RecognizeParams::hidden_min_confidence")
       ->check(non_negative);
   app.add_option("--sample-mm", p.verify.sample_spacing_mm,

@@ -135,6 +135,42 @@ TEST(Support, StackedOnMeasuredSurfaceIsSupported) {
   EXPECT_EQ(fs::host::rec::support_factor(m, Mat3::Identity(), Vec3(0, 0, 20), table, pts, {}), 1.0);
 }
 
+// The space under a floating solid (look_below), the sensor looking in at a slant: with only the table
+// measured, rays pass through the space under the lowest point and end on the table beyond it (seen through);
+// with a surface measured in front of that space (something the solid rests on is hidden behind it), the rays
+// end before it (hidden). Only the hidden case holds the solid up.
+TEST(Support, SpaceHiddenUnderAFloatingSolidHoldsItUpSpaceSeenThroughDoesNot) {
+  const fs::Plane table{Vec3::UnitZ(), 0.0};
+  const Vec3 viewpoint(0, -300, 400);
+  auto grid = [](double z) {
+    std::vector<Eigen::Vector3f> pts;
+    for (int x = -100; x <= 100; ++x)
+      for (int y = -100; y <= 100; ++y) pts.emplace_back(float(x), float(y), float(z));
+    return pts;
+  };
+  const std::vector<Eigen::Vector3f> table_pts = grid(0.0), plate = grid(90.0);
+  const Vec3 lowest(0, 0, 20);
+  const auto open = fs::host::rec::look_below(lowest, table, viewpoint, table_pts, 3.0);
+  EXPECT_GT(open.seen_through, 0);
+  EXPECT_EQ(open.hidden, 0);
+  const auto hidden = fs::host::rec::look_below(lowest, table, viewpoint, plate, 3.0);
+  EXPECT_EQ(hidden.seen_through, 0);
+  EXPECT_GE(hidden.hidden, 3);
+  // Resting on the table: no space to probe.
+  const auto none = fs::host::rec::look_below(Vec3(0, 0, 2), table, viewpoint, plate, 3.0);
+  EXPECT_EQ(none.hidden + none.seen_through, 0);
+
+  // The support test with look_below: the cube lifted 20 mm.
+  const auto m = cube_model();
+  fs::host::rec::SupportParams p{.tol_mm = 3.0, .radius_mm = 6.0, .unsupported = 0.5};
+  p.viewpoint = viewpoint;
+  const Vec3 up(0, 0, 20);
+  EXPECT_EQ(fs::host::rec::support_factor(m, Mat3::Identity(), up, table, plate, p), 0.5);  // off
+  p.look_below = true;
+  EXPECT_EQ(fs::host::rec::support_factor(m, Mat3::Identity(), up, table, plate, p), 1.0);
+  EXPECT_EQ(fs::host::rec::support_factor(m, Mat3::Identity(), up, table, table_pts, p), 0.5);
+}
+
 }  // namespace
 
 namespace {
