@@ -5,7 +5,6 @@
 // conflicts with, and more, or fits the same points better, replaces them; a look-alike met only across
 // rounds is listed as an alternative; and the report of an empty result.
 #include <algorithm>
-#include <array>
 #include <cstdio>
 
 #include "host/recognize/recognizer_impl.hpp"
@@ -124,14 +123,6 @@ bool Recognizer::Impl::accept_one(const RecognizeParams& params, Recognizer& rz,
   clash =
       clash || solid_clash ||
       static_cast<double>(shared) > params.max_shared_inliers * static_cast<double>(h.inlier_cells.size());
-  // The objects h replaces (their models may fit as well: candidates of h).
-  struct Replaced {
-    int model = -1;
-    double fit = 0.0;
-    int inliers = 0;
-  };
-  std::array<Replaced, Hypothesis::kMaxAlternatives> replaced_models{};
-  std::size_t carried = 0;
   if (clash) {
     // One model that explains the points of the objects it conflicts with, and more, at least as well
     // replaces them (a larger model over a region that smaller ones split; the points decide).
@@ -176,10 +167,6 @@ bool Recognizer::Impl::accept_one(const RecognizeParams& params, Recognizer& rz,
     }
     for (std::size_t k = out.objects.size(); k-- > 0;) {
       if (conflicts_with(params, k, out)) {
-        // A replaced look-alike that fits as well stays a candidate (listed after this round's ones).
-        const Hypothesis& o = out.objects[k];
-        if (carried < replaced_models.size())
-          replaced_models[carried++] = {o.model, o.verify.confidence, o.verify.inliers};
         remove_object(out, k);
         ++out.stats.replaced;
       }
@@ -189,8 +176,6 @@ bool Recognizer::Impl::accept_one(const RecognizeParams& params, Recognizer& rz,
   const auto obj_index = static_cast<std::int32_t>(out.objects.size());
   for (std::uint32_t c : h.inlier_cells) cell_owner[c] = obj_index;
   find_alternatives(*this, i, params, h);
-  for (std::size_t k = 0; k < carried; ++k)
-    list_alternative(params, replaced_models[k].model, replaced_models[k].fit, replaced_models[k].inliers, h);
   canonical_pose(rz.library_.models[static_cast<std::size_t>(h.model)], h.R, h.t);
   out.objects.emplace_back();
   std::swap(out.objects.back(), spare_objects[out.objects.size() - 1]);
