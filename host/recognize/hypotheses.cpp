@@ -437,45 +437,67 @@ double support_factor(const Model& model, const Mat3& R, const Vec3& t, const Pl
       if ((q - v_low).squaredNorm() <= r2 && table.signed_distance(q) < low - 1.0) return 1.0;
     }
     if (p.look_below) {
-      const SpaceBelow below = look_below(v_low, table, p.viewpoint, points, p.tol_mm);
+      // The column under the solid's centre of mass, from the height of its lowest point: a solid at rest is
+      // held up under it (an overhanging part may have the table seen under it, and the part of the base the
+      // solid hides itself says nothing).
+      const Vec3 c = R * model.center + t;
+      const Vec3 column = c - (table.signed_distance(c) - low) * table.n;
+      const SpaceBelow below =
+          look_below(std::span<const Vec3>(&column, 1), table, p.viewpoint, points, p.tol_mm);
       if (below.seen_through == 0 && below.hidden >= kMinHiddenRays) return 1.0;
     }
   }
   return p.unsupported;
 }
 
-SpaceBelow look_below(const Vec3& lowest, const Plane& table, const Vec3& viewpoint,
+SpaceBelow look_below(std::span<const Vec3> base, const Plane& table, const Vec3& viewpoint,
                       std::span<const Eigen::Vector3f> points, double tol_mm) {
   constexpr double kStep = 2.0, kRay = 1.5, kMargin = 2.0;
+  constexpr std::size_t kMaxProbes = 128;
   SpaceBelow out;
-  const double low = table.signed_distance(lowest);
-  std::array<Vec3, 64> probe;
+  if (base.empty()) return out;
+  std::array<Vec3, kMaxProbes> probe;
   std::size_t n = 0;
-  for (double h = low - tol_mm; h >= 1.0 && n < probe.size(); h -= kStep)
-    probe[n++] = lowest - (low - h) * table.n;
+  // Probe heights from tol_mm under the base down to 1 mm above the table, at most kMaxProbes in all (the
+  // step grows for a solid high above the table).
+  const double top = table.signed_distance(base[0]) - tol_mm;
+  if (!(top >= 1.0)) return out;
+  const std::size_t per_column = std::max<std::size_t>(1, kMaxProbes / base.size());
+  const double step =
+      per_column > 1 ? std::max(kStep, (top - 1.0) / static_cast<double>(per_column - 1)) : top;
+  for (const Vec3& v : base) {
+    const double lift = table.signed_distance(v);
+    for (double h = top; h >= 1.0 && n < probe.size(); h -= step) probe[n++] = v - (lift - h) * table.n;
+  }
   if (n == 0) return out;
-  // Only rays toward the probe's neighbourhood: the cone from the viewpoint around its middle.
-  const Vec3 mid = 0.5 * (probe[0] + probe[n - 1]);
-  const double half = 0.5 * (probe[0] - probe[n - 1]).norm() + kRay;
+  // Only rays toward the probes' neighbourhood: the cone from the viewpoint around their middle.
+  Vec3 mid = Vec3::Zero();
+  for (std::size_t k = 0; k < n; ++k) mid += probe[k];
+  mid /= static_cast<double>(n);
+  double half = 0.0;
+  for (std::size_t k = 0; k < n; ++k) half = std::max(half, (probe[k] - mid).norm());
+  half += kRay;
   const Vec3 to_mid = mid - viewpoint;
   const double mid_dist = to_mid.norm();
+  if (!(mid_dist > 0.0)) return out;
   const Vec3 axis = to_mid / mid_dist;
   const double cos_cone = std::cos(std::atan2(half, std::max(mid_dist - half, 1.0)));
   for (const Eigen::Vector3f& pf : points) {
     const Vec3 d = pf.cast<double>() - viewpoint;
     const double range = d.norm();
-    if (range <= 0.0) continue;
+    if (!(range > 0.0)) continue;
     const Vec3 u = d / range;
     if (u.dot(axis) < cos_cone) continue;
-    for (std::size_t k = 0; k < n; ++k) {
+    bool through = false, in_front = false;
+    for (std::size_t k = 0; k < n && !through; ++k) {
       const Vec3 w = probe[k] - viewpoint;
       const double s = w.dot(u);
       if (s <= 0.0 || w.squaredNorm() - s * s > kRay * kRay) continue;
-      if (range > s + kMargin)
-        ++out.seen_through;
-      else if (range < s - kMargin)
-        ++out.hidden;
+      through = range > s + kMargin;
+      in_front = in_front || range < s - kMargin;
     }
+    out.seen_through += through ? 1 : 0;
+    out.hidden += !through && in_front ? 1 : 0;
   }
   return out;
 }

@@ -105,9 +105,10 @@ double matched_scene_area(const HypothesisContext& c, const Hypothesis& h);
 // Support (beyond the thesis): a solid object rests on the table or on something measured just below its
 // lowest point. Returns 1 when the model's lowest point in pose (R, t) lies within tol_mm of the table plane
 // (normal toward the sensor), or above it with a measured point within radius_mm of that point and more than
-// 1 mm lower, or (look_below) above it with the space under that point hidden from the sensor (at least 3
-// rays of look_below end in front of it, none beyond);
-// else `unsupported` (also when it sinks into the table). *lowest receives the lowest point's height.
+// 1 mm lower, or (look_below) above it with the column under its centre of mass hidden from the sensor, from
+// the lowest point's height down (at least 3 rays of look_below end in front of it, none beyond: what holds a
+// solid at rest is under its centre of mass); else `unsupported` (also when it sinks into the table).
+// *lowest receives the lowest point's height.
 struct SupportParams {
   double tol_mm = 3.0;
   double radius_mm = 6.0;
@@ -119,17 +120,19 @@ double support_factor(const Model& model, const Mat3& R, const Vec3& t, const Pl
                       std::span<const Eigen::Vector3f> points, const SupportParams& p,
                       double* lowest = nullptr);
 
-// The space under a floating solid's lowest point, seen from the sensor (beyond the thesis): probe points
-// every 2 mm from tol_mm below `lowest` down to 1 mm above the table. A measured point whose ray from the
-// viewpoint passes within 1.5 mm of a probe point ends in front of it (hides it: `hidden`) or beyond it (the
-// sensor saw through that space: `seen_through`), by more than 2 mm. A solid resting on an object nothing of
-// which is in view has only hidden space under it; one floating in front of the table may have the table
-// seen through it. (Probing under every base vertex instead was measured no better.)
+// The space under a floating solid, seen from the sensor (beyond the thesis): probe points under each of
+// `base` (points at the height of the solid's lowest point), every 2 mm (more when the solid is high; at most
+// 128 probes) from tol_mm below down to 1 mm above the table. A measured point whose ray from the viewpoint
+// passes within 1.5 mm of a probe point and ends more than 2 mm beyond it counts as `seen_through` (the
+// sensor saw through that space); one that ends more than 2 mm in front of a probe it passes, and beyond
+// none, counts as `hidden` (whatever hides that space: other objects, or the solid itself). Each ray counts
+// once. A solid resting on an object nothing of which is in view has only hidden space under its centre; one
+// floating in front of the table, high enough, has the table seen through it.
 struct SpaceBelow {
   int hidden = 0;
   int seen_through = 0;
 };
-SpaceBelow look_below(const Vec3& lowest, const Plane& table, const Vec3& viewpoint,
+SpaceBelow look_below(std::span<const Vec3> base, const Plane& table, const Vec3& viewpoint,
                       std::span<const Eigen::Vector3f> points, double tol_mm);
 
 // Height above the table of the posed model's lowest vertex (negative: it sinks into the table); where: that

@@ -97,9 +97,9 @@ struct RecognizeParams {
   double support_tol_mm = 3.0;
   double support_radius_mm = 6.0;
   double unsupported_factor = 0.5;
-  // Nor is it scaled when the space under its lowest point is hidden from the sensor and none of it is seen
-  // through (look_below in hypotheses.hpp): it may rest on an object nothing of which is in view. Only for a
-  // solid seen clearly: at least hidden_below_min_faces matched faces and a fit of hidden_below_min_fit
+  // Nor is it scaled when the column under its centre of mass is hidden from the sensor and none of it is
+  // seen through (look_below in hypotheses.hpp): it may rest on an object nothing of which is in view. Only
+  // for a solid seen clearly: at least hidden_below_min_faces matched faces and a fit of hidden_below_min_fit
   // before the factor.
   bool support_hidden_below = true;
   int hidden_below_min_faces = 3;

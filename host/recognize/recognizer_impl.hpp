@@ -201,6 +201,8 @@ struct Recognizer::Impl {
   double hidden_below_min_fit = 0.9;
 
   void support_test(const Model& model, Hypothesis& h) const;
+  // The support test's parameters for hypothesis h fitting `fit` (look_below only when it is seen clearly).
+  SupportParams support_params(const Hypothesis& h, double fit) const;
   void sink_test(const Model& model, Hypothesis& h) const;
   // h failed the support test but rests on an accepted object: its confidence is restored (true).
   bool supported_by_accepted(Hypothesis& h, const Recognition& out) const;

@@ -48,7 +48,7 @@ void Recognizer::Impl::reseat(std::size_t index, int worker) {
   // placements that fit alike the one resting on the table (or on something measured) wins over one that
   // floats (an augmented solid whose augmentation the search put on a hidden side instead of underneath).
   const Model& mdl = library->models[model];
-  const SupportParams sp{support_tol, support_radius, unsupported_factor};
+  const SupportParams sp = support_params(h, raw_confidence[index]);
   auto support = [&](const Mat3& R, const Vec3& t) {
     return have_table ? support_factor(mdl, R, t, table, coarse.points(), sp) : 1.0;
   };

@@ -283,16 +283,18 @@ void Recognizer::Impl::sink_test(const Model& model, Hypothesis& h) const {
     h.verify.confidence *= unsupported_factor;
 }
 
-void Recognizer::Impl::support_test(const Model& model, Hypothesis& h) const {
-  if (!have_table) return;
+SupportParams Recognizer::Impl::support_params(const Hypothesis& h, double fit) const {
   // Space hidden under a solid holds it up only when the solid itself is seen clearly: its pose fixed by
   // enough matched faces, its fit high.
   const bool look = support_hidden_below && static_cast<int>(h.matches.size()) >= hidden_below_min_faces &&
-                    h.verify.confidence >= hidden_below_min_fit;
-  h.verify.support =
-      support_factor(model, h.R, h.t, table, fine.points(),
-                     SupportParams{support_tol, support_radius, unsupported_factor, look, fine.viewpoint()},
-                     &h.verify.lowest_mm);
+                    fit >= hidden_below_min_fit;
+  return SupportParams{support_tol, support_radius, unsupported_factor, look, fine.viewpoint()};
+}
+
+void Recognizer::Impl::support_test(const Model& model, Hypothesis& h) const {
+  if (!have_table) return;
+  h.verify.support = support_factor(model, h.R, h.t, table, fine.points(),
+                                    support_params(h, h.verify.confidence), &h.verify.lowest_mm);
   h.verify.confidence *= h.verify.support;
 }
 

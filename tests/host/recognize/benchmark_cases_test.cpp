@@ -171,11 +171,15 @@ TEST(RecognizeBenchmarkCases, AFloatingPlacementOfAnAugmentedSolidIsReseatedOnto
   EXPECT_EQ(recognized_at(fs::sim::SceneCategory::single, 250, 1011, 0, params, b),
             "augmented-truncated-tetrahedron");
   // Without the reseat the bare body is accepted first; the replacement by a better fit of the same points
-  // (RecognizeParams::replace_better) then corrects it in a later round. Without both, the body is reported.
+  // (RecognizeParams::replace_better) then corrects it in a later round. Without both, and without the space
+  // hidden under a solid holding it up, the body is reported. (With that rule the floating placement holds:
+  // the column under its centre of mass is hidden by its body, and the real cupola is there. It is
+  // reported 9.8 mm off the true centre, the cupola on a hidden side: the reseat is what puts it right.)
   params.near_symmetry_share = 0.5;
   EXPECT_EQ(recognized_at(fs::sim::SceneCategory::single, 250, 1011, 0, params, b),
             "augmented-truncated-tetrahedron");
   params.replace_better = 2.0;
+  params.support_hidden_below = false;
   EXPECT_EQ(recognized_at(fs::sim::SceneCategory::single, 250, 1011, 0, params, b), "truncated-tetrahedron");
 }
 

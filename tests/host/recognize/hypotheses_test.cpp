@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <array>
+#include <span>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -150,14 +152,17 @@ TEST(Support, SpaceHiddenUnderAFloatingSolidHoldsItUpSpaceSeenThroughDoesNot) {
   };
   const std::vector<Eigen::Vector3f> table_pts = grid(0.0), plate = grid(90.0);
   const Vec3 lowest(0, 0, 20);
-  const auto open = fs::host::rec::look_below(lowest, table, viewpoint, table_pts, 3.0);
+  const std::span<const Vec3> under(&lowest, 1);
+  const auto open = fs::host::rec::look_below(under, table, viewpoint, table_pts, 3.0);
   EXPECT_GT(open.seen_through, 0);
   EXPECT_EQ(open.hidden, 0);
-  const auto hidden = fs::host::rec::look_below(lowest, table, viewpoint, plate, 3.0);
+  const auto hidden = fs::host::rec::look_below(under, table, viewpoint, plate, 3.0);
   EXPECT_EQ(hidden.seen_through, 0);
   EXPECT_GE(hidden.hidden, 3);
   // Resting on the table: no space to probe.
-  const auto none = fs::host::rec::look_below(Vec3(0, 0, 2), table, viewpoint, plate, 3.0);
+  const Vec3 resting(0, 0, 2);
+  const auto none =
+      fs::host::rec::look_below(std::span<const Vec3>(&resting, 1), table, viewpoint, plate, 3.0);
   EXPECT_EQ(none.hidden + none.seen_through, 0);
 
   // The support test with look_below: the cube lifted 20 mm.
@@ -169,6 +174,68 @@ TEST(Support, SpaceHiddenUnderAFloatingSolidHoldsItUpSpaceSeenThroughDoesNot) {
   p.look_below = true;
   EXPECT_EQ(fs::host::rec::support_factor(m, Mat3::Identity(), up, table, plate, p), 1.0);
   EXPECT_EQ(fs::host::rec::support_factor(m, Mat3::Identity(), up, table, table_pts, p), 0.5);
+}
+
+// The measured points of a scene of posed cubes over the table (z = 0, x and y within 150 mm), seen from
+// `viewpoint`: each ray toward a table grid point ends on the nearest cube it meets first.
+struct PosedCube {
+  Mat3 R;
+  Vec3 t;
+};
+std::vector<Eigen::Vector3f> render_cubes(const fs::host::rec::ModelGeometry& g,
+                                          std::span<const PosedCube> cubes, const Vec3& viewpoint) {
+  std::vector<Eigen::Vector3f> pts;
+  for (int x = -150; x <= 150; ++x)
+    for (int y = -150; y <= 150; ++y) {
+      const Vec3 q(x, y, 0.0);
+      double end = (q - viewpoint).norm();
+      const Vec3 u = (q - viewpoint) / end;
+      for (const PosedCube& c : cubes) {
+        double hit = 0.0;
+        if (g.cast(c.R.transpose() * (viewpoint - c.t), c.R.transpose() * u, hit) >= 0 && hit < end)
+          end = hit;
+      }
+      pts.push_back(Vec3(viewpoint + end * u).cast<float>());
+    }
+  return pts;
+}
+
+// What holds a solid up is under its centre of mass: the column below it. A cube over a table in full view,
+// high enough for the sensor to see the table under its centre, is not held up, whatever its turn about the
+// vertical. One resting on a pedestal under its centre is, though the table is seen under its overhanging
+// near edge (probing under its base vertices instead would call it floating). Lower, the cube hides the space
+// under its centre itself: that may hold a pedestal, and a solid seen clearly is held up. (Within radius_mm
+// of the table, a table point right under its lowest point holds it up: not looked at here.)
+TEST(Support, TheColumnUnderTheCentreOfMassHoldsASolidUp) {
+  const fs::Plane table{Vec3::UnitZ(), 0.0};
+  const Vec3 viewpoint(0, -300, 400);
+  const auto m = cube_model();
+  const fs::host::rec::ModelGeometry g(m);
+  fs::host::rec::SupportParams p{.tol_mm = 3.0, .radius_mm = 6.0, .unsupported = 0.5};
+  p.viewpoint = viewpoint;
+  p.look_below = true;
+  for (const double yaw_deg : {0.0, 30.0, 45.0, 90.0, 180.0}) {
+    const Mat3 R(Eigen::AngleAxisd(yaw_deg * M_PI / 180.0, Vec3::UnitZ()));
+    const PosedCube high{R, Vec3(0, 0, 60)};
+    EXPECT_EQ(
+        fs::host::rec::support_factor(m, high.R, high.t, table, render_cubes(g, {&high, 1}, viewpoint), p),
+        0.5)
+        << yaw_deg << " deg";
+    // The pedestal: a cube whose top (z = 20) is under the upper cube's centre and far half.
+    const std::array<PosedCube, 2> stack{PosedCube{R, Vec3(0, 0, 20)},
+                                         PosedCube{Mat3::Identity(), Vec3(0, 10, -30)}};
+    const auto pts = render_cubes(g, stack, viewpoint);
+    EXPECT_EQ(fs::host::rec::support_factor(m, R, stack[0].t, table, pts, p), 1.0) << yaw_deg << " deg";
+    // Under the overhanging near edge the pedestal's front is seen beyond the space below the base.
+    const Vec3 edge = R * Vec3(0, -25, 0) + stack[0].t;
+    if (yaw_deg == 0.0) {
+      EXPECT_GT(fs::host::rec::look_below({&edge, 1}, table, viewpoint, pts, 3.0).seen_through, 0);
+    }
+    const PosedCube low{R, Vec3(0, 0, 10)};
+    EXPECT_EQ(fs::host::rec::support_factor(m, low.R, low.t, table, render_cubes(g, {&low, 1}, viewpoint), p),
+              1.0)
+        << yaw_deg << " deg";
+  }
 }
 
 }  // namespace
