@@ -442,41 +442,30 @@ double support_factor(const Model& model, const Mat3& R, const Vec3& t, const Pl
       // solid hides itself says nothing).
       const Vec3 c = R * model.center + t;
       const Vec3 column = c - (table.signed_distance(c) - low) * table.n;
-      const SpaceBelow below =
-          look_below(std::span<const Vec3>(&column, 1), table, p.viewpoint, points, p.tol_mm);
+      const SpaceBelow below = look_below(column, table, p.viewpoint, points, p.tol_mm);
       if (below.seen_through == 0 && below.hidden >= kMinHiddenRays) return 1.0;
     }
   }
   return p.unsupported;
 }
 
-SpaceBelow look_below(std::span<const Vec3> base, const Plane& table, const Vec3& viewpoint,
+SpaceBelow look_below(const Vec3& top, const Plane& table, const Vec3& viewpoint,
                       std::span<const Eigen::Vector3f> points, double tol_mm) {
   constexpr double kStep = 2.0, kRay = 1.5, kMargin = 2.0;
   constexpr std::size_t kMaxProbes = 128;
   SpaceBelow out;
-  if (base.empty()) return out;
+  // Probe heights from tol_mm under `top` down to 1 mm above the table, at most kMaxProbes (the step grows
+  // for a solid high above the table).
+  const double lift = table.signed_distance(top);
+  const double first = lift - tol_mm;
+  if (!(first >= 1.0)) return out;
+  const double step = std::max(kStep, (first - 1.0) / static_cast<double>(kMaxProbes - 1));
   std::array<Vec3, kMaxProbes> probe;
   std::size_t n = 0;
-  // Probe heights from tol_mm under the base down to 1 mm above the table, at most kMaxProbes in all (the
-  // step grows for a solid high above the table).
-  const double top = table.signed_distance(base[0]) - tol_mm;
-  if (!(top >= 1.0)) return out;
-  const std::size_t per_column = std::max<std::size_t>(1, kMaxProbes / base.size());
-  const double step =
-      per_column > 1 ? std::max(kStep, (top - 1.0) / static_cast<double>(per_column - 1)) : top;
-  for (const Vec3& v : base) {
-    const double lift = table.signed_distance(v);
-    for (double h = top; h >= 1.0 && n < probe.size(); h -= step) probe[n++] = v - (lift - h) * table.n;
-  }
-  if (n == 0) return out;
+  for (double h = first; h >= 1.0 && n < probe.size(); h -= step) probe[n++] = top - (lift - h) * table.n;
   // Only rays toward the probes' neighbourhood: the cone from the viewpoint around their middle.
-  Vec3 mid = Vec3::Zero();
-  for (std::size_t k = 0; k < n; ++k) mid += probe[k];
-  mid /= static_cast<double>(n);
-  double half = 0.0;
-  for (std::size_t k = 0; k < n; ++k) half = std::max(half, (probe[k] - mid).norm());
-  half += kRay;
+  const Vec3 mid = 0.5 * (probe[0] + probe[n - 1]);
+  const double half = 0.5 * (probe[0] - probe[n - 1]).norm() + kRay;
   const Vec3 to_mid = mid - viewpoint;
   const double mid_dist = to_mid.norm();
   if (!(mid_dist > 0.0)) return out;

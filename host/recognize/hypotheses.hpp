@@ -120,11 +120,11 @@ double support_factor(const Model& model, const Mat3& R, const Vec3& t, const Pl
                       std::span<const Eigen::Vector3f> points, const SupportParams& p,
                       double* lowest = nullptr);
 
-// The space under a floating solid, seen from the sensor (beyond the thesis): probe points under each of
-// `base` (points at the height of the solid's lowest point), every 2 mm (more when the solid is high; at most
-// 128 probes) from tol_mm below down to 1 mm above the table. A measured point whose ray from the viewpoint
-// passes within 1.5 mm of a probe point and ends more than 2 mm beyond it counts as `seen_through` (the
-// sensor saw through that space); one that ends more than 2 mm in front of a probe it passes, and beyond
+// The space under a floating solid, seen from the sensor (beyond the thesis): probe points on the vertical
+// under `top` (a point at the height of the solid's lowest point), every 2 mm (more when the solid is high;
+// at most 128 probes) from tol_mm below it down to 1 mm above the table. A measured point whose ray from the
+// viewpoint passes within 1.5 mm of a probe point and ends more than 2 mm beyond it counts as `seen_through`
+// (the sensor saw through that space); one that ends more than 2 mm in front of a probe it passes, and beyond
 // none, counts as `hidden` (whatever hides that space: other objects, or the solid itself). Each ray counts
 // once. A solid resting on an object nothing of which is in view has only hidden space under its centre; one
 // floating in front of the table, high enough, has the table seen through it.
@@ -132,7 +132,7 @@ struct SpaceBelow {
   int hidden = 0;
   int seen_through = 0;
 };
-SpaceBelow look_below(std::span<const Vec3> base, const Plane& table, const Vec3& viewpoint,
+SpaceBelow look_below(const Vec3& top, const Plane& table, const Vec3& viewpoint,
                       std::span<const Eigen::Vector3f> points, double tol_mm);
 
 // Height above the table of the posed model's lowest vertex (negative: it sinks into the table); where: that

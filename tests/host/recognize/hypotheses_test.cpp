@@ -152,17 +152,15 @@ TEST(Support, SpaceHiddenUnderAFloatingSolidHoldsItUpSpaceSeenThroughDoesNot) {
   };
   const std::vector<Eigen::Vector3f> table_pts = grid(0.0), plate = grid(90.0);
   const Vec3 lowest(0, 0, 20);
-  const std::span<const Vec3> under(&lowest, 1);
-  const auto open = fs::host::rec::look_below(under, table, viewpoint, table_pts, 3.0);
+  const auto open = fs::host::rec::look_below(lowest, table, viewpoint, table_pts, 3.0);
   EXPECT_GT(open.seen_through, 0);
   EXPECT_EQ(open.hidden, 0);
-  const auto hidden = fs::host::rec::look_below(under, table, viewpoint, plate, 3.0);
+  const auto hidden = fs::host::rec::look_below(lowest, table, viewpoint, plate, 3.0);
   EXPECT_EQ(hidden.seen_through, 0);
   EXPECT_GE(hidden.hidden, 3);
   // Resting on the table: no space to probe.
   const Vec3 resting(0, 0, 2);
-  const auto none =
-      fs::host::rec::look_below(std::span<const Vec3>(&resting, 1), table, viewpoint, plate, 3.0);
+  const auto none = fs::host::rec::look_below(resting, table, viewpoint, plate, 3.0);
   EXPECT_EQ(none.hidden + none.seen_through, 0);
 
   // The support test with look_below: the cube lifted 20 mm.
@@ -229,7 +227,7 @@ TEST(Support, TheColumnUnderTheCentreOfMassHoldsASolidUp) {
     // Under the overhanging near edge the pedestal's front is seen beyond the space below the base.
     const Vec3 edge = R * Vec3(0, -25, 0) + stack[0].t;
     if (yaw_deg == 0.0) {
-      EXPECT_GT(fs::host::rec::look_below({&edge, 1}, table, viewpoint, pts, 3.0).seen_through, 0);
+      EXPECT_GT(fs::host::rec::look_below(edge, table, viewpoint, pts, 3.0).seen_through, 0);
     }
     const PosedCube low{R, Vec3(0, 0, 10)};
     EXPECT_EQ(fs::host::rec::support_factor(m, low.R, low.t, table, render_cubes(g, {&low, 1}, viewpoint), p),
