@@ -451,7 +451,7 @@ double support_factor(const Model& model, const Mat3& R, const Vec3& t, const Pl
 
 SpaceBelow look_below(const Vec3& top, const Plane& table, const Vec3& viewpoint,
                       std::span<const Eigen::Vector3f> points, double tol_mm) {
-  constexpr double kStep = 2.0, kRay = 1.5, kMargin = 2.0;
+  constexpr double kStep = 2.0, kRay = 3.0, kMargin = 2.0;
   constexpr std::size_t kMaxProbes = 128;
   SpaceBelow out;
   // Probe heights from tol_mm under `top` down to 1 mm above the table, at most kMaxProbes (the step grows

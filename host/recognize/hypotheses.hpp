@@ -123,11 +123,12 @@ double support_factor(const Model& model, const Mat3& R, const Vec3& t, const Pl
 // The space under a floating solid, seen from the sensor (beyond the thesis): probe points on the vertical
 // under `top` (a point at the height of the solid's lowest point), every 2 mm (more when the solid is high;
 // at most 128 probes) from tol_mm below it down to 1 mm above the table. A measured point whose ray from the
-// viewpoint passes within 1.5 mm of a probe point and ends more than 2 mm beyond it counts as `seen_through`
-// (the sensor saw through that space); one that ends more than 2 mm in front of a probe it passes, and beyond
-// none, counts as `hidden` (whatever hides that space: other objects, or the solid itself). Each ray counts
-// once. A solid resting on an object nothing of which is in view has only hidden space under its centre; one
-// floating in front of the table, high enough, has the table seen through it.
+// viewpoint passes within 3 mm of a probe point (twice the fine samples' spacing) and ends more than 2 mm
+// beyond it counts as `seen_through` (the sensor saw through that space); one that ends more than 2 mm in
+// front of a probe it passes, and beyond none, counts as `hidden` (whatever hides that space: other objects,
+// or the solid itself). Each ray counts once. A solid resting on an object nothing of which is in view has
+// only hidden space under its centre; one floating in front of the table, high enough, has the table seen
+// through it.
 struct SpaceBelow {
   int hidden = 0;
   int seen_through = 0;

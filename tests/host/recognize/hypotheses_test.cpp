@@ -180,11 +180,13 @@ struct PosedCube {
   Mat3 R;
   Vec3 t;
 };
+// `step_mm`: the table grid's spacing.
 std::vector<Eigen::Vector3f> render_cubes(const fs::host::rec::ModelGeometry& g,
-                                          std::span<const PosedCube> cubes, const Vec3& viewpoint) {
+                                          std::span<const PosedCube> cubes, const Vec3& viewpoint,
+                                          int step_mm = 1) {
   std::vector<Eigen::Vector3f> pts;
-  for (int x = -150; x <= 150; ++x)
-    for (int y = -150; y <= 150; ++y) {
+  for (int x = -150; x <= 150; x += step_mm)
+    for (int y = -150; y <= 150; y += step_mm) {
       const Vec3 q(x, y, 0.0);
       double end = (q - viewpoint).norm();
       const Vec3 u = (q - viewpoint) / end;
@@ -233,6 +235,31 @@ TEST(Support, TheColumnUnderTheCentreOfMassHoldsASolidUp) {
     EXPECT_EQ(fs::host::rec::support_factor(m, low.R, low.t, table, render_cubes(g, {&low, 1}, viewpoint), p),
               1.0)
         << yaw_deg << " deg";
+  }
+}
+
+// The column is probed by the rays passing within 3 mm of it, twice the fine samples' spacing: seen nearly
+// from above, where the column is end-on, and sampled on a 2-3 mm grid, a cube 15-20 mm up whose centre
+// column it hides itself still has enough rays ending in front of that column (within 1.5 mm it had two or
+// fewer and was called floating).
+TEST(Support, SparseSamplesStillProbeTheColumn) {
+  const fs::Plane table{Vec3::UnitZ(), 0.0};
+  const Vec3 viewpoint(0, -50, 400);  // nearly overhead: the column is seen end-on
+  const auto m = cube_model();
+  const fs::host::rec::ModelGeometry g(m);
+  fs::host::rec::SupportParams p{.tol_mm = 3.0, .radius_mm = 6.0, .unsupported = 0.5};
+  p.viewpoint = viewpoint;
+  p.look_below = true;
+  for (const int step_mm : {2, 3}) {
+    for (const double lift : {15.0, 17.0, 20.0}) {
+      const PosedCube cube{Mat3::Identity(), Vec3(0, 0, lift)};
+      const auto pts = render_cubes(g, {&cube, 1}, viewpoint, step_mm);
+      const auto below = fs::host::rec::look_below(Vec3(0, 0, lift), table, viewpoint, pts, 3.0);
+      EXPECT_EQ(below.seen_through, 0) << step_mm << " mm grid, " << lift << " mm up";
+      EXPECT_GE(below.hidden, 3) << step_mm << " mm grid, " << lift << " mm up";
+      EXPECT_EQ(fs::host::rec::support_factor(m, cube.R, cube.t, table, pts, p), 1.0)
+          << step_mm << " mm grid, " << lift << " mm up";
+    }
   }
 }
 
