@@ -5,6 +5,7 @@
 // conflicts with, and more, or fits the same points better, replaces them; a look-alike met only across
 // rounds is listed as an alternative; and the report of an empty result.
 #include <algorithm>
+#include <array>
 #include <cstdio>
 
 #include "host/recognize/recognizer_impl.hpp"
@@ -35,21 +36,27 @@ void find_alternatives(const Recognizer::Impl& im, std::size_t self, const Recog
     bool listed = false;
     for (const Hypothesis::Alternative& a : h.listed_alternatives()) listed = listed || a.model == o.model;
     if (listed) continue;
-    h.alternative[static_cast<std::size_t>(h.alternatives++)] = {o.model, o.verify.confidence};
+    Hypothesis::Alternative& a = h.alternative[static_cast<std::size_t>(h.alternatives++)];
+    a = {o.model, o.verify.confidence, o.R, o.t};
+    canonical_pose(im.library->models[static_cast<std::size_t>(o.model)], a.R, a.t);
   }
 }
 
 // Lists model `model` (confidence `fit`, `inliers` inlier points) as an alternative of accepted object o when
 // it fits o's points as well (confidence within alternative_confidence, inliers >= alternative_inliers x
-// o's), is another model, is not listed yet and there is room: a look-alike that met o across rounds.
-void list_alternative(const RecognizeParams& params, int model, double fit, int inliers, Hypothesis& o) {
+// o's), is another model, is not listed yet and there is room: a look-alike that met o across rounds. (R, t):
+// its pose.
+void list_alternative(const RecognizeParams& params, const Library& library, int model, double fit,
+                      int inliers, const Mat3& R, const Vec3& t, Hypothesis& o) {
   if (model == o.model || o.alternatives >= Hypothesis::kMaxAlternatives ||
       fit < o.verify.confidence - params.alternative_confidence ||
       static_cast<double>(inliers) < params.alternative_inliers * static_cast<double>(o.verify.inliers))
     return;
   for (const Hypothesis::Alternative& a : o.listed_alternatives())
     if (a.model == model) return;
-  o.alternative[static_cast<std::size_t>(o.alternatives++)] = {model, fit};
+  Hypothesis::Alternative& a = o.alternative[static_cast<std::size_t>(o.alternatives++)];
+  a = {model, fit, R, t};
+  canonical_pose(library.models[static_cast<std::size_t>(model)], a.R, a.t);
 }
 
 }  // namespace
@@ -162,7 +169,8 @@ bool Recognizer::Impl::accept_one(const RecognizeParams& params, Recognizer& rz,
           if (conflicts_with(params, k, out) &&
               static_cast<double>(conflict_cells[k]) >=
                   params.replace_cover * static_cast<double>(out.objects[k].inlier_cells.size()))
-            list_alternative(params, h.model, h.verify.confidence, h.verify.inliers, out.objects[k]);
+            list_alternative(params, rz.library_, h.model, h.verify.confidence, h.verify.inliers, h.R, h.t,
+                             out.objects[k]);
       return false;
     }
     for (std::size_t k = out.objects.size(); k-- > 0;) {
@@ -207,6 +215,98 @@ double Recognizer::Impl::confidence_with_occluders(const Hypothesis& h, double o
   const double after = seen + occluded_weight * static_cast<double>(r.occluded - explained);
   if (explained == 0 || after <= 0.0) return h.verify.confidence;
   return h.verify.confidence * before / after;
+}
+
+void Recognizer::Impl::alternatives_in_hiding(const RecognizeParams& params, std::size_t k,
+                                              Recognition& out) {
+  if (params.hidden_alternatives <= 0) return;
+  Hypothesis& o = out.objects[k];
+  if (o.alternatives >= Hypothesis::kMaxAlternatives) return;
+  const auto self = static_cast<std::int32_t>(k);
+  Verifier& v = verifiers.front();
+  const double w_occ = v.params().occluded_weight;
+  // The confidence of a pose on a sample set, the occluded rays whose points other objects hold not counted
+  // (those o holds are: a look-alike of o hidden behind o's own points is no alternative).
+  auto fit = [&](const SampleSet& samples, int model, Mat3& R, Vec3& t, bool refine, int& inliers) {
+    const VerifyResult r = v.verify(samples, geometry[static_cast<std::size_t>(model)], R, t, refine);
+    int explained = 0;
+    for (std::uint32_t c : v.occluded_cells())
+      explained += cell_owner[c] != -1 && cell_owner[c] != self ? 1 : 0;
+    inliers = r.inliers;
+    const double denom =
+        static_cast<double>(r.inliers + r.violations) + w_occ * static_cast<double>(r.occluded - explained);
+    double conf = denom > 0.0 ? static_cast<double>(r.inliers) / denom : 0.0;
+    if (r.inliers < v.params().min_inliers)
+      conf *= static_cast<double>(r.inliers) / static_cast<double>(std::max(1, v.params().min_inliers));
+    return conf;
+  };
+  // The best coarse fit per other model among the hypotheses on at least half of o's scene faces.
+  struct Pick {
+    std::size_t index = 0;
+    double score = -1.0;
+  };
+  std::array<Pick, 16> best{};
+  const std::size_t budget =
+      std::min<std::size_t>(best.size(), static_cast<std::size_t>(params.hidden_alternatives));
+  std::size_t picks = 0;
+  for (std::size_t j = 0; j < nhyp; ++j) {
+    const Hypothesis& c = hyps[j];
+    if (c.model == o.model) continue;
+    std::size_t shared = 0;
+    for (const FaceMatch& m : o.matches)
+      for (const FaceMatch& cm : c.matches) shared += cm.scene == m.scene ? 1 : 0;
+    if (2 * shared < o.matches.size()) continue;
+    bool listed = false;
+    for (const Hypothesis::Alternative& a : o.listed_alternatives()) listed = listed || a.model == c.model;
+    if (listed) continue;
+    Mat3 R = c.R;
+    Vec3 t = c.t;
+    int inliers = 0;
+    double score = fit(coarse, c.model, R, t, false, inliers);
+    if (have_table && score >= 0.5 * params.min_confidence)
+      score *= support_factor(library->models[static_cast<std::size_t>(c.model)], R, t, table,
+                              coarse.points(), support_params(c, score));
+    if (score < 0.5 * params.min_confidence) continue;
+    // One per model: a better pose of a model already picked replaces it.
+    std::size_t slot = picks;
+    for (std::size_t q = 0; q < picks; ++q)
+      if (hyps[best[q].index].model == c.model) slot = q;
+    if (slot < picks) {
+      if (score > best[slot].score) best[slot] = {j, score};
+      continue;
+    }
+    if (picks < budget) {
+      best[picks++] = {j, score};
+      continue;
+    }
+    std::size_t worst = 0;
+    for (std::size_t q = 1; q < picks; ++q)
+      if (best[q].score < best[worst].score) worst = q;
+    if (score > best[worst].score) best[worst] = {j, score};
+  }
+  // Those finely, best first, refined, with the support test as o had it, and clear of the other objects.
+  std::sort(best.begin(), best.begin() + static_cast<std::ptrdiff_t>(picks),
+            [](const Pick& a, const Pick& b) { return a.score > b.score; });
+  for (std::size_t q = 0; q < picks && o.alternatives < Hypothesis::kMaxAlternatives; ++q) {
+    const Hypothesis& c = hyps[best[q].index];
+    const Model& model = library->models[static_cast<std::size_t>(c.model)];
+    Mat3 R = c.R;
+    Vec3 t = c.t;
+    int inliers = 0;
+    double conf = fit(fine, c.model, R, t, true, inliers);
+    if (have_table) conf *= support_factor(model, R, t, table, fine.points(), support_params(c, conf));
+    // A possible world: it may not interpenetrate the other accepted objects.
+    bool clash = false;
+    for (std::size_t a = 0; a < out.objects.size() && !clash; ++a) {
+      if (a == k) continue;
+      const Hypothesis& other = out.objects[a];
+      const Interpenetration ip =
+          interpenetration(geometry[static_cast<std::size_t>(c.model)], R, t,
+                           geometry[static_cast<std::size_t>(other.model)], other.R, other.t);
+      clash = ip.depth_mm > params.interpenetration_mm && ip.volume_share > params.interpenetration_share;
+    }
+    if (!clash) list_alternative(params, *library, c.model, conf, inliers, R, t, o);
+  }
 }
 
 bool Recognizer::Impl::accept_objects(Recognizer& rz, Scan& scan, int round, Recognition& out) {
@@ -271,6 +371,7 @@ bool Recognizer::Impl::accept_objects(Recognizer& rz, Scan& scan, int round, Rec
       h.verify.confidence = confidence;
       if (accept_one(params, rz, i, out)) {
         ++out.stats.hidden;
+        alternatives_in_hiding(params, out.objects.size() - 1, out);
         progress = true;
       }
       i = kNoHypothesis;

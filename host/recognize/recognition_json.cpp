@@ -44,16 +44,21 @@ nlohmann::json to_json(const Recognition& r, const Library& library) {
     }
     if (h.ambiguous()) {
       // The candidates, the object's model first; "alternatives" = the others (as before this list).
-      auto candidate = [&](int model, double fit) {
-        return nlohmann::json{{"model", library.models[static_cast<std::size_t>(model)].name},
-                              {"confidence", h.candidate_confidence(fit)},
-                              {"fit", fit}};
+      // Each with its own pose: look-alikes of other shapes sit differently on the same visible faces.
+      auto candidate = [&](int model, double fit, const Mat3& R, const Vec3& t) {
+        return nlohmann::json{
+            {"model", library.models[static_cast<std::size_t>(model)].name},
+            {"confidence", h.candidate_confidence(fit)},
+            {"fit", fit},
+            {"rotation",
+             {{R(0, 0), R(0, 1), R(0, 2)}, {R(1, 0), R(1, 1), R(1, 2)}, {R(2, 0), R(2, 1), R(2, 2)}}},
+            {"translation", {t.x(), t.y(), t.z()}}};
       };
-      nlohmann::json candidates = nlohmann::json::array({candidate(h.model, h.fit())});
+      nlohmann::json candidates = nlohmann::json::array({candidate(h.model, h.fit(), h.R, h.t)});
       nlohmann::json alts = nlohmann::json::array();
       for (const Hypothesis::Alternative& a : h.listed_alternatives()) {
-        candidates.push_back(candidate(a.model, a.fit));
-        alts.push_back(candidate(a.model, a.fit));
+        candidates.push_back(candidate(a.model, a.fit, a.R, a.t));
+        alts.push_back(candidate(a.model, a.fit, a.R, a.t));
       }
       o["candidates"] = std::move(candidates);
       o["alternatives"] = std::move(alts);

@@ -110,6 +110,10 @@ struct RecognizeParams {
   // accepted when those points belong to other objects (accepted, or waiting for an object to rest on) and
   // its confidence without them reaches this (an object explained together with others must fit clearly).
   double hidden_min_confidence = 0.9;
+  // An object accepted so (its hidden part explained by others) shows little of itself: up to this many
+  // hypotheses of other models on its scene faces (the best on the coarse samples, one per model) are
+  // checked finely for an alternative. 0 = none.
+  int hidden_alternatives = 8;
   double confidence_weight = 0.2;  // ordering key = cost + weight * (1 - confidence)
   // - inlier_weight * inliers / (most inliers of the round's hypotheses): of look-alikes that fit the coarse
   // samples alike, the one explaining the most measured points goes to refinement first.
@@ -224,7 +228,9 @@ struct Hypothesis {
   // RecognizeParams::alternative_*): the parts where they differ are out of view. Accepted objects only.
   struct Alternative {
     int model = -1;
-    double fit = 0.0;  // its verification confidence
+    double fit = 0.0;           // its verification confidence
+    Mat3 R = Mat3::Identity();  // its pose (x_scene = R x_model + t; canonical, as the object's)
+    Vec3 t = Vec3::Zero();
   };
   static constexpr int kMaxAlternatives = 4;
   std::array<Alternative, kMaxAlternatives> alternative{};

@@ -213,6 +213,11 @@ struct Recognizer::Impl {
       -2;  // cell_owner of a cell a hypothesis waiting for support holds
   void mark_waiting_cells(std::int32_t owner);
   double confidence_with_occluders(const Hypothesis& h, double occluded_weight);
+  // Accepted object o (index k of out.objects) was accepted because other objects explain what hides it: the
+  // few faces it shows may belong to a larger or another model. The pool's hypotheses of other models on at
+  // least half of its scene faces (refined or not) get the same test, occluders included, and those that fit
+  // as well are listed as its alternatives (accept.cpp).
+  void alternatives_in_hiding(const RecognizeParams& params, std::size_t k, Recognition& out);
   bool accept_one(const RecognizeParams& params, Recognizer& rz, std::size_t i, Recognition& out);
 
   // ---- the steps of recognize(), by stage ----

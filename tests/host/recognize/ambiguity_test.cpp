@@ -143,6 +143,15 @@ TEST(Ambiguity, TwoModelsTheViewCannotTellApartGiveOneAmbiguousObjectWithBoth) {
   EXPECT_DOUBLE_EQ(o["candidates"][0]["confidence"].get<double>(), h.confidence());
   EXPECT_EQ(o["candidates"][1]["model"], other);
   EXPECT_DOUBLE_EQ(o["candidates"][1]["fit"].get<double>(), h.alternative[0].fit);
+  // Each candidate in its own pose: the object's for the first, the alternative's (the copy of the cube: the
+  // same place, up to the cube's symmetry) for the second.
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_DOUBLE_EQ(o["candidates"][0]["translation"][i].get<double>(), h.t[i]);
+    EXPECT_DOUBLE_EQ(o["candidates"][1]["translation"][i].get<double>(), h.alternative[0].t[i]);
+    EXPECT_DOUBLE_EQ(o["candidates"][1]["rotation"][i][i].get<double>(), h.alternative[0].R(i, i));
+  }
+  const fs::Vec3 c = lib.models[static_cast<std::size_t>(h.model)].center;
+  EXPECT_LT((h.alternative[0].R * c + h.alternative[0].t - (h.R * c + h.t)).norm(), 1.0);
   ASSERT_EQ(o["alternatives"].size(), 1u);
   EXPECT_EQ(o["alternatives"][0]["model"], other);
 

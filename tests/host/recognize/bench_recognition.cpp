@@ -176,6 +176,8 @@ Args parse_args(CLI::App& app, int argc, char** argv) {
       ->check(non_negative);
   app.add_option("--hidden-below-faces", p.hidden_below_min_faces, "RecognizeParams::hidden_below_min_faces");
   app.add_option("--hidden-below-fit", p.hidden_below_min_fit, "RecognizeParams::hidden_below_min_fit");
+  app.add_option("--hidden-alternatives", p.hidden_alternatives,
+                 "RecognizeParams::hidden_alternatives (0 = none)");
   app.add_flag("--no-hidden-below{false}", p.support_hidden_below,
                "RecognizeParams::support_hidden_below off (space hidden under a solid does not hold it up)");
   app.add_option("--hidden-min-confidence", p.hidden_min_confidence, "RecognizeParams::hidden_min_confidence")
@@ -431,10 +433,13 @@ int run(const Args& args) {
       for (std::size_t j = 0; j < found_objects.size(); ++j) {
         const auto& h = found_objects[j];
         if (used[j] || as_candidate[j]) continue;
-        const auto& m = library.models[static_cast<std::size_t>(h.model)];
-        if ((h.R * m.center + h.t - (obj.rotation * tm.center + obj.translation)).norm() >= 10.0) continue;
+        // The true model listed, in its own pose (a candidate of another shape sits elsewhere on the same
+        // visible faces), within 10 mm of the truth.
         bool listed = false;
-        for (const auto& a : h.listed_alternatives()) listed = listed || a.model == rs.catalog_index[oi];
+        for (const auto& a : h.listed_alternatives())
+          listed = listed ||
+                   (a.model == rs.catalog_index[oi] &&
+                    (a.R * tm.center + a.t - (obj.rotation * tm.center + obj.translation)).norm() < 10.0);
         if (!listed) continue;
         as_candidate[j] = true;
         ++s.found_as_candidate;

@@ -7,6 +7,7 @@
 #include <limits>
 #include <set>
 #include <string>
+#include <utility>
 
 #include <nlohmann/json.hpp>
 
@@ -223,6 +224,51 @@ TEST_F(ClutteredScenes, ALookAlikeOfALaterRoundIsListedAsAnAlternative) {
     }
   }
   EXPECT_TRUE(listed) << "the pentagonal gyrobicupola is not among the candidates";
+}
+
+// An object seen through a gap between its neighbours shows two faces that larger solids contain as well; it
+// is accepted because the neighbours explain what hides the rest. The true solid (a gyroelongated square
+// bipyramid, an elongated triangular gyrobicupola) fits those faces as well but was never verified: mostly
+// hidden, it ranked low. Checked after the acceptance (RecognizeParams::hidden_alternatives), it is listed
+// among the object's candidates in its own pose, within 10 mm of the truth, and the report is "X or Y"
+// (before: X alone at full confidence, a false positive).
+TEST_F(ClutteredScenes, ASolidSeenThroughAGapListsTheLargerSolidsThatFitIt) {
+  fs::host::rec::RecognizeParams off = params();
+  off.hidden_alternatives = 0;
+  fs::host::rec::Recognizer without(
+      library_, off, std::size_t{kSteps} * fs::ScannerCalibration::bench_default().camera.height);
+  int exercised = 0;
+  for (const auto& [seed, name] :
+       {std::pair<std::uint64_t, const char*>{1001, "gyroelongated-square-bipyramid"},
+        {1097, "elongated-triangular-gyrobicupola"}}) {
+    const auto rs = scene(seed);
+    std::size_t oi = rs.scene.objects.size();
+    for (std::size_t k = 0; k < rs.scene.objects.size(); ++k)
+      if (library_.models[static_cast<std::size_t>(rs.catalog_index[k])].name == name) oi = k;
+    ASSERT_LT(oi, rs.scene.objects.size()) << "seed " << seed << ": the benchmark scene changed";
+    const auto& truth = library_.models[static_cast<std::size_t>(rs.catalog_index[oi])];
+    const Vec3 centre = rs.scene.objects[oi].rotation * truth.center + rs.scene.objects[oi].translation;
+    // The true model among some reported object's alternatives, in its own pose near the truth.
+    auto listed_near = [&](const fs::host::rec::Recognition& r) {
+      for (const auto& h : r.objects)
+        for (const auto& a : h.listed_alternatives())
+          if (a.model == rs.catalog_index[oi] && (a.R * truth.center + a.t - centre).norm() < 10.0) {
+            EXPECT_LT(h.confidence(), h.fit()) << "seed " << seed;  // "X or Y": less sure than the fit alone
+            return true;
+          }
+      return false;
+    };
+    const auto& r = recognize(rs, seed);
+    if (found(rs, oi, r)) continue;  // found as itself (a later improvement): nothing to list
+    ++exercised;
+    EXPECT_TRUE(listed_near(r)) << "seed " << seed << ": " << name << " is not among the candidates";
+    fs::sim::make_ground_truth_grid(rs.scene, {.depth_noise_mm = 0.05, .seed = seed})
+        .export_to(cloud_, false);
+    const fs::Plane table = rs.scene.calibration.table;
+    EXPECT_FALSE(listed_near(without.recognize(cloud_, &table)))
+        << "seed " << seed << ": listed without the check";
+  }
+  EXPECT_GT(exercised, 0) << "both solids are now found as themselves: pick other scenes";
 }
 
 // A solid resting on an object of which almost nothing is in view (covered by it and by its neighbours):
