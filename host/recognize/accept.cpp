@@ -227,12 +227,21 @@ void Recognizer::Impl::alternatives_in_hiding(const RecognizeParams& params, std
   const double w_occ = v.params().occluded_weight;
   // The confidence of a pose on a sample set, the occluded rays whose points other objects hold not counted
   // (those o holds are: a look-alike of o hidden behind o's own points is no alternative).
-  auto fit = [&](const SampleSet& samples, int model, Mat3& R, Vec3& t, bool refine, int& inliers) {
-    const VerifyResult r = v.verify(samples, geometry[static_cast<std::size_t>(model)], R, t, refine);
-    int explained = 0;
-    for (std::uint32_t c : v.occluded_cells())
-      explained += cell_owner[c] != -1 && cell_owner[c] != self ? 1 : 0;
+  // The fine check slides a pose along the translation its matched planes left open, as verification does. A
+  // pose whose inliers are more than max_shared_inliers another accepted object's points scores 0 (it would
+  // not be accepted with that object either).
+  auto fit = [&](const SampleSet& samples, const Hypothesis& c, Mat3& R, Vec3& t, bool refine, int& inliers) {
+    const ModelGeometry& g = geometry[static_cast<std::size_t>(c.model)];
+    const VerifyResult r = refine && c.free_dims == 1 ? v.verify_sliding(samples, coarse, g, R, t, c.free_dir)
+                                                      : v.verify(samples, g, R, t, refine);
+    int explained = 0, others = 0;
+    for (std::uint32_t cell : v.occluded_cells())
+      explained += cell_owner[cell] != -1 && cell_owner[cell] != self ? 1 : 0;
+    for (std::uint32_t cell : v.inlier_cells())
+      others += cell_owner[cell] >= 0 && cell_owner[cell] != self ? 1 : 0;
     inliers = r.inliers;
+    if (static_cast<double>(others) > params.max_shared_inliers * static_cast<double>(std::max(1, r.inliers)))
+      return 0.0;
     const double denom =
         static_cast<double>(r.inliers + r.violations) + w_occ * static_cast<double>(r.occluded - explained);
     double conf = denom > 0.0 ? static_cast<double>(r.inliers) / denom : 0.0;
@@ -249,20 +258,30 @@ void Recognizer::Impl::alternatives_in_hiding(const RecognizeParams& params, std
   const std::size_t budget =
       std::min<std::size_t>(best.size(), static_cast<std::size_t>(params.hidden_alternatives));
   std::size_t picks = 0;
-  for (std::size_t j = 0; j < nhyp; ++j) {
+  // At most this many coarse checks per object (in pool order), so a large library's pool stays cheap.
+  constexpr int kMaxCoarse = 256;
+  int coarse_checks = 0;
+  for (std::size_t j = 0; j < nhyp && coarse_checks < kMaxCoarse; ++j) {
     const Hypothesis& c = hyps[j];
-    if (c.model == o.model) continue;
+    if (c.model == o.model || (j < alive.size() && !alive[j])) continue;
+    // On at least half of o's scene faces, and on no face another accepted object holds.
     std::size_t shared = 0;
-    for (const FaceMatch& m : o.matches)
-      for (const FaceMatch& cm : c.matches) shared += cm.scene == m.scene ? 1 : 0;
-    if (2 * shared < o.matches.size()) continue;
+    bool taken = false;
+    for (const FaceMatch& cm : c.matches) {
+      bool own = false;
+      for (const FaceMatch& m : o.matches) own = own || cm.scene == m.scene;
+      shared += own ? 1 : 0;
+      taken = taken || (!own && node_used[static_cast<std::size_t>(cm.scene)]);
+    }
+    if (taken || 2 * shared < o.matches.size()) continue;
     bool listed = false;
     for (const Hypothesis::Alternative& a : o.listed_alternatives()) listed = listed || a.model == c.model;
     if (listed) continue;
     Mat3 R = c.R;
     Vec3 t = c.t;
     int inliers = 0;
-    double score = fit(coarse, c.model, R, t, false, inliers);
+    ++coarse_checks;
+    double score = fit(coarse, c, R, t, false, inliers);
     if (have_table && score >= 0.5 * params.min_confidence)
       score *= support_factor(library->models[static_cast<std::size_t>(c.model)], R, t, table,
                               coarse.points(), support_params(c, score));
@@ -293,7 +312,7 @@ void Recognizer::Impl::alternatives_in_hiding(const RecognizeParams& params, std
     Mat3 R = c.R;
     Vec3 t = c.t;
     int inliers = 0;
-    double conf = fit(fine, c.model, R, t, true, inliers);
+    double conf = fit(fine, c, R, t, true, inliers);
     if (have_table) conf *= support_factor(model, R, t, table, fine.points(), support_params(c, conf));
     // A possible world: it may not interpenetrate the other accepted objects.
     bool clash = false;

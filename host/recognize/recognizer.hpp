@@ -112,7 +112,7 @@ struct RecognizeParams {
   double hidden_min_confidence = 0.9;
   // An object accepted so (its hidden part explained by others) shows little of itself: up to this many
   // hypotheses of other models on its scene faces (the best on the coarse samples, one per model) are
-  // checked finely for an alternative. 0 = none.
+  // checked finely for an alternative. 0 = none; at most 16.
   int hidden_alternatives = 8;
   double confidence_weight = 0.2;  // ordering key = cost + weight * (1 - confidence)
   // - inlier_weight * inliers / (most inliers of the round's hypotheses): of look-alikes that fit the coarse
