@@ -15,33 +15,6 @@ namespace fs::host::rec {
 
 namespace {
 
-// The refined hypotheses of other models that explain the accepted hypothesis h (index `self`) as well: on at
-// least half of its scene faces, confidence within alternative_confidence, inliers >= alternative_inliers x
-// its own.
-void find_alternatives(const Recognizer::Impl& im, std::size_t self, const RecognizeParams& params,
-                       Hypothesis& h) {
-  h.alternatives = 0;
-  for (std::size_t j : im.order) {
-    if (h.alternatives >= Hypothesis::kMaxAlternatives) break;
-    const Hypothesis& o = im.hyps[j];
-    if (j == self || o.model == h.model ||
-        o.verify.confidence < h.verify.confidence - params.alternative_confidence ||
-        static_cast<double>(o.verify.inliers) <
-            params.alternative_inliers * static_cast<double>(h.verify.inliers))
-      continue;
-    std::size_t shared = 0;
-    for (const FaceMatch& m : h.matches)
-      for (const FaceMatch& om : o.matches) shared += om.scene == m.scene ? 1 : 0;
-    if (2 * shared < h.matches.size()) continue;
-    bool listed = false;
-    for (const Hypothesis::Alternative& a : h.listed_alternatives()) listed = listed || a.model == o.model;
-    if (listed) continue;
-    Hypothesis::Alternative& a = h.alternative[static_cast<std::size_t>(h.alternatives++)];
-    a = {o.model, o.verify.confidence, o.R, o.t};
-    canonical_pose(im.library->models[static_cast<std::size_t>(o.model)], a.R, a.t);
-  }
-}
-
 // Lists model `model` (confidence `fit`, `inliers` inlier points) as an alternative of accepted object o when
 // it fits o's points as well (confidence within alternative_confidence, inliers >= alternative_inliers x
 // o's), is another model, is not listed yet and there is room: a look-alike that met o across rounds. (R, t):
@@ -57,6 +30,24 @@ void list_alternative(const RecognizeParams& params, const Library& library, int
   Hypothesis::Alternative& a = o.alternative[static_cast<std::size_t>(o.alternatives++)];
   a = {model, fit, R, t};
   canonical_pose(library.models[static_cast<std::size_t>(model)], a.R, a.t);
+}
+
+// The refined hypotheses of other models that explain the accepted hypothesis h (index `self`) as well: on at
+// least half of its scene faces, confidence within alternative_confidence, inliers >= alternative_inliers x
+// its own.
+void find_alternatives(const Recognizer::Impl& im, std::size_t self, const RecognizeParams& params,
+                       Hypothesis& h) {
+  h.alternatives = 0;
+  for (std::size_t j : im.order) {
+    if (h.alternatives >= Hypothesis::kMaxAlternatives) break;
+    const Hypothesis& o = im.hyps[j];
+    if (j == self) continue;
+    std::size_t shared = 0;
+    for (const FaceMatch& m : h.matches)
+      for (const FaceMatch& om : o.matches) shared += om.scene == m.scene ? 1 : 0;
+    if (2 * shared < h.matches.size()) continue;
+    list_alternative(params, *im.library, o.model, o.verify.confidence, o.verify.inliers, o.R, o.t, h);
+  }
 }
 
 }  // namespace
@@ -201,6 +192,18 @@ void Recognizer::Impl::mark_waiting_cells(std::int32_t owner) {
         if (cell_owner[c] == from) cell_owner[c] = owner;
 }
 
+namespace {
+
+// The factor that takes `explained` of r's occluded rays out of its confidence's denominator (1 when none).
+double occluders_credit(const VerifyResult& r, int explained, double occluded_weight) {
+  const double seen = static_cast<double>(r.inliers + r.violations);
+  const double before = seen + occluded_weight * static_cast<double>(r.occluded);
+  const double after = seen + occluded_weight * static_cast<double>(r.occluded - explained);
+  return explained == 0 || after <= 0.0 ? 1.0 : before / after;
+}
+
+}  // namespace
+
 // h's confidence when its occluded rays whose measured points belong to other objects (accepted, or waiting
 // for support: cell_owner != -1) no longer count against it (fine samples, h's refined pose).
 double Recognizer::Impl::confidence_with_occluders(const Hypothesis& h, double occluded_weight) {
@@ -210,11 +213,7 @@ double Recognizer::Impl::confidence_with_occluders(const Hypothesis& h, double o
   const VerifyResult r = v.verify(fine, geometry[static_cast<std::size_t>(h.model)], R, t, false);
   int explained = 0;
   for (std::uint32_t c : v.occluded_cells()) explained += cell_owner[c] != -1 ? 1 : 0;
-  const double seen = static_cast<double>(r.inliers + r.violations);
-  const double before = seen + occluded_weight * static_cast<double>(r.occluded);
-  const double after = seen + occluded_weight * static_cast<double>(r.occluded - explained);
-  if (explained == 0 || after <= 0.0) return h.verify.confidence;
-  return h.verify.confidence * before / after;
+  return h.verify.confidence * occluders_credit(r, explained, occluded_weight);
 }
 
 void Recognizer::Impl::alternatives_in_hiding(const RecognizeParams& params, std::size_t k,
@@ -242,12 +241,7 @@ void Recognizer::Impl::alternatives_in_hiding(const RecognizeParams& params, std
     inliers = r.inliers;
     if (static_cast<double>(others) > params.max_shared_inliers * static_cast<double>(std::max(1, r.inliers)))
       return 0.0;
-    const double denom =
-        static_cast<double>(r.inliers + r.violations) + w_occ * static_cast<double>(r.occluded - explained);
-    double conf = denom > 0.0 ? static_cast<double>(r.inliers) / denom : 0.0;
-    if (r.inliers < v.params().min_inliers)
-      conf *= static_cast<double>(r.inliers) / static_cast<double>(std::max(1, v.params().min_inliers));
-    return conf;
+    return r.confidence * occluders_credit(r, explained, w_occ);
   };
   // The best coarse fit per other model among the hypotheses on at least half of o's scene faces.
   struct Pick {
