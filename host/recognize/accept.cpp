@@ -175,6 +175,7 @@ bool Recognizer::Impl::accept_one(const RecognizeParams& params, Recognizer& rz,
   const auto obj_index = static_cast<std::int32_t>(out.objects.size());
   for (std::uint32_t c : h.inlier_cells) cell_owner[c] = obj_index;
   find_alternatives(*this, i, params, h);
+  h.gap_checked = false;
   canonical_pose(rz.library_.models[static_cast<std::size_t>(h.model)], h.R, h.t);
   out.objects.emplace_back();
   std::swap(out.objects.back(), spare_objects[out.objects.size() - 1]);
@@ -218,8 +219,9 @@ double Recognizer::Impl::confidence_with_occluders(const Hypothesis& h, double o
 
 void Recognizer::Impl::alternatives_in_hiding(const RecognizeParams& params, std::size_t k,
                                               Recognition& out) {
-  if (params.hidden_alternatives <= 0) return;
   Hypothesis& o = out.objects[k];
+  o.gap_checked = true;
+  if (params.hidden_alternatives <= 0) return;
   if (o.alternatives >= Hypothesis::kMaxAlternatives) return;
   const auto self = static_cast<std::int32_t>(k);
   Verifier& v = verifiers.front();
@@ -390,6 +392,15 @@ bool Recognizer::Impl::accept_objects(Recognizer& rz, Scan& scan, int round, Rec
       i = kNoHypothesis;
     }
     mark_waiting_cells(-1);
+  }
+  // Objects accepted on their own fit whose view other objects partly hide get the same check, now that the
+  // round's objects are known (an alternative must not interpenetrate any of them).
+  for (std::size_t k = 0; k < out.objects.size(); ++k) {
+    const VerifyResult& v = out.objects[k].verify;
+    const double rays = static_cast<double>(v.inliers + v.violations + v.occluded);
+    if (!out.objects[k].gap_checked && rays > 0.0 &&
+        static_cast<double>(v.occluded) >= params.occluded_alternatives_share * rays)
+      alternatives_in_hiding(params, k, out);
   }
   for (std::size_t i : deferred)
     if (i != kNoHypothesis) reject(hyps[i]);

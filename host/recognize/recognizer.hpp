@@ -114,6 +114,10 @@ struct RecognizeParams {
   // hypotheses of other models on its scene faces (the best on the coarse samples, one per model) are
   // checked finely for an alternative. 0 = none; at most 16.
   int hidden_alternatives = 8;
+  // The same check for an object accepted on its own fit when at least this share of its rays (fine samples)
+  // met measured points in front of it: other objects hide part of it, and a larger solid may hide there too
+  // (> 1 = never).
+  double occluded_alternatives_share = 0.25;
   double confidence_weight = 0.2;  // ordering key = cost + weight * (1 - confidence)
   // - inlier_weight * inliers / (most inliers of the round's hypotheses): of look-alikes that fit the coarse
   // samples alike, the one explaining the most measured points goes to refinement first.
@@ -235,6 +239,8 @@ struct Hypothesis {
   static constexpr int kMaxAlternatives = 4;
   std::array<Alternative, kMaxAlternatives> alternative{};
   int alternatives = 0;  // listed in alternative[0 .. alternatives)
+  bool gap_checked =
+      false;  // accepted objects: the larger solids that may hide behind its occluders were checked
   std::span<const Alternative> listed_alternatives() const {
     return {alternative.data(), static_cast<std::size_t>(alternatives)};
   }

@@ -178,6 +178,9 @@ Args parse_args(CLI::App& app, int argc, char** argv) {
   app.add_option("--hidden-below-fit", p.hidden_below_min_fit, "RecognizeParams::hidden_below_min_fit");
   app.add_option("--hidden-alternatives", p.hidden_alternatives,
                  "RecognizeParams::hidden_alternatives (0 = none)");
+  app.add_option("--occluded-alternatives", p.occluded_alternatives_share,
+                 "RecognizeParams::occluded_alternatives_share (> 1 = never)")
+      ->check(non_negative);
   app.add_flag("--no-hidden-below{false}", p.support_hidden_below,
                "RecognizeParams::support_hidden_below off (space hidden under a solid does not hold it up)");
   app.add_option("--hidden-min-confidence", p.hidden_min_confidence, "RecognizeParams::hidden_min_confidence")
