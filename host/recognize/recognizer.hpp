@@ -239,8 +239,9 @@ struct Hypothesis {
   static constexpr int kMaxAlternatives = 4;
   std::array<Alternative, kMaxAlternatives> alternative{};
   int alternatives = 0;  // listed in alternative[0 .. alternatives)
-  bool gap_checked =
-      false;  // accepted objects: the larger solids that may hide behind its occluders were checked
+  // Accepted objects: the larger solids that may hide behind its occluders were checked
+  // (alternatives_in_hiding).
+  bool gap_checked = false;
   std::span<const Alternative> listed_alternatives() const {
     return {alternative.data(), static_cast<std::size_t>(alternatives)};
   }

@@ -401,6 +401,17 @@ int run(const Args& args) {
                       static_cast<unsigned long long>(seed), a, b, 100 * ip.volume_share, ip.depth_mm);
         }
       }
+    // Reported object h lists scene object oi's true model as an alternative, in its own pose (a candidate of
+    // another shape sits elsewhere on the same visible faces), centre within 10 mm of the truth.
+    auto lists_truth = [&](const fs::host::rec::Hypothesis& h, std::size_t oi) {
+      const int model = rs.catalog_index[oi];
+      const auto& obj = rs.scene.objects[oi];
+      const auto& tm = library.models[static_cast<std::size_t>(model)];
+      const fs::Vec3 centre = obj.rotation * tm.center + obj.translation;
+      for (const auto& a : h.listed_alternatives())
+        if (a.model == model && (a.R * tm.center + a.t - centre).norm() < 10.0) return true;
+      return false;
+    };
     // Ambiguous reports: correct when the reported model is the true one (found: centre within 10 mm) or an
     // alternative is, in its own pose within 10 mm of the truth.
     for (std::size_t j = 0; j < found_objects.size(); ++j) {
@@ -420,13 +431,9 @@ int run(const Args& args) {
         }
       }
       if (truth < 0) continue;
-      const int true_model = rs.catalog_index[static_cast<std::size_t>(truth)];
-      const auto& obj = rs.scene.objects[static_cast<std::size_t>(truth)];
-      const auto& tm = library.models[static_cast<std::size_t>(true_model)];
-      const fs::Vec3 centre = obj.rotation * tm.center + obj.translation;
-      bool correct = truth_of[j] >= 0 && h.model == true_model;
-      for (const auto& a : h.listed_alternatives())
-        correct = correct || (a.model == true_model && (a.R * tm.center + a.t - centre).norm() < 10.0);
+      const bool correct =
+          (truth_of[j] >= 0 && h.model == rs.catalog_index[static_cast<std::size_t>(truth)]) ||
+          lists_truth(h, static_cast<std::size_t>(truth));
       s.ambiguous_correct += correct ? 1 : 0;
     }
     // Missed objects whose true model is a candidate of an unmatched ambiguous report within 10 mm.
@@ -437,19 +444,8 @@ int run(const Args& args) {
       for (std::size_t j = 0; j < found_objects.size(); ++j)
         matched = matched || (truth_of[j] == static_cast<int>(oi));
       if (matched) continue;
-      const auto& obj = rs.scene.objects[oi];
-      const auto& tm = library.models[static_cast<std::size_t>(rs.catalog_index[oi])];
       for (std::size_t j = 0; j < found_objects.size(); ++j) {
-        const auto& h = found_objects[j];
-        if (used[j] || as_candidate[j]) continue;
-        // The true model listed, in its own pose (a candidate of another shape sits elsewhere on the same
-        // visible faces), within 10 mm of the truth.
-        bool listed = false;
-        for (const auto& a : h.listed_alternatives())
-          listed = listed ||
-                   (a.model == rs.catalog_index[oi] &&
-                    (a.R * tm.center + a.t - (obj.rotation * tm.center + obj.translation)).norm() < 10.0);
-        if (!listed) continue;
+        if (used[j] || as_candidate[j] || !lists_truth(found_objects[j], oi)) continue;
         as_candidate[j] = true;
         ++s.found_as_candidate;
         break;
