@@ -179,4 +179,25 @@ std::vector<Mat3> compute_symmetries(const Model& model, double tol) {
   return group;
 }
 
+std::vector<int> face_orbit_representatives(const Model& model, double tol) {
+  const std::size_t n = model.faces.size();
+  std::vector<int> rep(n);
+  for (std::size_t i = 0; i < n; ++i) rep[i] = static_cast<int>(i);
+  const double len_tol = tol * std::max(model.bounding_radius, 1e-300);
+  for (std::size_t k = 1; k < model.symmetries.size(); ++k) {
+    const Mat3& S = model.symmetries[k];
+    for (std::size_t i = 0; i < n; ++i) {
+      const Vec3 sn = S * model.faces[i].normal;
+      const Vec3 sc = S * (model.faces[i].centroid - model.center);
+      for (std::size_t j = 0; j < n; ++j) {
+        if ((sn - model.faces[j].normal).norm() > tol) continue;
+        if ((sc - (model.faces[j].centroid - model.center)).norm() > len_tol) continue;
+        rep[i] = std::min(rep[i], static_cast<int>(j));
+        break;
+      }
+    }
+  }
+  return rep;
+}
+
 }  // namespace fs::host

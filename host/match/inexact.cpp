@@ -84,7 +84,26 @@ void InexactMatcher::set_clock(const MatchClock* clock) {
 }
 const MatcherLimits& InexactMatcher::limits() const { return impl_->limits; }
 
+SearchScope full_scope() {
+  SearchScope s;
+  s.first_refs = ~NodeSet{};
+  s.scene = ~NodeSet{};
+  return s;
+}
+
 const MatchResult& InexactMatcher::match(const Pfrg& scene, const Pfrg& ref, const MatchParams& params) {
+  impl_->scoped = false;
+  return run_match(scene, ref, params);
+}
+
+const MatchResult& InexactMatcher::match(const Pfrg& scene, const Pfrg& ref, const MatchParams& params,
+                                         const SearchScope& scope) {
+  impl_->scoped = true;
+  impl_->scope = scope;
+  return run_match(scene, ref, params);
+}
+
+const MatchResult& InexactMatcher::run_match(const Pfrg& scene, const Pfrg& ref, const MatchParams& params) {
   Impl& m = *impl_;
   m.S->load(scene);
   m.G->load(ref);

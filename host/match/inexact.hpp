@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "common/calibration.hpp"
+#include "host/match/node_set.hpp"
 #include "host/match/params.hpp"
 #include "host/pfrg/pfrg.hpp"
 
@@ -78,6 +79,19 @@ struct MatchResult {
   MatchStats stats;
 };
 
+// Where a search may go, as indices into the graphs' nodes (bit i = nodes[i]).
+// - first_refs: the reference nodes a search starts from. For a reference with rotation symmetries, one face
+//   of each orbit (face_orbit_representatives) gives every distinct solution: a search started from another
+//   face of the orbit finds the symmetric images of the same solutions, at the same cost, so the budget is
+//   not spent on those copies.
+// - scene: the scene nodes it may match (a second search of one part without the object a first one found).
+struct SearchScope {
+  NodeSet first_refs;
+  NodeSet scene;
+};
+// Every node of graphs of up to kMaxNodes nodes.
+SearchScope full_scope();
+
 struct MatcherLimits {
   std::int64_t max_states = 50000;  // state pool size (effective budget = min(this, params.max_states))
   int max_reported = 64;            // solutions kept in the result
@@ -100,10 +114,15 @@ class InexactMatcher {
 
   // Matches scene against reference. No heap allocation. Throws fs::Error if a graph exceeds kMaxNodes nodes.
   const MatchResult& match(const Pfrg& scene, const Pfrg& ref, const MatchParams& params);
+  // The same within a scope (SearchScope): the search starts only from scope.first_refs and matches only
+  // the scene nodes in scope.scene.
+  const MatchResult& match(const Pfrg& scene, const Pfrg& ref, const MatchParams& params,
+                           const SearchScope& scope);
   void set_clock(const MatchClock* clock);  // nullptr = steady clock
   const MatcherLimits& limits() const;
 
  private:
+  const MatchResult& run_match(const Pfrg& scene, const Pfrg& ref, const MatchParams& params);
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };

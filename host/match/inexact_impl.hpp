@@ -46,6 +46,8 @@ struct InexactMatcher::Impl {
 
   MatcherLimits limits;
   const MatchClock* clock = &steady_match_clock();
+  SearchScope scope;  // when scoped (match() with a scope)
+  bool scoped = false;
   std::unique_ptr<CompactGraph> S = std::make_unique<CompactGraph>();  // scene
   std::unique_ptr<CompactGraph> G = std::make_unique<CompactGraph>();  // reference
   std::vector<State> pool;

@@ -29,6 +29,7 @@ struct InexactMatcher::Impl::SearchSetup {
   std::int64_t t0 = 0;
   bool timed = false;
   NodeSet gs_super, all_r, all_s;
+  NodeSet root_r;  // the root's reference candidates
 };
 
 // The expansion of one state (the parent of the candidates): its candidate sets and the conditions that apply
@@ -104,6 +105,11 @@ InexactMatcher::Impl::SearchSetup InexactMatcher::Impl::setup_search() {
     if (gs.supernode[static_cast<std::size_t>(i)]) su.gs_super.set(i);
   for (int i = 0; i < gr.n; ++i) su.all_r.set(i);
   for (int i = 0; i < gs.n; ++i) su.all_s.set(i);
+  su.root_r = su.all_r;
+  if (scoped) {
+    su.root_r = su.all_r & scope.first_refs;
+    su.all_s = su.all_s & scope.scene;
+  }
   return su;
 }
 
@@ -196,12 +202,15 @@ InexactMatcher::Impl::Expansion InexactMatcher::Impl::begin_expansion(const Sear
   load_map(pi, +1);
 
   NodeSet cand_s;
-  if (ex.root || !p.on(Condition::kConnectivity)) {
+  if (ex.root) {
+    ex.cand_r = su.root_r;
+    cand_s = su.all_s;
+  } else if (!p.on(Condition::kConnectivity)) {
     ex.cand_r = su.all_r.minus(par.cr);
     cand_s = su.all_s.minus(par.cs);
   } else {
     ex.cand_r = par.tr;
-    cand_s = par.ts;
+    cand_s = scoped ? (par.ts & su.all_s) : par.ts;
     const std::int64_t all = static_cast<std::int64_t>(gr.n - par.level) * (gs.n - par.level);
     st.removed[static_cast<std::size_t>(Condition::kConnectivity)] +=
         all - static_cast<std::int64_t>(ex.cand_r.count()) * cand_s.count();

@@ -17,6 +17,25 @@ using detail::SolutionSlot;
 
 namespace {
 
+// Copies r's solutions into ms, at most `room` of them, with part ranks 0, 1, ...
+void take_solutions(ModelSlots& ms, const match::MatchResult& r, int room) {
+  int taken = 0;
+  for (const match::Solution& s : r.solutions) {
+    if (ms.count >= static_cast<int>(ms.slots.size()) || taken >= room) break;
+    if (s.partial) continue;
+    SolutionSlot& slot = ms.slots[static_cast<std::size_t>(ms.count++)];
+    slot.part_rank = taken++;
+    slot.path.assign(s.path.begin(), s.path.end());
+    slot.matches.assign(s.matches.begin(), s.matches.end());
+    slot.rotation = s.rotation;
+    slot.cost = s.cost;
+    slot.rotfit = s.rotfit_error;
+    slot.level = s.level;
+    slot.rank = s.rank;
+    slot.degenerate = s.degenerate;
+  }
+}
+
 // Worker task: model batch_first + task against every part.
 void match_model(void* ctx, std::size_t task, int worker) {
   auto& m = *static_cast<Recognizer::Impl*>(ctx);
@@ -27,30 +46,33 @@ void match_model(void* ctx, std::size_t task, int worker) {
   // A model of more faces than the matcher takes (kept by `library build --allow-large`) is never matched.
   if (model.graph.nodes.size() > static_cast<std::size_t>(match::kMaxNodes)) return;
   // Each connected part of the scene graph is searched on its own (a solution is connected, so
-  // it lies in one part); the model's solution slots are shared out evenly among the parts.
-  const int per_part = static_cast<int>((ms.slots.size() + m.nparts - 1) / m.nparts);
+  // it lies in one part); the model's solution slots are shared out evenly among the parts (and between
+  // the two searches of a part, RecognizeParams::second_search).
+  const std::size_t searches = m.second_search ? 2 : 1;
+  const int per_part = static_cast<int>((ms.slots.size() / searches + m.nparts - 1) / m.nparts);
   const std::uint64_t mask = m.part_mask[m.batch_first + task];
+  match::InexactMatcher& matcher = *m.matchers[static_cast<std::size_t>(worker)];
+  match::SearchScope scope = match::full_scope();
+  if (!m.search_roots.empty()) scope.first_refs = m.search_roots[m.batch_first + task];
   for (std::size_t part = 0; part < m.nparts; ++part) {
     if (!((mask >> part) & 1u)) continue;  // the arc index: no solution possible
     const bool small = m.round_small || m.part_faces[part] < m.mparams.th_minlevel;
-    const match::MatchResult& r = m.matchers[static_cast<std::size_t>(worker)]->match(
-        m.parts[part], model.graph, small ? m.mparams_small : m.mparams);
+    const match::MatchParams& mp = small ? m.mparams_small : m.mparams;
+    scope.scene = ~match::NodeSet{};
+    const match::MatchResult& r = matcher.match(m.parts[part], model.graph, mp, scope);
     ms.states += r.stats.states_created;
-    int taken = 0;
-    for (const match::Solution& s : r.solutions) {
-      if (ms.count >= static_cast<int>(ms.slots.size()) || taken >= per_part) break;
-      if (s.partial) continue;
-      SolutionSlot& slot = ms.slots[static_cast<std::size_t>(ms.count++)];
-      slot.part_rank = taken++;
-      slot.path.assign(s.path.begin(), s.path.end());
-      slot.matches.assign(s.matches.begin(), s.matches.end());
-      slot.rotation = s.rotation;
-      slot.cost = s.cost;
-      slot.rotfit = s.rotfit_error;
-      slot.level = s.level;
-      slot.rank = s.rank;
-      slot.degenerate = s.degenerate;
-    }
+    take_solutions(ms, r, per_part);
+    if (!m.second_search || r.stats.stop != match::StopReason::kSolutionsFound || r.solutions.empty() ||
+        !r.solutions[0].complete || r.solutions[0].level < m.second_search_min_level)
+      continue;
+    // The part without the object of the first solution: searched again when it has faces enough.
+    const match::NodeSet region = m.object_region(part, r.solutions[0], model);
+    if (m.part_real[part].minus(region).count() < mp.th_minlevel) continue;
+    scope.scene = ~region;
+    const match::MatchResult& r2 =
+        matcher.match(m.parts[part], model.graph, small ? m.mparams_small_second : m.mparams_second, scope);
+    ms.states += r2.stats.states_created;
+    take_solutions(ms, r2, per_part);
   }
 }
 
@@ -98,6 +120,7 @@ void Recognizer::Impl::match_references(const Library& lib, int round, Recognize
     }
   }
   for (std::uint64_t m : part_mask) stats.references_searched += m != 0;
+  if (second_search) part_tables();
   for (batch_first = 0; batch_first < models; batch_first += kMatchBatch) {
     const std::size_t n = std::min(kMatchBatch, models - batch_first);
     pool.run(n, match_model, this);
@@ -112,6 +135,68 @@ void Recognizer::Impl::match_references(const Library& lib, int round, Recognize
   }
   stats.match_ms += ms_since(t0);
   stats.rounds = round + 1;
+}
+
+// The parts' adjacency and real faces by node index (object_region).
+void Recognizer::Impl::part_tables() {
+  for (std::size_t k = 0; k < nparts; ++k) {
+    const Pfrg& g = parts[k];
+    auto& adj = part_adj[k];
+    part_real[k] = match::NodeSet{};
+    const std::size_t n = std::min(g.nodes.size(), static_cast<std::size_t>(match::kMaxNodes));
+    auto index_of = [&](int id) {
+      return id >= 0 && static_cast<std::size_t>(id) < id_index.size()
+                 ? id_index[static_cast<std::size_t>(id)]
+                 : -1;
+    };
+    for (std::size_t i = 0; i < n; ++i) {
+      adj[i] = match::NodeSet{};
+      const int id = g.nodes[i].id;
+      if (id >= 0 && static_cast<std::size_t>(id) < id_index.size())
+        id_index[static_cast<std::size_t>(id)] = static_cast<int>(i);
+      if (!g.nodes[i].supernode) part_real[k].set(static_cast<int>(i));
+    }
+    for (const PfrgArc& a : g.arcs) {
+      const int ia = index_of(a.a), ib = index_of(a.b);
+      if (ia < 0 || ib < 0) continue;
+      adj[static_cast<std::size_t>(ia)].set(ib);
+      adj[static_cast<std::size_t>(ib)].set(ia);
+    }
+    for (std::size_t i = 0; i < n; ++i)
+      if (index_of(g.nodes[i].id) >= 0) id_index[static_cast<std::size_t>(g.nodes[i].id)] = -1;
+  }
+}
+
+// The faces of part `part` that the object of solution s holds (node indices): its matched faces and, grown
+// through the part's adjacency, the real faces whose normal is a face normal of the model in the solution's
+// rotation (within 5 degrees).
+match::NodeSet Recognizer::Impl::object_region(std::size_t part, const match::Solution& s,
+                                               const Model& model) const {
+  const Pfrg& g = parts[part];
+  const auto& adj = part_adj[part];
+  const std::size_t n = std::min(g.nodes.size(), static_cast<std::size_t>(match::kMaxNodes));
+  match::NodeSet region;
+  for (const match::NodeMatch& nm : s.matches)
+    for (std::size_t i = 0; i < n; ++i)
+      if (g.nodes[i].id == nm.scene) region.set(static_cast<int>(i));
+  constexpr double kCos = 0.99619;  // cos 5 deg
+  match::NodeSet tried = region;
+  for (;;) {
+    match::NodeSet around;
+    region.for_each([&](int i) { around = around | adj[static_cast<std::size_t>(i)]; });
+    const match::NodeSet fresh = (around & part_real[part]).minus(tried);
+    if (!fresh.any()) break;
+    tried = tried | fresh;
+    fresh.for_each([&](int i) {
+      const Vec3& normal = g.nodes[static_cast<std::size_t>(i)].normal;
+      for (const ModelFace& f : model.faces)
+        if ((s.rotation * f.normal).dot(normal) > kCos) {
+          region.set(i);
+          break;
+        }
+    });
+  }
+  return region;
 }
 
 // hyps[0 .. nhyp) without the hypotheses of part_rank >= quota (order kept, buffers swapped, not copied).

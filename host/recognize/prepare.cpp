@@ -93,6 +93,11 @@ Recognizer::Impl::Scan Recognizer::Impl::prepare_matching(Recognizer& rz, const 
     scan.min_part = params.small_part_min_level;
     mparams_small.th_minlevel = params.small_part_min_level;
   }
+  mparams_second = mparams;
+  mparams_small_second = mparams_small;
+  mparams_second.max_states =
+      std::min(mparams.max_states, std::max<std::int64_t>(params.second_search_states, 1));
+  mparams_small_second.max_states = mparams_second.max_states;
   int max_id = 0;
   for (const auto& n : graph.nodes) max_id = std::max(max_id, n.id);
   scene_index.assign(static_cast<std::size_t>(max_id) + 1, -1);

@@ -29,10 +29,27 @@ Recognizer::Impl::Impl(const Library& lib, const RecognizeParams& p, int threads
     np.min_share = p.near_symmetry_share;
     for (std::size_t k = 0; k < lib.models.size(); ++k) near_sym[k] = near_symmetries(lib.models[k], np);
   }
+  if (p.symmetry_roots) {
+    search_roots.resize(lib.models.size());
+    for (std::size_t k = 0; k < lib.models.size(); ++k) {
+      const Model& m = lib.models[k];
+      const std::vector<int> rep = face_orbit_representatives(m);
+      for (std::size_t f = 0; f < m.graph.nodes.size() && f < static_cast<std::size_t>(match::kMaxNodes); ++f)
+        if (f >= rep.size() || rep[f] == static_cast<int>(f)) search_roots[k].set(static_cast<int>(f));
+    }
+  }
+  second_search = p.second_search;
+  second_search_min_level = p.second_search_min_level;
+  if (second_search) {
+    part_adj.resize(kMaxParts);
+    part_real.resize(kMaxParts);
+    id_index.assign(kMaxNodeIds, -1);
+  }
   worker_pairs.resize(static_cast<std::size_t>(pool.threads()));
   for (auto& w : worker_pairs) w.reserve(256);
   for (auto& pm : batch) {
     pm.slots.resize(static_cast<std::size_t>(std::max(p.solutions_per_model, 0)));
+    if (second_search) pm.slots.resize(2 * pm.slots.size());  // the second search's solutions too
     for (auto& s : pm.slots) {
       s.path.reserve(kMaxMatches);
       s.matches.reserve(kMaxMatches);

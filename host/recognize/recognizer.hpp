@@ -54,6 +54,21 @@ struct RecognizeParams {
   // part's arcs). Exact: the results are those of matching every reference. false = match every reference.
   bool arc_index = true;
   std::int64_t max_states = 20000;  // state budget of one match
+  // Start each search only from one face per orbit of the reference's rotation symmetries
+  // (face_orbit_representatives): a search started from another face of the orbit finds the same posed
+  // solutions, and in a scene with two objects the model fits (a truncated dodecahedron beside an augmented
+  // one) those copies took the budget and the solutions of the better fitting one. false = every face.
+  bool symmetry_roots = true;
+  // A search stops at its first solution (max_solutions). When that solution lies on one object and the
+  // scene part holds others, the model is searched once more in the part without that object (its matched
+  // faces and the faces around them whose normals its pose predicts): in a pile, the first solution of an
+  // elongated pentagonal cupola often lies on the gyroelongated one beside it, and the true one got none.
+  bool second_search = true;
+  std::int64_t second_search_states = 5000;  // its state budget (a first solution takes a few hundred states)
+  // ... only after a first solution of at least this many faces. 4 spares a library of thousands of polycubes
+  // (a corner of three faces fits most of them: the second searches doubled the matching time of box-like
+  // scenes there) but loses objects among the 120 polyhedra (docs/performance.md).
+  int second_search_min_level = 3;
   // TH_solutions of one match (ch. 7.4's "solutions found" stop; the thesis runs t9.3 to exhaustion). A
   // search of a symmetric model otherwise spends its budget on symmetry-equivalent solutions and their
   // sub-matches, and the solutions kept are then picked from thousands of incomplete states. Stopping at the

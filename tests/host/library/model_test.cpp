@@ -59,6 +59,30 @@ TEST(BuildModel, BoxSymmetryOrders) {
   EXPECT_EQ(build_model(triangulated_box(10, 10, 30)).symmetry_order(), 8u);
 }
 
+// One face per orbit of the rotation group: the cube's six faces are one orbit, a square prism's ends and its
+// sides two, a box of three edge lengths has three pairs of opposite faces.
+TEST(BuildModel, FaceOrbitRepresentativesOnePerOrbit) {
+  auto orbits = [](const Model& m) {
+    const std::vector<int> rep = fs::host::face_orbit_representatives(m);
+    EXPECT_EQ(rep.size(), m.face_count());
+    int n = 0;
+    for (std::size_t f = 0; f < rep.size(); ++f) {
+      EXPECT_LE(rep[f], static_cast<int>(f));
+      EXPECT_EQ(rep[static_cast<std::size_t>(rep[f])], rep[f]);
+      // A face and its representative are alike (area).
+      EXPECT_NEAR(m.faces[f].area, m.faces[static_cast<std::size_t>(rep[f])].area, 1e-9 * m.faces[f].area);
+      n += rep[f] == static_cast<int>(f);
+    }
+    return n;
+  };
+  EXPECT_EQ(orbits(build_model(triangulated_box(10, 10, 10))), 1);
+  EXPECT_EQ(orbits(build_model(triangulated_box(10, 10, 30))), 2);
+  EXPECT_EQ(orbits(build_model(triangulated_box(10, 20, 30))), 3);
+  Model no_symmetry = build_model(triangulated_box(10, 20, 30));
+  no_symmetry.symmetries.resize(1);
+  EXPECT_EQ(orbits(no_symmetry), 6);
+}
+
 TEST(BuildModel, StlFileCubeGivesSixFaces) {
   const Mesh box = triangulated_box(25, 25, 25);
   const auto path = std::filesystem::temp_directory_path() / "fs_library_test_cube.stl";

@@ -14,6 +14,7 @@
 #include "common/alloc_counter/alloc_counter.hpp"
 #endif
 #include "common/mesh.hpp"
+#include "host/library/model.hpp"
 #include "host/match/inexact.hpp"
 #include "host/match/parallel.hpp"
 #include "host/match/params.hpp"
@@ -574,6 +575,101 @@ TEST(Inexact, UnexplainedNeighbourAreaRanksSolutions) {
   EXPECT_DOUBLE_EQ(q.zeta, 0.25);
   EXPECT_DOUBLE_EQ(preset("scan").zeta, 0.1);
   EXPECT_THROW(params_from_json(nlohmann::json{{"zeta", -1}}, "test"), fs::Error);
+}
+
+// A reference with rotation symmetries searched only from one face per orbit (face_orbit_representatives)
+// finds the poses of the search from every face: each pose of a complete solution of the most faces (a
+// rotation equal up to a symmetry, the same scene faces) is among the other search's, and the search creates
+// fewer states. The first solution is the true correspondence.
+TEST(Inexact, ASearchFromOneFacePerSymmetryOrbitFindsTheSamePosesInFewerStates) {
+  using Pose = std::pair<Mat3, std::set<int>>;
+  auto poses = [](const MatchResult& r, int level) {
+    std::vector<Pose> out;
+    for (const Solution& s : r.solutions) {
+      if (!s.complete || s.level != level) continue;
+      std::set<int> faces;
+      for (const NodeMatch& nm : s.matches) faces.insert(nm.scene);
+      out.emplace_back(s.rotation, faces);
+    }
+    return out;
+  };
+  auto contains = [](const std::vector<Pose>& in, const Pose& p, const std::vector<Mat3>& group) {
+    for (const Pose& q : in) {
+      if (q.second != p.second) continue;
+      for (const Mat3& S : group)
+        if ((q.first - p.first * S).norm() < 1e-6) return true;
+    }
+    return false;
+  };
+  MatcherLimits limits;
+  limits.max_reported = 4096;
+  InexactMatcher m(limits);
+  const MatchParams p = preset("t7.34");
+  std::mt19937 rng(17);
+  int views = 0;
+  for (const char* name : {"truncated-cube", "truncated-tetrahedron", "square-cupola", "cuboctahedron"}) {
+    fs::host::BuildOptions bo;
+    bo.scale = 50.0;
+    const fs::host::Model model = fs::host::build_model(johnson(name), bo);
+    ASSERT_GT(model.symmetry_order(), 1u) << name;
+    const std::vector<int> rep = fs::host::face_orbit_representatives(model);
+    NodeSet first;
+    for (std::size_t f = 0; f < rep.size(); ++f)
+      if (rep[f] == static_cast<int>(f)) first.set(static_cast<int>(f));
+    EXPECT_LT(first.count(), static_cast<int>(model.face_count())) << name;
+    for (const Mat3& R : views_of(model.graph, 2, rng)) {
+      const Pfrg scene = fs::test::rigid_view(model.graph, R, kViewDir);
+      const int level = static_cast<int>(fs::test::real_ids(scene).size());
+      const MatchResult& all_r = m.match(scene, model.graph, p);
+      ASSERT_EQ(all_r.stats.stop, StopReason::kNoStates) << name;
+      const std::int64_t all_states = all_r.stats.states_created;
+      const std::vector<Pose> all = poses(all_r, level);
+      SearchScope scope = full_scope();
+      scope.first_refs = first;
+      const MatchResult& one_r = m.match(scene, model.graph, p, scope);
+      ASSERT_EQ(one_r.stats.stop, StopReason::kNoStates) << name;
+      ASSERT_FALSE(one_r.solutions.empty()) << name;
+      const auto v = fs::test::judge(model.graph, R, one_r.solutions[0]);
+      EXPECT_TRUE(v.equivalent) << name;
+      EXPECT_LT(v.rotation_error_deg, 0.1) << name;
+      EXPECT_LT(one_r.stats.states_created, all_states) << name;
+      const std::vector<Pose> one = poses(one_r, level);
+      ASSERT_FALSE(one.empty()) << name;
+      for (const Pose& q : all) EXPECT_TRUE(contains(one, q, model.symmetries)) << name;
+      for (const Pose& q : one) EXPECT_TRUE(contains(all, q, model.symmetries)) << name;
+      ++views;
+    }
+  }
+  EXPECT_GE(views, 6);
+}
+
+// A scope's scene set: the faces outside it are never matched, and the search finds the solution of the rest.
+TEST(Inexact, AScopeWithoutSomeSceneFacesMatchesOnlyTheOthers) {
+  const Pfrg cube = fs::test::mesh_pfrg(fs::test::box(100, 100, 100));
+  std::mt19937 rng(29);
+  InexactMatcher m;
+  MatchParams p = preset("t7.34");
+  p.th_minlevel = 2;
+  int checked = 0;
+  for (const Mat3& R : views_of(cube, 4, rng)) {
+    const Pfrg scene = fs::test::rigid_view(cube, R, kViewDir);
+    const std::vector<int> real = fs::test::real_ids(scene);
+    if (real.size() != 3) continue;
+    SearchScope scope = full_scope();
+    int dropped_index = -1;
+    for (std::size_t i = 0; i < scene.nodes.size(); ++i)
+      if (scene.nodes[i].id == real[0]) dropped_index = static_cast<int>(i);
+    ASSERT_GE(dropped_index, 0);
+    scope.scene.reset(dropped_index);
+    const MatchResult& r = m.match(scene, cube, p, scope);
+    ASSERT_FALSE(r.solutions.empty());
+    EXPECT_EQ(r.solutions[0].level, 2);  // the other two faces of the corner
+    for (const Solution& s : r.solutions)
+      for (const NodeMatch& nm : s.matches) EXPECT_NE(nm.scene, real[0]);
+    EXPECT_EQ(m.match(scene, cube, p).solutions[0].level, 3);
+    ++checked;
+  }
+  EXPECT_GE(checked, 1);
 }
 
 }  // namespace

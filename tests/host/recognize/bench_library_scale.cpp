@@ -580,6 +580,17 @@ Args parse_args(CLI::App& app, int argc, char** argv) {
   app.add_flag(
       "--no-arc-index", [&a](std::int64_t) { a.params.arc_index = false; },
       "match every reference (RecognizeParams::arc_index off)");
+  app.add_flag(
+      "--all-roots", [&a](std::int64_t) { a.params.symmetry_roots = false; },
+      "start each search from every reference face (RecognizeParams::symmetry_roots off)");
+  app.add_flag(
+      "--no-second-search", [&a](std::int64_t) { a.params.second_search = false; },
+      "search a part once per model (RecognizeParams::second_search off)");
+  app.add_option("--second-search-states", a.params.second_search_states,
+                 "RecognizeParams::second_search_states: the second search's state budget");
+  app.add_option(
+      "--second-search-min-level", a.params.second_search_min_level,
+      "RecognizeParams::second_search_min_level: faces of a first solution that starts a second search");
   app.add_flag("--verbose", a.verbose, "one line per scene and per miss");
   app.parse(argc, argv);
   if (!categories.empty()) {

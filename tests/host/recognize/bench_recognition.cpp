@@ -145,6 +145,17 @@ Args parse_args(CLI::App& app, int argc, char** argv) {
   app.add_flag(
       "--no-arc-index", [&p](std::int64_t) { p.arc_index = false; },
       "match every reference (RecognizeParams::arc_index off)");
+  app.add_flag(
+      "--all-roots", [&p](std::int64_t) { p.symmetry_roots = false; },
+      "start each search from every reference face (RecognizeParams::symmetry_roots off)");
+  app.add_flag(
+      "--no-second-search", [&p](std::int64_t) { p.second_search = false; },
+      "search a part once per model (RecognizeParams::second_search off)");
+  app.add_option("--second-search-states", p.second_search_states,
+                 "RecognizeParams::second_search_states: the second search's state budget");
+  app.add_option(
+      "--second-search-min-level", p.second_search_min_level,
+      "RecognizeParams::second_search_min_level: faces of a first solution that starts a second search");
   app.add_option("--max-states", p.max_states, "state budget of one match")->check(positive);
   app.add_option("--area-ratio", p.match_area_ratio, "match_area_ratio (0 = off)")->check(non_negative);
   app.add_option("--area-cost", p.area_cost,
