@@ -184,6 +184,9 @@ std::vector<int> face_orbit_representatives(const Model& model, double tol) {
   std::vector<int> rep(n);
   for (std::size_t i = 0; i < n; ++i) rep[i] = static_cast<int>(i);
   const double len_tol = tol * std::max(model.bounding_radius, 1e-300);
+  double max_area = 0;
+  for (const auto& f : model.faces) max_area = std::max(max_area, f.area);
+  const double area_tol = tol * max_area;
   for (std::size_t k = 1; k < model.symmetries.size(); ++k) {
     const Mat3& S = model.symmetries[k];
     for (std::size_t i = 0; i < n; ++i) {
@@ -192,6 +195,7 @@ std::vector<int> face_orbit_representatives(const Model& model, double tol) {
       for (std::size_t j = 0; j < n; ++j) {
         if ((sn - model.faces[j].normal).norm() > tol) continue;
         if ((sc - (model.faces[j].centroid - model.center)).norm() > len_tol) continue;
+        if (std::abs(model.faces[i].area - model.faces[j].area) > area_tol) continue;
         rep[i] = std::min(rep[i], static_cast<int>(j));
         break;
       }

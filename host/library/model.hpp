@@ -70,7 +70,8 @@ std::vector<Mat3> compute_symmetries(const Model& model, double relative_toleran
 
 // For every face, the lowest face index its orbit under model.symmetries holds (the face itself when the
 // model has no symmetry): faces with rep[f] == f are one face per orbit. A symmetry that maps a face onto no
-// face within relative_tolerance (normal, centroid / bounding radius) is not counted for it.
+// face within relative_tolerance (normal, centroid / bounding radius, area / largest face) is not counted for
+// it.
 std::vector<int> face_orbit_representatives(const Model& model, double relative_tolerance = 1e-2);
 
 }  // namespace fs::host

@@ -62,11 +62,16 @@ void match_model(void* ctx, std::size_t task, int worker) {
     const match::MatchResult& r = matcher.match(m.parts[part], model.graph, mp, scope);
     ms.states += r.stats.states_created;
     take_solutions(ms, r, per_part);
-    if (!m.second_search || r.stats.stop != match::StopReason::kSolutionsFound || r.solutions.empty() ||
-        !r.solutions[0].complete || r.solutions[0].level < m.second_search_min_level)
-      continue;
+    if (!m.second_search || r.stats.stop != match::StopReason::kSolutionsFound) continue;
     // The part without the object of the first solution: searched again when it has faces enough.
-    const match::NodeSet region = m.object_region(part, r.solutions[0], model);
+    const match::Solution* first = nullptr;
+    for (const match::Solution& s : r.solutions)
+      if (s.complete) {
+        first = &s;
+        break;
+      }
+    if (!first || first->level < m.second_search_min_level) continue;
+    const match::NodeSet region = m.object_region(part, *first, model);
     if (m.part_real[part].minus(region).count() < mp.th_minlevel) continue;
     scope.scene = ~region;
     const match::MatchResult& r2 =

@@ -55,9 +55,10 @@ Recognizer::Impl::Impl(const Library& lib, const RecognizeParams& p, int threads
       s.matches.reserve(kMaxMatches);
     }
   }
-  // The search solutions (all of every reference's, up to max_hypotheses), plus room for the single-face
-  // hypotheses of kLoneFaceRoom lone faces.
-  max_solutions = std::min(lib.models.size() * static_cast<std::size_t>(std::max(p.solutions_per_model, 0)),
+  // The search solutions (all of every reference's, of both searches of a part, up to max_hypotheses), plus
+  // room for the single-face hypotheses of kLoneFaceRoom lone faces.
+  max_solutions = std::min(lib.models.size() * (p.second_search ? 2 : 1) *
+                               static_cast<std::size_t>(std::max(p.solutions_per_model, 0)),
                            static_cast<std::size_t>(p.hypothesis_pool(lib.models.size())));
   const std::size_t max_h =
       max_solutions + kLoneFaceRoom * static_cast<std::size_t>(std::max(p.single_face_max, 0));
