@@ -83,6 +83,7 @@ void InexactMatcher::set_clock(const MatchClock* clock) {
   impl_->clock = clock ? clock : &steady_match_clock();
 }
 const MatcherLimits& InexactMatcher::limits() const { return impl_->limits; }
+const CompactGraph& InexactMatcher::scene_graph() const { return *impl_->S; }
 
 SearchScope full_scope() {
   SearchScope s;

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "common/calibration.hpp"
+#include "host/match/compact_graph.hpp"
 #include "host/match/node_set.hpp"
 #include "host/match/params.hpp"
 #include "host/pfrg/pfrg.hpp"
@@ -118,6 +119,8 @@ class InexactMatcher {
   // the scene nodes in scope.scene.
   const MatchResult& match(const Pfrg& scene, const Pfrg& ref, const MatchParams& params,
                            const SearchScope& scope);
+  // The scene of the last match() in the matchers' working form (its node indices are SearchScope::scene's).
+  const CompactGraph& scene_graph() const;
   void set_clock(const MatchClock* clock);  // nullptr = steady clock
   const MatcherLimits& limits() const;
 

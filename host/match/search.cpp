@@ -210,7 +210,7 @@ InexactMatcher::Impl::Expansion InexactMatcher::Impl::begin_expansion(const Sear
     cand_s = su.all_s.minus(par.cs);
   } else {
     ex.cand_r = par.tr;
-    cand_s = scoped ? (par.ts & su.all_s) : par.ts;
+    cand_s = par.ts & su.all_s;
     const std::int64_t all = static_cast<std::int64_t>(gr.n - par.level) * (gs.n - par.level);
     st.removed[static_cast<std::size_t>(Condition::kConnectivity)] +=
         all - static_cast<std::int64_t>(ex.cand_r.count()) * cand_s.count();

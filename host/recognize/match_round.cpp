@@ -36,6 +36,33 @@ void take_solutions(ModelSlots& ms, const match::MatchResult& r, int room) {
   }
 }
 
+// The faces of scene graph g (node indices) that the object of solution s holds: its matched faces and, grown
+// through g's adjacency, the real faces whose normal is a face normal of the model in the solution's rotation
+// (within 5 degrees).
+match::NodeSet object_region(const match::CompactGraph& g, const match::Solution& s, const Model& model) {
+  match::NodeSet region;
+  for (const match::NodeMatch& nm : s.matches)
+    if (const int i = g.index_of(nm.scene); i >= 0) region.set(i);
+  constexpr double kCos = 0.99619;  // cos 5 deg
+  match::NodeSet tried = region;
+  for (;;) {
+    match::NodeSet around;
+    region.for_each([&](int i) { around = around | g.adj[static_cast<std::size_t>(i)]; });
+    const match::NodeSet fresh = (around & g.real).minus(tried);
+    if (!fresh.any()) break;
+    tried = tried | fresh;
+    fresh.for_each([&](int i) {
+      const Vec3& normal = g.normal[static_cast<std::size_t>(i)];
+      for (const ModelFace& f : model.faces)
+        if ((s.rotation * f.normal).dot(normal) > kCos) {
+          region.set(i);
+          break;
+        }
+    });
+  }
+  return region;
+}
+
 // Worker task: model batch_first + task against every part.
 void match_model(void* ctx, std::size_t task, int worker) {
   auto& m = *static_cast<Recognizer::Impl*>(ctx);
@@ -71,8 +98,9 @@ void match_model(void* ctx, std::size_t task, int worker) {
         break;
       }
     if (!first || first->level < m.second_search_min_level) continue;
-    const match::NodeSet region = m.object_region(part, *first, model);
-    if (m.part_real[part].minus(region).count() < mp.th_minlevel) continue;
+    const match::CompactGraph& g = matcher.scene_graph();
+    const match::NodeSet region = object_region(g, *first, model);
+    if (g.real.minus(region).count() < mp.th_minlevel) continue;
     scope.scene = ~region;
     const match::MatchResult& r2 =
         matcher.match(m.parts[part], model.graph, small ? m.mparams_small_second : m.mparams_second, scope);
@@ -125,7 +153,6 @@ void Recognizer::Impl::match_references(const Library& lib, int round, Recognize
     }
   }
   for (std::uint64_t m : part_mask) stats.references_searched += m != 0;
-  if (second_search) part_tables();
   for (batch_first = 0; batch_first < models; batch_first += kMatchBatch) {
     const std::size_t n = std::min(kMatchBatch, models - batch_first);
     pool.run(n, match_model, this);
@@ -140,68 +167,6 @@ void Recognizer::Impl::match_references(const Library& lib, int round, Recognize
   }
   stats.match_ms += ms_since(t0);
   stats.rounds = round + 1;
-}
-
-// The parts' adjacency and real faces by node index (object_region).
-void Recognizer::Impl::part_tables() {
-  for (std::size_t k = 0; k < nparts; ++k) {
-    const Pfrg& g = parts[k];
-    auto& adj = part_adj[k];
-    part_real[k] = match::NodeSet{};
-    const std::size_t n = std::min(g.nodes.size(), static_cast<std::size_t>(match::kMaxNodes));
-    auto index_of = [&](int id) {
-      return id >= 0 && static_cast<std::size_t>(id) < id_index.size()
-                 ? id_index[static_cast<std::size_t>(id)]
-                 : -1;
-    };
-    for (std::size_t i = 0; i < n; ++i) {
-      adj[i] = match::NodeSet{};
-      const int id = g.nodes[i].id;
-      if (id >= 0 && static_cast<std::size_t>(id) < id_index.size())
-        id_index[static_cast<std::size_t>(id)] = static_cast<int>(i);
-      if (!g.nodes[i].supernode) part_real[k].set(static_cast<int>(i));
-    }
-    for (const PfrgArc& a : g.arcs) {
-      const int ia = index_of(a.a), ib = index_of(a.b);
-      if (ia < 0 || ib < 0) continue;
-      adj[static_cast<std::size_t>(ia)].set(ib);
-      adj[static_cast<std::size_t>(ib)].set(ia);
-    }
-    for (std::size_t i = 0; i < n; ++i)
-      if (index_of(g.nodes[i].id) >= 0) id_index[static_cast<std::size_t>(g.nodes[i].id)] = -1;
-  }
-}
-
-// The faces of part `part` that the object of solution s holds (node indices): its matched faces and, grown
-// through the part's adjacency, the real faces whose normal is a face normal of the model in the solution's
-// rotation (within 5 degrees).
-match::NodeSet Recognizer::Impl::object_region(std::size_t part, const match::Solution& s,
-                                               const Model& model) const {
-  const Pfrg& g = parts[part];
-  const auto& adj = part_adj[part];
-  const std::size_t n = std::min(g.nodes.size(), static_cast<std::size_t>(match::kMaxNodes));
-  match::NodeSet region;
-  for (const match::NodeMatch& nm : s.matches)
-    for (std::size_t i = 0; i < n; ++i)
-      if (g.nodes[i].id == nm.scene) region.set(static_cast<int>(i));
-  constexpr double kCos = 0.99619;  // cos 5 deg
-  match::NodeSet tried = region;
-  for (;;) {
-    match::NodeSet around;
-    region.for_each([&](int i) { around = around | adj[static_cast<std::size_t>(i)]; });
-    const match::NodeSet fresh = (around & part_real[part]).minus(tried);
-    if (!fresh.any()) break;
-    tried = tried | fresh;
-    fresh.for_each([&](int i) {
-      const Vec3& normal = g.nodes[static_cast<std::size_t>(i)].normal;
-      for (const ModelFace& f : model.faces)
-        if ((s.rotation * f.normal).dot(normal) > kCos) {
-          region.set(i);
-          break;
-        }
-    });
-  }
-  return region;
 }
 
 // hyps[0 .. nhyp) without the hypotheses of part_rank >= quota (order kept, buffers swapped, not copied).

@@ -65,14 +65,8 @@ struct Recognizer::Impl {
   std::vector<std::vector<NearSymmetry>> near_sym;  // by model (RecognizeParams::near_symmetry_share)
   // By model: the faces a search starts from (RecognizeParams::symmetry_roots; empty = every face).
   std::vector<match::NodeSet> search_roots;
-  // By part, by node index: the part's adjacency (the second search's object region), and its real faces.
-  std::vector<std::array<match::NodeSet, match::kMaxNodes>> part_adj;
-  std::vector<match::NodeSet> part_real;
-  std::vector<int> id_index;  // scratch: scene node id -> index in its part
-  bool second_search = false;
+  bool second_search = false;  // RecognizeParams::second_search
   int second_search_min_level = 0;
-  void part_tables();
-  match::NodeSet object_region(std::size_t part, const match::Solution& s, const Model& model) const;
   // References are matched kMatchBatch at a time: batch[k] holds the solutions of model batch_first + k until
   // they are collected into hyps (collect_batch), so this memory does not grow with the library.
   static constexpr std::size_t kMatchBatch = 256;
