@@ -6,6 +6,7 @@
 #include <cmath>
 #include <limits>
 
+#include "host/recognize/convex_clip.hpp"
 #include "host/recognize/pose.hpp"
 
 namespace fs::host::rec {
@@ -52,6 +53,15 @@ ModelGeometry::ModelGeometry(const Model& model)
   // Convex: closed, and every vertex on the inner side of every face plane. A ray then enters through exactly
   // one front face, so cast() may stop at the first front face that contains its hit, and cast_convex() may
   // clip. An open model (a face missing) is no solid: a clip would close it.
+  for (const Face& f : faces_) {
+    nx_.push_back(f.n.x());
+    ny_.push_back(f.n.y());
+    nz_.push_back(f.n.z());
+  }
+  const std::size_t padded = (faces_.size() + kClipLanes - 1) / kClipLanes * kClipLanes;
+  nx_.resize(padded, 0.0);
+  ny_.resize(padded, 0.0);
+  nz_.resize(padded, 0.0);
   convex_ = !model.open;
   for (const Face& f : faces_)
     for (const ModelFace& mf : model.faces)
@@ -172,31 +182,15 @@ int ModelGeometry::cast(const Vec3& origin, const Vec3& dir, double& distance,
 void ModelGeometry::heights(const Vec3& origin, std::vector<double>& out) const {
   out.clear();
   for (const Face& f : faces_) out.push_back(f.n.dot(origin) - f.offset);
+  out.resize(nx_.size(), -1.0);  // padding faces: inside, clip nothing
 }
 
 int ModelGeometry::cast_convex(const Vec3& origin, const Vec3& dir, double& distance,
                                std::span<const double> heights) const {
   distance = std::numeric_limits<double>::infinity();
   if (misses_bounding_sphere(origin, dir)) return -1;
-  // The ray o + s d is inside face i's half-space where h_i + s (n_i . d) <= 0.
-  int best = -1;
-  double enter = 0.0, leave = std::numeric_limits<double>::infinity();
-  for (std::size_t i = 0; i < faces_.size(); ++i) {
-    const double den = faces_[i].n.dot(dir);
-    const double h = heights[i];
-    if (den < -1e-9) {
-      const double s = -h / den;  // enters here
-      if (s > enter) enter = s, best = static_cast<int>(i);
-    } else if (den > 1e-9) {
-      leave = std::min(leave, -h / den);  // leaves here
-    } else if (h > 0.0) {
-      return -1;  // parallel to the plane, outside it (grazing counts as a miss, as in cast())
-    }
-    if (enter > leave) return -1;
-  }
-  if (best < 0) return -1;  // no face entered ahead: the origin inside, or the ray points away
-  distance = enter;
-  return best;
+  const ConvexFaces faces{nx_.data(), ny_.data(), nz_.data(), heights.data(), nx_.size()};
+  return clip_convex(faces, dir.x(), dir.y(), dir.z(), distance);
 }
 
 int ModelGeometry::cast(const Vec3& origin, const Vec3& dir, double& distance) const {
@@ -205,6 +199,7 @@ int ModelGeometry::cast(const Vec3& origin, const Vec3& dir, double& distance) c
 
 void SampleSet::reserve(std::size_t max_cells) {
   points_.reserve(max_cells);
+  rays_.reserve(max_cells);
   cells_.reserve(max_cells);
   blocks_.reserve(max_cells / 16 + 16);
 }
@@ -252,6 +247,7 @@ SampleSteps sample_steps(const Eigen::Vector2d& grid, int sample_step, double sp
 
 void SampleSet::build(const OrganizedCloud& cloud, SampleSteps steps, int block) {
   points_.clear();
+  rays_.clear();
   cells_.clear();
   blocks_.clear();
   viewpoint_ = cloud.viewpoint;
@@ -271,6 +267,11 @@ void SampleSet::build(const OrganizedCloud& cloud, SampleSteps steps, int block)
           const Eigen::Vector3f& p = cloud.points[i];
           if (!OrganizedCloud::valid(p)) continue;
           points_.push_back(p);
+          Ray ray;
+          const Vec3 w = p.cast<double>() - viewpoint_;
+          ray.range = w.norm();
+          if (ray.range > 1e-9) ray.dir = w / ray.range;
+          rays_.push_back(ray);
           cells_.push_back(static_cast<std::uint32_t>(i));
           sum += (p - v).normalized();
         }
@@ -307,16 +308,22 @@ VerifyResult Verifier::evaluate(const SampleSet& samples, const ModelGeometry& g
   if (dist <= g.radius()) return r;  // the sensor inside the object: nothing sensible to verify
   const Eigen::Vector3f dir_obj = ((cs - view) / dist).cast<float>();
   const float ang_obj = static_cast<float>(std::asin(std::min(1.0, g.radius() / dist)));
-  const auto& pts = samples.points();
+  // Rays that pass the bounding sphere by (world frame, a little wider than the cast's own test, which
+  // decides) are not turned into the model frame: about half of those in the blocks' cones.
+  const Vec3 oc = cs - view;
+  const double oc2 = oc.squaredNorm();
+  const double r2 = g.radius() * g.radius() * 1.001 + 1e-6;
+  const auto& rays = samples.rays();
   for (const SampleSet::Block& b : samples.blocks()) {
     const float c = std::clamp(b.dir.dot(dir_obj), -1.0f, 1.0f);
     if (std::acos(c) > b.angle + ang_obj) continue;
     for (std::uint32_t k = b.begin; k < b.end; ++k) {
-      const Vec3 p = pts[k].cast<double>();
-      Vec3 d = Rt * (p - t) - origin_m;
-      const double range = d.norm();
+      const SampleSet::Ray& ray = rays[k];
+      const double range = ray.range;
       if (range <= 1e-9) continue;
-      d /= range;
+      const double along = oc.dot(ray.dir);
+      if (oc2 - along * along > r2) continue;
+      const Vec3 d = Rt * ray.dir;  // model frame; the point lies at origin_m + range d
       double s = 0.0;
       const int face = g.convex() ? g.cast_convex(origin_m, d, s, heights_) : g.cast(origin_m, d, s, front_);
       if (face < 0) continue;

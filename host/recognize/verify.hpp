@@ -16,6 +16,7 @@
 #include "common/calibration.hpp"
 #include "host/io/organized_cloud.hpp"
 #include "host/library/model.hpp"
+#include "host/recognize/convex_clip.hpp"
 
 namespace fs::host::rec {
 
@@ -58,8 +59,9 @@ class ModelGeometry {
   void front_faces(const Vec3& origin, std::vector<std::uint32_t>& out) const;
   // Convex models (closed: convex() is false for an open one): the same hit as cast() without a polygon test,
   // by clipping the ray against every face's half-space (the ray enters through the face of the latest entry,
-  // and hits when no face lets it out before). heights: heights(origin) (each face's n . origin - offset,
-  // positive outside its plane).
+  // and hits when no face lets it out before; convex_clip.hpp, four faces at a time). heights:
+  // heights(origin) (each face's n . origin - offset, positive outside its plane, padded to the clip's
+  // lanes).
   int cast_convex(const Vec3& origin, const Vec3& dir, double& distance,
                   std::span<const double> heights) const;
   void heights(const Vec3& origin, std::vector<double>& out) const;
@@ -109,6 +111,7 @@ class ModelGeometry {
   const Model* model_;
   std::vector<Face> faces_;
   std::vector<std::uint32_t> all_faces_;  // 0 .. faces - 1
+  std::vector<double> nx_, ny_, nz_;      // the unit normals as columns, padded (convex_clip.hpp)
   Vec3 center_;
   double radius_;
   bool convex_ = false;
@@ -155,13 +158,20 @@ class SampleSet {
     Eigen::Vector3f dir = Eigen::Vector3f::UnitZ();  // mean viewing direction (unit)
     float angle = 0.0f;                              // max angle (rad) between a member's ray and dir
   };
+  // A point's ray from the viewpoint: unit direction and range (range 0: the point is the viewpoint).
+  struct Ray {
+    Vec3 dir = Vec3::UnitZ();
+    double range = 0.0;
+  };
   const std::vector<Eigen::Vector3f>& points() const { return points_; }
+  const std::vector<Ray>& rays() const { return rays_; }  // one per point
   const std::vector<std::uint32_t>& cells() const { return cells_; }
   const std::vector<Block>& blocks() const { return blocks_; }
   const Vec3& viewpoint() const { return viewpoint_; }
 
  private:
   std::vector<Eigen::Vector3f> points_;
+  std::vector<Ray> rays_;
   std::vector<std::uint32_t> cells_;
   std::vector<Block> blocks_;
   Vec3 viewpoint_ = Vec3::Zero();
@@ -184,7 +194,7 @@ class Verifier {
   // then never allocates).
   void reserve(std::size_t samples, std::size_t faces) {
     front_.reserve(faces);
-    heights_.reserve(faces);
+    heights_.reserve(faces + kClipLanes);  // padded (convex_clip.hpp)
     inlier_cells_.reserve(samples);
     occluded_cells_.reserve(samples);
     inlier_sample_.reserve(samples);

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <random>
 #include <vector>
 
@@ -107,6 +108,98 @@ TEST(ModelGeometry, ConvexClipGivesThePolygonTestsHitOnEveryPolyhedron) {
   g.heights(lib.models.front().center, heights);
   double s = 0.0;
   EXPECT_EQ(g.cast_convex(lib.models.front().center, Vec3(0, 0, 1), s, heights), -1);
+}
+
+// The clip four faces at a time (convex_clip.hpp) returns bit for bit what the face-by-face loop did: the
+// same face (the first of equal entries), the same distance, the same misses. Rays from outside and from
+// inside, rays parallel to face planes (grazing, inside and outside them), through vertices (equal entries of
+// several faces), and face counts that are not a multiple of the lanes.
+namespace {
+
+int clip_face_by_face(const fs::host::rec::ConvexFaces& f, std::size_t faces, const Vec3& dir,
+                      double& distance) {
+  distance = std::numeric_limits<double>::infinity();
+  int best = -1;
+  double enter = 0.0, leave = std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < faces; ++i) {
+    const double den = f.nx[i] * dir.x() + f.ny[i] * dir.y() + f.nz[i] * dir.z();
+    const double h = f.h[i];
+    if (den < -1e-9) {
+      const double s = -h / den;
+      if (s > enter) enter = s, best = static_cast<int>(i);
+    } else if (den > 1e-9) {
+      leave = std::min(leave, -h / den);
+    } else if (h > 0.0) {
+      return -1;
+    }
+    if (enter > leave) return -1;
+  }
+  if (best < 0) return -1;
+  distance = enter;
+  return best;
+}
+
+}  // namespace
+
+TEST(ConvexClip, FourFacesAtATimeEqualTheFaceByFaceLoopBitForBit) {
+  const auto& lib = fs::test::polyhedra_catalog().library;
+  std::mt19937_64 rng(11);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  std::uniform_int_distribution<int> pick(0, 5);
+  int compared = 0, hits = 0, grazing = 0, vertex = 0;
+  std::vector<double> nx, ny, nz, h;
+  for (const fs::host::Model& model : lib.models) {
+    const std::size_t n = model.faces.size();
+    const std::size_t padded =
+        (n + fs::host::rec::kClipLanes - 1) / fs::host::rec::kClipLanes * fs::host::rec::kClipLanes;
+    nx.assign(padded, 0.0), ny.assign(padded, 0.0), nz.assign(padded, 0.0), h.assign(padded, -1.0);
+    for (std::size_t i = 0; i < n; ++i) {
+      const Vec3 nn = model.faces[i].normal.normalized();
+      nx[i] = nn.x(), ny[i] = nn.y(), nz[i] = nn.z();
+    }
+    for (int k = 0; k < 300; ++k) {
+      const int kind = pick(rng);
+      Vec3 origin = model.center +
+                    4.0 * model.bounding_radius * Vec3(normal(rng), normal(rng), normal(rng)).normalized();
+      if (kind == 5) origin = model.center + 0.2 * model.bounding_radius * Vec3(normal(rng), 0.0, 0.0);
+      Vec3 aim = model.center + 0.6 * model.bounding_radius * Vec3(normal(rng), normal(rng), normal(rng));
+      const fs::host::ModelFace& face = model.faces[static_cast<std::size_t>(k) % n];
+      if (kind == 3) aim = face.loops.front().front();  // a vertex: several faces enter at once
+      Vec3 dir = (aim - origin).normalized();
+      if (kind == 4) {  // parallel to a face plane
+        const Vec3 nn = face.normal.normalized();
+        dir = (dir - dir.dot(nn) * nn).normalized();
+        ++grazing;
+      }
+      vertex += kind == 3 ? 1 : 0;
+      for (std::size_t i = 0; i < n; ++i)
+        h[i] = model.faces[i].normal.normalized().dot(origin) - model.faces[i].offset;
+      const fs::host::rec::ConvexFaces f{nx.data(), ny.data(), nz.data(), h.data(), padded};
+      double s_ref = 0.0, s_clip = 0.0;
+      const int f_ref = clip_face_by_face(f, n, dir, s_ref);
+      const int f_clip = fs::host::rec::clip_convex_portable(f, dir.x(), dir.y(), dir.z(), s_clip);
+      ASSERT_EQ(f_clip, f_ref) << model.name << " ray " << k << " kind " << kind;
+      if (f_ref >= 0) {
+        ASSERT_EQ(s_clip, s_ref) << model.name << " ray " << k;  // bit for bit
+        ++hits;
+      }
+#if defined(__x86_64__)
+      if (fs::host::rec::clip_convex_has_avx2()) {
+        double s_avx = 0.0;
+        ASSERT_EQ(fs::host::rec::clip_convex_avx2(f, dir.x(), dir.y(), dir.z(), s_avx), f_ref)
+            << model.name << " ray " << k << " kind " << kind;
+        if (f_ref >= 0) {
+          ASSERT_EQ(s_avx, s_ref) << model.name << " ray " << k;
+        }
+      }
+#endif
+      ++compared;
+    }
+  }
+  EXPECT_GT(hits, compared / 4);
+  EXPECT_LT(hits, compared * 3 / 4);
+  EXPECT_GT(grazing, compared / 10);
+  EXPECT_GT(vertex, compared / 10);
 }
 
 // An open model (a face missing, BuildOptions::allow_open) is no convex solid: verification must not close it
