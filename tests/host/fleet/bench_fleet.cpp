@@ -1,9 +1,10 @@
 // Fleet benchmark (docs/fleet.md#benchmark): a local fleet (host/cli/local_fleet.hpp: nats-server from the
 // shipped config, TLS, file storage) with 1, 2 and 4 workers (`facetscan worker`), fed by K simulated
-// scanners that publish 500-stripe .fscan scans (recorded with facetscan-fw-hil) as the gateway does, each at
-// scanner rate (one scan per --period seconds).
+// scanners that publish 500-stripe (--steps) .fscan scans (recorded with facetscan-fw-hil) as the gateway does,
+// each at scanner rate (one scan per --period seconds).
 //
-//   bench_fleet [--workers 1,2,4] [--scanners 3] [--period 2.5] [--latency-scans 12] [--burst 16] [--dir DIR]
+//   bench_fleet [--workers 1,2,4] [--scanners 3] [--period 2.5] [--latency-scans 12] [--burst 16] [--steps 500]
+//               [--dir DIR]
 //
 // Per worker count:
 //   latency   scans published at scanner rate (no queueing expected): ScanEnd (publish starts) -> result
@@ -82,6 +83,7 @@ int main(int argc, char** argv) {
   double period_s = 2.5;
   std::string dir = "bench-fleet";
   bool plain = false;
+  int steps = 500;
   app.add_option("--workers", worker_counts, "Worker counts to run")->delimiter(',');
   app.add_option("--scanners", scanners, "Simulated scanners (distinct scan streams)")
       ->check(CLI::Range(1, 32));
@@ -89,6 +91,8 @@ int main(int argc, char** argv) {
   app.add_option("--latency-scans", latency_scans, "Scans of the latency phase per worker count");
   app.add_option("--burst", burst, "Scans published at once in the throughput phase");
   app.add_option("--dir", dir, "Working folder (fleet, store, logs, recorded scans)");
+  app.add_option("--steps", steps, "Stripes per scan (the scan's size: ~12 kB per stripe)")
+      ->check(CLI::Range(10, 4000));
   app.add_flag("--plain", plain, "Plain nats:// on loopback instead of the shipped TLS (what TLS costs)");
   CLI11_PARSE(app, argc, argv);
   try {
@@ -102,20 +106,21 @@ int main(int argc, char** argv) {
     std::vector<std::pair<std::string, std::vector<std::uint8_t>>> scans;  // scene, image
     for (int i = 0; i < total_scans; ++i) {
       const std::string& scene = scenes[static_cast<std::size_t>(i) % scenes.size()];
-      const stdfs::path f = work / "scans" / fmt::format("{}-{}.fscan", scene, i + 1);
+      const stdfs::path f = work / "scans" / fmt::format("{}-{}-{}.fscan", scene, steps, i + 1);
       if (!stdfs::exists(f)) {
-        fs::host::cli::ChildProcess fw({(bin / "facetscan-fw-hil").string(), "--scene",
-                                        (source / "hw-sim" / "scenes" / (scene + ".json")).string(),
-                                        "--record", f.string(), "--scan-id", std::to_string(i + 1)},
-                                       {}, work / "scans" / "record.log");
+        fs::host::cli::ChildProcess fw(
+            {(bin / "facetscan-fw-hil").string(), "--scene",
+             (source / "hw-sim" / "scenes" / (scene + ".json")).string(), "--record", f.string(), "--scan-id",
+             std::to_string(i + 1), "--steps", std::to_string(steps)},
+            {}, work / "scans" / "record.log");
         if (fw.wait(120000) != 0) throw fs::Error("facetscan-fw-hil --record failed:\n" + fw.log_tail());
       }
       scans.emplace_back(scene, read_bytes(f));
     }
     const double mb = static_cast<double>(scans[0].second.size()) / 1e6;
     fmt::print(
-        "bench_fleet: {} scans ({:.1f} MB each, 500 stripes), {} simulated scanner(s) at one scan per {} s\n",
-        scans.size(), mb, scanners, period_s);
+        "bench_fleet: {} scans ({:.1f} MB each, {} stripes), {} simulated scanner(s) at one scan per {} s\n",
+        scans.size(), mb, steps, scanners, period_s);
 
     // Local recognition of the same scans (what a worker does, in this process, one thread).
     const Library library = load_or_build_library({(source / "hw-sim" / "scenes" / "meshes").string()});
