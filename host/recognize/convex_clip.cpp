@@ -13,7 +13,9 @@ namespace {
 using V4 = double __attribute__((vector_size(32)));
 using M4 = std::int64_t __attribute__((vector_size(32)));
 
-inline V4 load(const double* p) {
+// Always inlined: an out-of-line copy (at -O0) would be built for the baseline and return its 32 bytes in
+// memory, while the AVX2 variant expects them in a register.
+__attribute__((always_inline)) inline V4 load(const double* p) {
   V4 v;
   std::memcpy(&v, p, sizeof v);
   return v;

@@ -3,6 +3,7 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <cassert>
 #include <cmath>
 #include <limits>
 
@@ -188,6 +189,7 @@ void ModelGeometry::heights(const Vec3& origin, std::vector<double>& out) const 
 int ModelGeometry::cast_convex(const Vec3& origin, const Vec3& dir, double& distance,
                                std::span<const double> heights) const {
   distance = std::numeric_limits<double>::infinity();
+  assert(heights.size() >= nx_.size());  // heights() pads them
   if (misses_bounding_sphere(origin, dir)) return -1;
   const ConvexFaces faces{nx_.data(), ny_.data(), nz_.data(), heights.data(), nx_.size()};
   return clip_convex(faces, dir.x(), dir.y(), dir.z(), distance);

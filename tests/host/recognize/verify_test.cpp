@@ -202,6 +202,47 @@ TEST(ConvexClip, FourFacesAtATimeEqualTheFaceByFaceLoopBitForBit) {
   EXPECT_GT(vertex, compared / 10);
 }
 
+// The rules on their own, on the box [-10, 10]^3 with its faces in lanes chosen for them (lane = index % 4):
+// exactly equal entries in two lanes with the lower face in the later lane, and in one lane; a ray parallel
+// to a face plane on the plane (not outside it: no miss) and just outside it (a miss).
+TEST(ConvexClip, EqualEntriesGiveTheFirstFaceAndARayOnAFacePlaneIsNoMiss) {
+  // Faces: 0 +z, 1 -z, 2 -x, 3 +x, 4 +y, 5 -y, then padding (normal 0, height -1).
+  const double nx[8] = {0, 0, -1, 1, 0, 0, 0, 0}, ny[8] = {0, 0, 0, 0, 1, -1, 0, 0},
+               nz[8] = {1, -1, 0, 0, 0, 0, 0, 0};
+  double h[8];
+  const auto run = [&](const Vec3& origin, const Vec3& dir, double& s) {
+    for (int i = 0; i < 6; ++i) h[i] = Vec3(nx[i], ny[i], nz[i]).dot(origin) - 10.0;
+    h[6] = h[7] = -1.0;
+    const fs::host::rec::ConvexFaces f{nx, ny, nz, h, 8};
+    double s_ref = 0.0;
+    const int f_ref = clip_face_by_face(f, 8, dir, s_ref);
+    const int f_clip = fs::host::rec::clip_convex_portable(f, dir.x(), dir.y(), dir.z(), s);
+    EXPECT_EQ(f_clip, f_ref);
+#if defined(__x86_64__)
+    if (fs::host::rec::clip_convex_has_avx2()) {
+      double s_avx = 0.0;
+      EXPECT_EQ(fs::host::rec::clip_convex_avx2(f, dir.x(), dir.y(), dir.z(), s_avx), f_clip);
+      EXPECT_EQ(s_avx, s);
+    }
+#endif
+    return f_clip;
+  };
+  double s = 0.0;
+  // Through the edge of +x (face 3, lane 3) and +y (face 4, lane 0): both enter at 10 sqrt(2).
+  EXPECT_EQ(run(Vec3(20, 20, 0), Vec3(-1, -1, 0).normalized(), s), 3);
+  EXPECT_NEAR(s, 10.0 * std::sqrt(2.0), 1e-12);
+  // Through the edge of +z (face 0, lane 0) and +y (face 4, lane 0).
+  EXPECT_EQ(run(Vec3(0, 20, 20), Vec3(0, -1, -1).normalized(), s), 0);
+  // Along the plane of +x from a point on it: grazing inside the half-space closure, so it enters +y at 10.
+  EXPECT_EQ(run(Vec3(10, 20, 0), Vec3(0, -1, 0), s), 4);
+  EXPECT_EQ(s, 10.0);
+  // The same just outside the plane: a miss.
+  EXPECT_EQ(run(Vec3(10.001, 20, 0), Vec3(0, -1, 0), s), -1);
+  // Leaving through -y before entering +x: a miss; from inside: a miss.
+  EXPECT_EQ(run(Vec3(30, -5, 0), Vec3(-1, -2, 0).normalized(), s), -1);
+  EXPECT_EQ(run(Vec3(0, 0, 0), Vec3(1, 0, 0), s), -1);
+}
+
 // An open model (a face missing, BuildOptions::allow_open) is no convex solid: verification must not close it
 // (the half-space clip would report the missing top's plane as a wall above the box).
 TEST(ModelGeometry, AnOpenBoxIsNotClippedAsASolid) {
