@@ -1,10 +1,10 @@
 // Fleet benchmark (docs/fleet.md#benchmark): a local fleet (host/cli/local_fleet.hpp: nats-server from the
 // shipped config, TLS, file storage) with 1, 2 and 4 workers (`facetscan worker`), fed by K simulated
-// scanners that publish 500-stripe (--steps) .fscan scans (recorded with facetscan-fw-hil) as the gateway does,
-// each at scanner rate (one scan per --period seconds).
+// scanners that publish 500-stripe (--steps) .fscan scans (recorded with facetscan-fw-hil) as the gateway
+// does, each at scanner rate (one scan per --period seconds).
 //
-//   bench_fleet [--workers 1,2,4] [--scanners 3] [--period 2.5] [--latency-scans 12] [--burst 16] [--steps 500]
-//               [--dir DIR]
+//   bench_fleet [--workers 1,2,4] [--scanners 3] [--period 2.5] [--latency-scans 12] [--burst 16]
+//               [--steps 500] [--dir DIR]
 //
 // Per worker count:
 //   latency   scans published at scanner rate (no queueing expected): ScanEnd (publish starts) -> result
