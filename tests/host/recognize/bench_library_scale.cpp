@@ -48,6 +48,7 @@
 #include "hw-sim/scene/polycube_catalog.hpp"
 #include "hw-sim/scene/random_scene.hpp"
 #include "library_scale_scenes.hpp"
+#include "support/recognize_flags.hpp"
 #include "support/test_paths.hpp"
 
 namespace {
@@ -535,62 +536,10 @@ Args parse_args(CLI::App& app, int argc, char** argv) {
   app.add_option("--profile", a.profile, "scenes per library profiled reference by reference")
       ->check(CLI::Range(0, 100000));
   app.add_option("--work", a.work, "folder for the .fslib files (kept; default: a temporary one, removed)");
-  app.add_option("--solutions", a.params.solutions_per_model,
-                 "RecognizeParams::solutions_per_model (default 32): hypotheses kept per reference")
-      ->check(CLI::Range(1, 1024));
   app.add_option(
       "--area-cost", a.params.area_cost,
       "RecognizeParams::area_cost (default 0.01): area dissimilarity in the search cost, < 0 = none");
-  app.add_option("--max-hypotheses", a.params.max_hypotheses,
-                 "RecognizeParams::max_hypotheses: search solutions kept per round (default: 4 per model, "
-                 "8192 to 65536)")
-      ->check(CLI::Range(1, 1 << 24));
-  app.add_option("--max-verified", a.params.max_verified,
-                 "RecognizeParams::max_verified (default 256): hypotheses checked against the cloud")
-      ->check(CLI::Range(1, 1 << 20));
-  app.add_option("--verify-per-face", a.params.verify_per_face,
-                 "RecognizeParams::verify_per_face (default 64): a scene face's share of the checks")
-      ->check(CLI::Range(1, 1 << 20));
-  app.add_option(
-         "--max-screened", a.params.max_screened,
-         "RecognizeParams::max_screened (default 2048): hypotheses screened on sparse samples, 0 = none")
-      ->check(CLI::Range(0, 1 << 24));
-  app.add_option("--screen-per-face", a.params.screen_per_face,
-                 "RecognizeParams::screen_per_face (default 512): a scene face's share of the screening")
-      ->check(CLI::Range(1, 1 << 24));
-  app.add_option("--max-refined", a.params.max_refined,
-                 "RecognizeParams::max_refined (default 24): coarse-verified hypotheses refined by ICP")
-      ->check(CLI::Range(1, 1 << 20));
-  app.add_option("--refine-per-face", a.params.refine_per_face,
-                 "RecognizeParams::refine_per_face (default 3): a scene face's share of the refinements")
-      ->check(CLI::Range(1, 1 << 20));
-  app.add_option(
-      "--refine-again-margin", a.params.refine_again_margin,
-      "RecognizeParams::refine_again_margin (default 0.05): a second refinement for a face whose "
-      "refined hypotheses all failed, among those within this coarse confidence of its best; < 0 = "
-      "none");
-  app.add_option("--inlier-weight", a.params.inlier_weight,
-                 "RecognizeParams::inlier_weight (default 0.2): the ordering key's weight of the inliers");
-  app.add_option(
-      "--confidence-weight", a.params.confidence_weight,
-      "RecognizeParams::confidence_weight (default 0.2): the ordering key's weight of the confidence");
-  app.add_option("--rounds", a.params.rounds,
-                 "RecognizeParams::rounds (default 3): matching + verification rounds")
-      ->check(CLI::Range(1, 100));
-  app.add_flag(
-      "--no-arc-index", [&a](std::int64_t) { a.params.arc_index = false; },
-      "match every reference (RecognizeParams::arc_index off)");
-  app.add_flag(
-      "--all-roots", [&a](std::int64_t) { a.params.symmetry_roots = false; },
-      "start each search from every reference face (RecognizeParams::symmetry_roots off)");
-  app.add_flag(
-      "--no-second-search", [&a](std::int64_t) { a.params.second_search = false; },
-      "search a part once per model (RecognizeParams::second_search off)");
-  app.add_option("--second-search-states", a.params.second_search_states,
-                 "RecognizeParams::second_search_states: the second search's state budget");
-  app.add_option(
-      "--second-search-min-level", a.params.second_search_min_level,
-      "RecognizeParams::second_search_min_level: faces of a first solution that starts a second search");
+  fs::test::add_recognize_flags(app, a.params);  // pool, matching scope, verification budget, rounds
   app.add_flag("--verbose", a.verbose, "one line per scene and per miss");
   app.parse(argc, argv);
   if (!categories.empty()) {

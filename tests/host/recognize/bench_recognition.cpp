@@ -6,18 +6,13 @@
 // stacked objects found. Exits 1 when two reported solids interpenetrate.
 //
 //   bench_recognition [--scenes N] [--seed S] [--categories single,separated,occluded,empty,cluttered]
-//                     [--steps 500]
-//                     [--noise 0.05] [--threads 1] [--alloc-every 1] [--verbose] [--candidates] [--only I]
-//                     [--scene-stats] [--dump-graph] and tuning options that each set one RecognizeParams
-//                     field
-//                     (--preset, --min-level, --solutions, --max-states, --area-ratio, --omega,
-//                     --max-solutions,
-//                     --no-rigidity-pairs, --max-verified, --verify-per-face, --refine-per-face,
-//                     --max-refined, --max-screened, --screen-per-face,
-//                     --rounds, --inlier-weight, --replace-better, --sample-mm, --seg-dist,
-//                     --seg-noise-factor,
-//                     --seg-merge-angle;
-//                     `--help` lists them with their meaning)
+//                     [--steps 500] [--noise 0.05] [--threads 1] [--alloc-every 1] [--verbose] [--candidates]
+//                     [--only I] [--scene-stats] [--dump-graph]
+// and tuning options that each set one RecognizeParams field: matching (--preset, --min-level, --max-states,
+// --area-ratio, --area-cost, --omega, --max-solutions, --no-rigidity-pairs), acceptance (--replace-better,
+// --support-radius, --min-confidence, --hidden-*, --occluded-alternatives), verification and segmentation
+// (--sample-mm, --seg-*), and those shared with bench_library_scale (tests/support/recognize_flags.hpp: pool,
+// matching scope, verification budget, rounds). `--help` lists them with their meaning.
 //
 // --alloc-every K: the allocation count is taken in every K-th round of the categories (all categories).
 //
@@ -46,6 +41,7 @@
 #include "hw-sim/scene/ground_truth_grid.hpp"
 #include "hw-sim/scene/random_scene.hpp"
 #include "support/quantile.hpp"
+#include "support/recognize_flags.hpp"
 #include "support/test_paths.hpp"
 
 namespace {
@@ -138,24 +134,7 @@ Args parse_args(CLI::App& app, int argc, char** argv) {
   // Tuning: each writes one RecognizeParams field; left out, the recognizer's default stays.
   app.add_option("--preset", preset, "matching preset (match::preset)");
   app.add_option("--min-level", p.min_level, "TH_minlevel")->check(positive);
-  app.add_option("--solutions", p.solutions_per_model, "solutions kept per model")->check(positive);
-  app.add_option("--max-hypotheses", p.max_hypotheses,
-                 "search solutions kept per round (all models; default: 4 per model, 8192 to 65536)")
-      ->check(positive);
-  app.add_flag(
-      "--no-arc-index", [&p](std::int64_t) { p.arc_index = false; },
-      "match every reference (RecognizeParams::arc_index off)");
-  app.add_flag(
-      "--all-roots", [&p](std::int64_t) { p.symmetry_roots = false; },
-      "start each search from every reference face (RecognizeParams::symmetry_roots off)");
-  app.add_flag(
-      "--no-second-search", [&p](std::int64_t) { p.second_search = false; },
-      "search a part once per model (RecognizeParams::second_search off)");
-  app.add_option("--second-search-states", p.second_search_states,
-                 "RecognizeParams::second_search_states: the second search's state budget");
-  app.add_option(
-      "--second-search-min-level", p.second_search_min_level,
-      "RecognizeParams::second_search_min_level: faces of a first solution that starts a second search");
+  fs::test::add_recognize_flags(app, p);  // pool, matching scope, verification budget, rounds
   app.add_option("--max-states", p.max_states, "state budget of one match")->check(positive);
   app.add_option("--area-ratio", p.match_area_ratio, "match_area_ratio (0 = off)")->check(non_negative);
   app.add_option("--area-cost", p.area_cost,
@@ -165,19 +144,6 @@ Args parse_args(CLI::App& app, int argc, char** argv) {
   app.add_option("--max-solutions", p.max_solutions, "TH_solutions of one match")->check(positive);
   app.add_flag("--no-rigidity-pairs{false}", p.rigidity_pairs,
                "switch the level-1 rigidity off (the thesis)");
-  app.add_option("--max-verified", p.max_verified, "hypotheses verified per round")->check(positive);
-  app.add_option("--verify-per-face", p.verify_per_face,
-                 "a scene face draws at most this many into verification")
-      ->check(positive);
-  app.add_option("--refine-per-face", p.refine_per_face, "... and into refinement")->check(positive);
-  app.add_option("--max-screened", p.max_screened, "hypotheses screened on sparse samples first (0 = none)")
-      ->check(CLI::NonNegativeNumber);
-  app.add_option("--screen-per-face", p.screen_per_face,
-                 "a scene face draws at most this many into screening")
-      ->check(positive);
-  app.add_option("--max-refined", p.max_refined, "hypotheses refined by ICP")->check(positive);
-  app.add_option("--rounds", p.rounds, "rounds of matching + verification")->check(positive);
-  app.add_option("--inlier-weight", p.inlier_weight, "RecognizeParams::inlier_weight")->check(non_negative);
   app.add_option("--replace-better", p.replace_better, "RecognizeParams::replace_better (> 1 = off)")
       ->check(non_negative);
   app.add_option(

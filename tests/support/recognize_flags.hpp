@@ -1,0 +1,75 @@
+#pragma once
+// Benchmark helper: the command-line options that set one RecognizeParams field each, shared by
+// bench_recognition and bench_library_scale (left out, the recognizer's default stays). Matching scope
+// (--no-arc-index, --all-roots, --no-second-search, ...), the hypothesis pool and the verification budget.
+#include <CLI/CLI.hpp>
+
+#include <cstdint>
+
+#include "host/recognize/recognizer.hpp"
+
+namespace fs::test {
+
+inline void add_recognize_flags(CLI::App& app, fs::host::rec::RecognizeParams& p) {
+  const auto at_least = [](int lo) { return CLI::Range(lo, 1 << 30); };
+  app.add_option("--solutions", p.solutions_per_model,
+                 "RecognizeParams::solutions_per_model (default 32): search solutions kept per reference")
+      ->check(at_least(1));
+  app.add_option(
+         "--max-hypotheses", p.max_hypotheses,
+         "RecognizeParams::max_hypotheses: search solutions kept per round, all references (default: 4 "
+         "per reference, 8192 to 65536)")
+      ->check(at_least(1));
+  app.add_flag(
+      "--no-arc-index", [&p](std::int64_t) { p.arc_index = false; },
+      "match every reference (RecognizeParams::arc_index off)");
+  app.add_flag(
+      "--all-roots", [&p](std::int64_t) { p.symmetry_roots = false; },
+      "start each search from every reference face (RecognizeParams::symmetry_roots off)");
+  app.add_flag(
+      "--no-second-search", [&p](std::int64_t) { p.second_search = false; },
+      "search a part once per model (RecognizeParams::second_search off)");
+  app.add_option("--second-search-states", p.second_search_states,
+                 "RecognizeParams::second_search_states: the second search's state budget")
+      ->check(at_least(1));
+  app.add_option(
+         "--second-search-min-level", p.second_search_min_level,
+         "RecognizeParams::second_search_min_level: faces of a first solution that starts a second search")
+      ->check(at_least(1));
+  app.add_option(
+         "--max-verified", p.max_verified,
+         "RecognizeParams::max_verified (default 256): hypotheses checked against the cloud per round")
+      ->check(at_least(1));
+  app.add_option("--verify-per-face", p.verify_per_face,
+                 "RecognizeParams::verify_per_face (default 64): a scene face's share of the checks")
+      ->check(at_least(1));
+  app.add_option("--max-screened", p.max_screened,
+                 "RecognizeParams::max_screened (default 2048): hypotheses screened on sparse samples first, "
+                 "0 = none")
+      ->check(at_least(0));
+  app.add_option("--screen-per-face", p.screen_per_face,
+                 "RecognizeParams::screen_per_face (default 512): a scene face's share of the screening")
+      ->check(at_least(1));
+  app.add_option("--max-refined", p.max_refined,
+                 "RecognizeParams::max_refined (default 24): coarse-checked hypotheses refined by ICP")
+      ->check(at_least(1));
+  app.add_option("--refine-per-face", p.refine_per_face,
+                 "RecognizeParams::refine_per_face (default 3): a scene face's share of the refinements")
+      ->check(at_least(1));
+  app.add_option(
+      "--refine-again-margin", p.refine_again_margin,
+      "RecognizeParams::refine_again_margin (default 0.05): a second refinement for a face whose "
+      "refined hypotheses all failed, among those within this coarse confidence of its best; < 0 = "
+      "none");
+  app.add_option("--inlier-weight", p.inlier_weight,
+                 "RecognizeParams::inlier_weight (default 0.2): the ordering key's weight of the inliers")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option(
+         "--confidence-weight", p.confidence_weight,
+         "RecognizeParams::confidence_weight (default 0.2): the ordering key's weight of the confidence")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--rounds", p.rounds, "RecognizeParams::rounds (default 3): matching + verification rounds")
+      ->check(CLI::Range(1, 100));
+}
+
+}  // namespace fs::test
