@@ -51,9 +51,7 @@ ModelGeometry::ModelGeometry(const Model& model)
     faces_.push_back(std::move(f));
     all_faces_.push_back(static_cast<std::uint32_t>(all_faces_.size()));
   }
-  // Convex: closed, and every vertex on the inner side of every face plane. A ray then enters through exactly
-  // one front face, so cast() may stop at the first front face that contains its hit, and cast_convex() may
-  // clip. An open model (a face missing) is no solid: a clip would close it.
+  // The normals as padded columns for the four-lane clip (padding: zero normals, clip nothing).
   for (const Face& f : faces_) {
     nx_.push_back(f.n.x());
     ny_.push_back(f.n.y());
@@ -63,6 +61,9 @@ ModelGeometry::ModelGeometry(const Model& model)
   nx_.resize(padded, 0.0);
   ny_.resize(padded, 0.0);
   nz_.resize(padded, 0.0);
+  // Convex: closed, and every vertex on the inner side of every face plane. A ray then enters through exactly
+  // one front face, so cast() may stop at the first front face that contains its hit, and cast_convex() may
+  // clip. An open model (a face missing) is no solid: a clip would close it.
   convex_ = !model.open;
   for (const Face& f : faces_)
     for (const ModelFace& mf : model.faces)
