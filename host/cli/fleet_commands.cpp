@@ -67,6 +67,8 @@ struct WorkerCli {
   std::string memory_budget;
   std::string worker_id;
   int threads = 1;
+  int max_streams = fleet::WorkerOptions{}.max_streams;
+  double part_timeout_s = 60.0;
   int test_hold_ms = 0;
   fleet::FleetSettings settings;
 };
@@ -80,6 +82,8 @@ void run_worker(WorkerCli& o) {
   fleet::WorkerOptions wo;
   wo.worker_id = o.worker_id;
   wo.threads = o.threads;
+  wo.max_streams = o.max_streams;
+  wo.part_timeout_ms = static_cast<std::int64_t>(o.part_timeout_s * 1000);
   wo.test_hold_ms = o.test_hold_ms;
   wo.settings = o.settings;
   wo.limits = memory_budget_limits(o.memory_budget);
@@ -266,10 +270,17 @@ void add_fleet_commands(CLI::App& app) {
                    "Library: .fslib files, mesh files and directories of meshes, mixed (repeatable)")
       ->required()
       ->expected(1, -1);
+  worker->add_option("--threads", w->threads, "Scans recognized at once")->check(CLI::Range(1, 256));
   worker
-      ->add_option("--threads", w->threads,
-                   "Scans recognized at once (the worker's bound on scans in flight)")
-      ->check(CLI::Range(1, 256));
+      ->add_option("--max-streams", w->max_streams,
+                   "Streamed scans (serve --nats --stream) read at once besides those recognized")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 1024));
+  worker
+      ->add_option("--part-timeout", w->part_timeout_s,
+                   "Seconds without a new part after which a streamed scan fails (its gateway stopped)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.1, 86400.0));
   worker->add_option("--worker-id", w->worker_id, "Name in the results (default: HOSTNAME-PID)");
   worker->add_option("--params", w->params, "Match parameters: a preset or a JSON file");
   add_memory_budget_option(worker, w->memory_budget);

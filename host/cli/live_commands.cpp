@@ -440,6 +440,8 @@ struct ServeOptions {
   std::string spool_dir = "facetscan-spool";
   std::string spool_max = "2GiB";
   double drain_s = 5.0;
+  bool stream = false;  // --stream: scans go into the fleet while they stream
+  std::string part_size = "256KiB";
 };
 
 // The output folder, checked before anything listens or scans: created when missing; a path that is a file
@@ -486,6 +488,14 @@ void add_gateway_options(CLI::App* serve, ServeOptions& so) {
       ->capture_default_str()
       ->group(group);
   serve
+      ->add_flag("--stream", so.stream,
+                 "Send each scan into the fleet while it streams, in parts, so that a worker has it when it "
+                 "ends (docs/fleet.md#streamed-scans); a stream that fails goes whole through the spool")
+      ->group(group);
+  serve->add_option("--part-size", so.part_size, "--stream: bytes per part")
+      ->capture_default_str()
+      ->group(group);
+  serve
       ->add_option("--nats-drain", so.drain_s,
                    "At exit, seconds to keep sending the spool (what is left is sent at the next start)")
       ->capture_default_str()
@@ -508,6 +518,7 @@ void run_serve(const ServeOptions& o) {
         "serve --nats: --library is not used (the fleet's workers recognize: `facetscan worker -l ...`)");
   if (!gateway_mode && o.library.empty())
     throw Error("serve: --library is required (or --nats URL: the gateway)");
+  if (!gateway_mode && o.stream) throw Error("serve: --stream needs --nats URL (the gateway)");
   const Library library = gateway_mode ? Library{} : load_or_build_library(o.library);
   std::unique_ptr<fleet::Gateway> gateway;
   if (gateway_mode) {
@@ -519,6 +530,15 @@ void run_serve(const ServeOptions& o) {
       go.spool_max_bytes = parse_byte_size(o.spool_max);
     } catch (const Error& e) {
       throw Error(fmt::format("--spool-max: {}", e.what()));
+    }
+    go.stream = o.stream;
+    try {
+      const std::uint64_t part = parse_byte_size(o.part_size);
+      // A part takes one more stripe frame than this: 4 MiB keeps it under the shipped max_payload (8 MB).
+      if (part < 4096 || part > (std::uint64_t(4) << 20)) throw Error("from 4KiB to 4MiB");
+      go.part_bytes = static_cast<std::size_t>(part);
+    } catch (const Error& e) {
+      throw Error(fmt::format("--part-size: {}", e.what()));
     }
     go.quiet = o.quiet;
     go.log = [](const std::string& line) { emit(stdout, "facetscan serve: " + line + "\n"); };
@@ -554,8 +574,13 @@ void run_serve(const ServeOptions& o) {
     job.peer = peer;
     queue.push(std::move(job));
   };
+  if (gateway)
+    so.on_scan_frame = [&](const std::string& peer, const wire::DecodedMessage& m) {
+      gateway->stream_frame(peer, m);
+    };
   StreamServer* server_ptr = nullptr;
   StreamServer server(so, [&](const Scan& s) {
+    const std::uint64_t stream = gateway ? gateway->stream_end(s, !taken_all()) : 0;
     if (taken_all()) {  // --max-scans reached: only the shutdown's partial scan can come here
       log_notice(server_ptr->peer(),
                  fmt::format("scan {} not taken (--max-scans {} reached)", s.scan_id(), o.max_scans));
@@ -567,6 +592,7 @@ void run_serve(const ServeOptions& o) {
     job.scan = std::make_unique<Scan>(s);  // the assembler reuses its Scan
     job.bytes = scan_copy_bytes(s);
     job.peer = server_ptr->peer();
+    job.stream = stream;
     queue.push(std::move(job));
     if (ahead > 0 && !o.quiet)
       log_notice(server_ptr->peer(),
@@ -581,7 +607,7 @@ void run_serve(const ServeOptions& o) {
     while (queue.pop(job)) {
       if (gateway && job.scan) {
         try {
-          gateway->submit(*job.scan, job.peer, stopping.load());
+          gateway->submit(*job.scan, job.peer, stopping.load(), job.stream);
         } catch (const std::exception& e) {
           handler.failed(*job.scan, fmt::format("the gateway could not spool the scan: {}", e.what()));
         }
@@ -636,6 +662,9 @@ void run_serve(const ServeOptions& o) {
     const fleet::GatewayStats gs = gateway->stats();
     std::string text =
         fmt::format("facetscan serve: gateway: {} scan(s) received, {} published", gs.received, gs.published);
+    if (o.stream)
+      text += fmt::format(" ({} streamed, {} stream(s) abandoned and sent whole)", gs.streamed,
+                          gs.stream_failures);
     if (gs.duplicates > 0) text += fmt::format(", {} already stored", gs.duplicates);
     if (gs.outages > 0)
       text += fmt::format(", {} outage(s) of the server (spool peak {})", gs.outages,

@@ -168,7 +168,8 @@ ChildProcess& LocalFleet::start_gateway(const std::string& scanner, int port) {
                                    "--listen",
                                    fmt::format("127.0.0.1:{}", port),
                                    "--spool",
-                                   (dir_ / "spool" / scanner).string()};
+                                   (dir_ / "spool" / scanner).string(),
+                                   "--stream"};
   if (!ca_.empty()) args.insert(args.end(), {"--nats-ca", ca_});
   gateways_.push_back(std::make_unique<ChildProcess>(args, user_env("gateway"),
                                                      logs_ / fmt::format("gateway-{}.log", scanner)));

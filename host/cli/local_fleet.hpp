@@ -37,7 +37,8 @@ class LocalFleet {
 
   ChildProcess& start_worker(const std::string& id, const std::vector<std::string>& library,
                              const std::vector<std::string>& extra = {});
-  // A gateway for one scanner id, listening on 127.0.0.1:port (waits until it listens).
+  // A streaming gateway (serve --nats --stream) for one scanner id, listening on 127.0.0.1:port (waits until
+  // it listens).
   ChildProcess& start_gateway(const std::string& scanner, int port);
   // "" while every started process runs, else which one exited, with its log's tail.
   std::string exited_process();

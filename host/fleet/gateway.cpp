@@ -1,6 +1,7 @@
 #include "host/fleet/gateway.hpp"
 
 #include <cstdio>
+#include <optional>
 #include <utility>
 
 #include <fmt/format.h>
@@ -45,6 +46,8 @@ Gateway::Gateway(GatewayOptions options)
   if (stats_.spooled > 0)
     log(fmt::format("spool {}: {} scan(s) ({}) left by a previous run, sent first", spool_.dir().string(),
                     stats_.spooled, format_byte_size(stats_.spool_bytes)));
+  if (options_.stream)
+    streamer_ = std::make_unique<ScanStreamer>(*connection_, options_.settings, options_.part_bytes);
   sender_ = std::thread([this] { send_loop(); });
 }
 
@@ -66,8 +69,53 @@ std::string Gateway::spool_text() const {
                      format_byte_size(spool_.max_bytes()), spool_.dir().string());
 }
 
-void Gateway::submit(const Scan& scan, const std::string& peer, bool stopping) {
-  const std::string scanner = options_.scanner_id.empty() ? scanner_id_from_peer(peer) : options_.scanner_id;
+std::string Gateway::scanner_of(const std::string& peer) const {
+  return options_.scanner_id.empty() ? scanner_id_from_peer(peer) : options_.scanner_id;
+}
+
+void Gateway::stream_frame(const std::string& peer, const wire::DecodedMessage& message) {
+  if (!streamer_) return;
+  if (message.type == msg::Type::ScanBegin)
+    streamer_->begin(scanner_of(peer), message.scan_begin);
+  else if (message.type == msg::Type::Stripe)
+    streamer_->stripe(message.stripe);
+}
+
+std::uint64_t Gateway::stream_end(const Scan& scan, bool taken) {
+  if (!streamer_) return 0;
+  if (!taken) {
+    streamer_->abandon("not taken (--max-scans)");
+    return 0;
+  }
+  return streamer_->end(scan);
+}
+
+void Gateway::submit(const Scan& scan, const std::string& peer, bool stopping, std::uint64_t stream) {
+  std::string scanner = scanner_of(peer);
+  std::optional<std::uint64_t> nonce;  // a streamed scan sent whole keeps its streamed id
+  if (stream != 0 && streamer_) {
+    const StreamOutcome o = streamer_->wait(stream);
+    std::lock_guard lock(mu_);
+    ++stats_.received;
+    if (o.stored) {
+      ++stats_.published;
+      ++stats_.streamed;
+      stats_.publish_ms.push_back(o.last_ms);
+      if (!options_.quiet)
+        log(fmt::format(
+            "scan {} streamed as {} ({} part(s), {}; last part stored {:.1f} ms after the scan's end)",
+            scan.scan_id(), o.scan_id, o.parts, format_byte_size(o.bytes), o.last_ms));
+      return;
+    }
+    ++stats_.stream_failures;
+    log(fmt::format("streaming scan {} as {} failed ({}): it goes whole through the spool", scan.scan_id(),
+                    o.scan_id, o.error));
+    --stats_.received;  // counted below
+    if (!o.scanner.empty()) {
+      scanner = o.scanner;
+      nonce = o.nonce;
+    }
+  }
   const std::vector<std::uint8_t> image = encode_scan_bytes(scan);
   {
     std::unique_lock lock(mu_);
@@ -80,7 +128,7 @@ void Gateway::submit(const Scan& scan, const std::string& peer, bool stopping) {
       cv_.wait(lock, [&] { return stop_ || released_ || spool_.has_room(image.size()); });
     }
   }
-  const SpoolEntry e = spool_.put(image, scanner, scan.status());
+  const SpoolEntry e = spool_.put(image, scanner, scan.status(), nonce);
   std::lock_guard lock(mu_);
   stats_.spooled = spool_.count();
   stats_.spool_bytes = spool_.bytes();
@@ -123,7 +171,12 @@ bool Gateway::send_one(const SpoolEntry& entry) {
     auto& publisher = publishers_[entry.scanner_id];
     if (!publisher)
       publisher = std::make_unique<ScanPublisher>(*connection_, entry.scanner_id, options_.settings);
-    p = publisher->publish(image, to_string(entry.status), 1);
+    // A streamed scan sent whole keeps its streamed id: if its stream reached a worker after all (a publish
+    // that timed out but was stored), RESULTS takes one result of the two.
+    const std::string id = entry.stream_nonce ? streamed_scan_id(entry.scanner_id, begin.scan_id,
+                                                                 begin.start_time_ns, *entry.stream_nonce)
+                                              : std::string();
+    p = publisher->publish(image, to_string(entry.status), 1, id);
   } catch (const Error& e) {
     std::lock_guard lock(mu_);
     if (!unreachable_) {

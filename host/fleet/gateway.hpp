@@ -22,6 +22,7 @@
 #include "host/fleet/nats_connection.hpp"
 #include "host/fleet/scan_publisher.hpp"
 #include "host/fleet/scan_spool.hpp"
+#include "host/fleet/scan_streamer.hpp"
 #include "host/fleet/streams.hpp"
 #include "host/io/scan.hpp"
 
@@ -35,13 +36,19 @@ struct GatewayOptions {
   std::filesystem::path spool_dir = "facetscan-spool";
   std::uint64_t spool_max_bytes = std::uint64_t(2) << 30;
   FleetSettings settings;
+  // --stream: each scan goes into the fleet while it streams (scan_streamer.hpp); a stream that fails is sent
+  // whole through the spool.
+  bool stream = false;
+  std::size_t part_bytes = 256 << 10;
   bool quiet = false;
   std::function<void(const std::string&)> log;  // one line per event (without newline); stdout when empty
 };
 
 struct GatewayStats {
-  std::uint64_t received = 0;    // scans handed to submit()
-  std::uint64_t published = 0;   // stored by the stream (new)
+  std::uint64_t received = 0;         // scans handed to submit()
+  std::uint64_t published = 0;        // stored by the stream (new), streamed or whole
+  std::uint64_t streamed = 0;         // of them, streamed while they were scanned (--stream)
+  std::uint64_t stream_failures = 0;  // streams abandoned: those scans went whole through the spool
   std::uint64_t duplicates = 0;  // the stream had them already (a re-send after a crash between publish and
                                  // spool removal): stored once
   std::uint64_t rejected = 0;    // moved to DIR/rejected/ (never publishable)
@@ -50,6 +57,7 @@ struct GatewayStats {
   std::uint64_t spool_bytes = 0;
   std::uint64_t spool_peak_bytes = 0;
   std::vector<double> publish_ms;  // per published scan: publish until the stream's acknowledgement
+                                   // (streamed: the scan's end until its last part's acknowledgement)
 };
 
 // The scanner id for a peer "ADDR:PORT" / "[V6]:PORT": the address with every character outside
@@ -65,10 +73,17 @@ class Gateway {
   Gateway(const Gateway&) = delete;
   Gateway& operator=(const Gateway&) = delete;
 
+  // --stream, from the stream server's thread: a frame of the scan in progress (StreamServerOptions::
+  // on_scan_frame), and the scan delivered (`taken` false: serve does not take it). stream_end() returns the
+  // token to pass to submit() (0: the scan was not streamed).
+  void stream_frame(const std::string& peer, const wire::DecodedMessage& message);
+  std::uint64_t stream_end(const Scan& scan, bool taken);
+
   // Spools one scan and returns (the sender publishes it). Waits while the spool is full unless `stopping`
   // (serve's shutdown: the scan is spooled over the bound rather than lost). Throws fs::Error when the scan
-  // cannot be written (disk error): the caller reports it as failed.
-  void submit(const Scan& scan, const std::string& peer, bool stopping);
+  // cannot be written (disk error): the caller reports it as failed. A streamed scan (`stream` from
+  // stream_end) is only spooled when its stream failed.
+  void submit(const Scan& scan, const std::string& peer, bool stopping, std::uint64_t stream = 0);
   // Shutting down: a submit() waiting for room in the spool goes ahead (over the bound) and later ones do not
   // wait. Call before joining the thread that calls submit().
   void release_waiters();
@@ -83,12 +98,14 @@ class Gateway {
   void send_loop();
   bool send_one(const SpoolEntry& entry);  // false: the server is unreachable (retry later)
   void log(const std::string& line) const;
+  std::string scanner_of(const std::string& peer) const;
   std::string spool_text() const;
 
   GatewayOptions options_;
   ScanSpool spool_;
   std::unique_ptr<NatsConnection> connection_;
   std::map<std::string, std::unique_ptr<ScanPublisher>> publishers_;  // per scanner id (sender thread)
+  std::unique_ptr<ScanStreamer> streamer_;                            // --stream
   mutable std::mutex mu_;
   std::condition_variable cv_;
   bool stop_ = false;

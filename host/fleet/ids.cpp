@@ -28,6 +28,15 @@ std::string scan_message_id(std::string_view scanner_id, std::uint64_t scan_id, 
   return fmt::format("{}-{}-{}-{:08x}", scanner_id, scan_id, start_time_ns, image_digest(image));
 }
 
+std::string streamed_scan_id(std::string_view scanner_id, std::uint64_t scan_id, std::int64_t start_time_ns,
+                             std::uint64_t nonce) {
+  return fmt::format("{}-{}-{}-s{:016x}", scanner_id, scan_id, start_time_ns, nonce);
+}
+
+std::string part_message_id(std::string_view scan_id, std::uint64_t n) {
+  return fmt::format("{}-p{}", scan_id, n);
+}
+
 std::string scanner_of_subject(std::string_view subject, std::string_view prefix) {
   if (subject.size() <= prefix.size() || subject.substr(0, prefix.size()) != prefix) return {};
   return std::string(subject.substr(prefix.size()));

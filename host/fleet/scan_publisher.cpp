@@ -20,10 +20,13 @@ ScanPublisher::ScanPublisher(NatsConnection& connection, std::string scanner_id,
 }
 
 PublishedScan ScanPublisher::publish(std::span<const std::uint8_t> fscan, const std::string& status,
-                                     int retries) {
+                                     int retries, const std::string& scan_id) {
   const msg::ScanBegin begin = peek_scan_begin(fscan, "scan image");
   PublishedScan out;
-  out.message_id = scan_message_id(scanner_id_, begin.scan_id, begin.start_time_ns, fscan);
+  const std::string id =
+      scan_id.empty() ? scan_message_id(scanner_id_, begin.scan_id, begin.start_time_ns, fscan) : scan_id;
+  out.message_id = scan_id.empty() ? id : id + "-whole";
+  out.scan_id = id;
   out.subject = subject_;
   out.bytes = fscan.size();
   const std::int64_t max_payload = connection_.max_payload();
@@ -38,7 +41,7 @@ PublishedScan ScanPublisher::publish(std::span<const std::uint8_t> fscan, const 
     natsStatus st = natsMsg_Create(&m, subject_.c_str(), nullptr, reinterpret_cast<const char*>(fscan.data()),
                                    static_cast<int>(fscan.size()));
     if (st != NATS_OK) throw_nats(st, "scan message");
-    natsMsgHeader_Set(m, kHeaderScanId, out.message_id.c_str());
+    natsMsgHeader_Set(m, kHeaderScanId, id.c_str());
     natsMsgHeader_Set(m, kHeaderScanner, scanner_id_.c_str());
     natsMsgHeader_Set(m, kHeaderStatus, status.c_str());
     jsPubOptions po;

@@ -17,7 +17,8 @@
 namespace fs::host::fleet {
 
 struct PublishedScan {
-  std::string message_id;  // scan_message_id(...)
+  std::string message_id;  // scan_message_id(...), or "<scan id>-whole" for a streamed scan sent whole
+  std::string scan_id;     // the scan's id (Facetscan-Scan-Id; its result's id)
   std::string subject;
   std::uint64_t sequence = 0;  // in SCANS (of the first copy when duplicate)
   bool duplicate = false;      // the stream already held this scan (a re-send): stored once
@@ -33,8 +34,10 @@ class ScanPublisher {
   // Publishes one scan image; `status` is "complete" or the partial scan's status (Scan status name), carried
   // in a header. Blocks until the stream acknowledges (JetStream: stored on disk, replicated). Retries a
   // timed-out publish (the server restarting) `retries` times with the same message id, then throws.
+  // `scan_id` (a streamed scan sent whole, its stream failed): the scan keeps that id (Facetscan-Scan-Id,
+  // hence its result's id) and is stored under message id "<scan_id>-whole".
   PublishedScan publish(std::span<const std::uint8_t> fscan, const std::string& status = "complete",
-                        int retries = 20);
+                        int retries = 20, const std::string& scan_id = {});
 
   const std::string& scanner_id() const { return scanner_id_; }
 

@@ -65,15 +65,26 @@ void sync_dir(const stdfs::path& dir) {
   ::close(fd);
 }
 
-// "<sequence>_<scanner>_<token>.fscan" -> entry; nullopt for any other name.
+// "s<16 hex>": the nonce of a streamed scan's id.
+std::optional<std::uint64_t> parse_nonce(const std::string& t) {
+  if (t.size() != 17 || t[0] != 's' || t.find_first_not_of("0123456789abcdef", 1) != std::string::npos)
+    return std::nullopt;
+  return std::stoull(t.substr(1), nullptr, 16);
+}
+
+// "<sequence>_<scanner>_<token>[_s<nonce>].fscan" -> entry; nullopt for any other name.
 std::optional<SpoolEntry> parse_name(const stdfs::path& p) {
   if (p.extension() != ".fscan") return std::nullopt;
-  const std::string stem = p.stem().string();
+  std::string stem = p.stem().string();
+  std::optional<std::uint64_t> nonce;
+  if (const auto n = stem.rfind('_'); n != std::string::npos && (nonce = parse_nonce(stem.substr(n + 1))))
+    stem.resize(n);
   const auto a = stem.find('_');
   const auto b = stem.rfind('_');
-  if (a != 12 || b == a) return std::nullopt;
+  if (a != 12 || b == a || b == std::string::npos) return std::nullopt;
   SpoolEntry e;
   e.path = p;
+  e.stream_nonce = nonce;
   for (std::size_t i = 0; i < a; ++i) {
     if (stem[i] < '0' || stem[i] > '9') return std::nullopt;
     e.sequence = e.sequence * 10 + static_cast<std::uint64_t>(stem[i] - '0');
@@ -137,7 +148,7 @@ bool ScanSpool::has_room(std::uint64_t bytes) const {
 }
 
 SpoolEntry ScanSpool::put(std::span<const std::uint8_t> image, const std::string& scanner_id,
-                          ScanStatus status) {
+                          ScanStatus status, std::optional<std::uint64_t> stream_nonce) {
   check_scanner_id(scanner_id);
   std::uint64_t seq = 0;
   {
@@ -149,7 +160,9 @@ SpoolEntry ScanSpool::put(std::span<const std::uint8_t> image, const std::string
   e.scanner_id = scanner_id;
   e.status = status;
   e.bytes = image.size();
-  e.path = dir_ / fmt::format("{:012}_{}_{}.fscan", seq, scanner_id, status_token(status));
+  e.stream_nonce = stream_nonce;
+  e.path = dir_ / fmt::format("{:012}_{}_{}{}.fscan", seq, scanner_id, status_token(status),
+                              stream_nonce ? fmt::format("_s{:016x}", *stream_nonce) : std::string());
   const stdfs::path tmp = dir_ / fmt::format(".partial-{:012}", seq);
   write_synced(tmp, image);
   std::error_code ec;

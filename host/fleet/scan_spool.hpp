@@ -5,7 +5,8 @@
 // max_bytes, except into an empty spool (one scan always fits); the gateway then holds the scanners (TCP
 // back-pressure).
 //
-// Files, in publishing order:  DIR/<sequence, 12 digits>_<scanner id>_<status token>.fscan
+// Files, in publishing order:  DIR/<sequence, 12 digits>_<scanner id>_<status token>[_s<nonce>].fscan
+// (the nonce: a streamed scan's, see SpoolEntry::stream_nonce)
 // A scan is written to DIR/.partial-<sequence> and renamed into place after fsync: a crash mid-write leaves
 // only a .partial file (removed at the next open; that scan was never taken from the scanner's point of view:
 // the gateway had not published it). Scans the server can never take (larger than its max_payload) are moved
@@ -28,6 +29,9 @@ struct SpoolEntry {
   std::string scanner_id;
   ScanStatus status = ScanStatus::Complete;
   std::uint64_t bytes = 0;
+  // A streamed scan whose stream failed (serve --nats --stream): the nonce of its streamed id, which it keeps
+  // when sent whole, so that it gets one result even if its stream reached a worker after all.
+  std::optional<std::uint64_t> stream_nonce;
 };
 
 // "complete", "aborted", "missing-stripes", ... (file-name safe) and back; parse throws fs::Error.
@@ -43,7 +47,8 @@ class ScanSpool {
   bool has_room(std::uint64_t bytes) const;
   // Writes one scan (fsync'd) and returns its entry. Throws fs::Error naming the file on an I/O error (disk
   // full): the caller keeps the scan.
-  SpoolEntry put(std::span<const std::uint8_t> image, const std::string& scanner_id, ScanStatus status);
+  SpoolEntry put(std::span<const std::uint8_t> image, const std::string& scanner_id, ScanStatus status,
+                 std::optional<std::uint64_t> stream_nonce = std::nullopt);
   std::optional<SpoolEntry> oldest() const;
   // The image of an entry; throws fs::Error naming the file.
   std::vector<std::uint8_t> read(const SpoolEntry& entry) const;

@@ -26,6 +26,12 @@ StreamSpec scans_spec(const FleetSettings& s) {
       kScansStream, std::string(kScansPrefix) + ">", js_WorkQueuePolicy, js_DiscardNew, s.scans_max_bytes, 0};
 }
 
+StreamSpec parts_spec(const FleetSettings& s) {
+  return {kPartsStream,      std::string(kPartsPrefix) + ">",
+          js_LimitsPolicy,   js_DiscardNew,
+          s.parts_max_bytes, s.parts_max_age_s};
+}
+
 void ensure_stream(jsCtx* js, const StreamSpec& spec, const FleetSettings& s, bool create) {
   jsStreamInfo* si = nullptr;
   jsErrCode err = static_cast<jsErrCode>(0);
@@ -73,8 +79,13 @@ void ensure_scans_stream(jsCtx* js, const FleetSettings& settings, bool create) 
   ensure_stream(js, scans_spec(settings), settings, create);
 }
 
+void ensure_parts_stream(jsCtx* js, const FleetSettings& settings, bool create) {
+  ensure_stream(js, parts_spec(settings), settings, create);
+}
+
 ConsumerSettings ensure_fleet(jsCtx* js, const FleetSettings& s, bool create) {
   ensure_stream(js, scans_spec(s), s, create);
+  ensure_stream(js, parts_spec(s), s, create);
   ensure_stream(js,
                 {kResultsStream, std::string(kResultsPrefix) + ">", js_LimitsPolicy, js_DiscardOld,
                  s.results_max_bytes, s.results_max_age_s},

@@ -321,6 +321,7 @@ StreamServer::Step StreamServer::apply(Conn& c) {
         protocol_cut_ = false;
       }
       assembler_.on_message(message_);
+      if (type == msg::Type::Stripe && in_scan && id == assembler_.current().scan_id()) forward(c);
       return Step::Applied;
     }
     case msg::Type::ScanBegin:
@@ -356,6 +357,7 @@ StreamServer::Step StreamServer::apply(Conn& c) {
   disconnected_at_ns_ = -1;
   try {
     assembler_.on_message(message_);
+    forward(c);
   } catch (const Error& e) {
     // Refused by the limits (Scan::start): one refused scan, not a protocol error; its stripes are orphans.
     ++stats_.refused_scans;
@@ -370,6 +372,16 @@ StreamServer::Step StreamServer::apply(Conn& c) {
     }
   }
   return Step::Applied;
+}
+
+void StreamServer::forward(const Conn& c) {
+  if (!opt_.on_scan_frame) return;
+  try {
+    opt_.on_scan_frame(c.peer, message_);
+  } catch (const std::exception& e) {
+    ++stats_.scan_errors;
+    stats_.last_scan_error = std::string("forwarding a frame of the scan in progress: ") + e.what();
+  }
 }
 
 void StreamServer::drop(Conn& c, bool timeout, ScanStatus why) {

@@ -76,6 +76,11 @@ struct StreamServerOptions {
       on_refused;
   // Back-pressure: false while the consumer cannot take another scan. Default: always.
   std::function<bool()> can_deliver;
+  // The scan in progress frame by frame, for a consumer that forwards it while it streams (serve --nats
+  // --stream): the accepted ScanBegin, then each Stripe of that scan (a resumed scanner's resent duplicates
+  // too) right after the assembler took it: (peer, message). The ScanEnd is not passed: the scan callback
+  // follows it with the whole scan. An exception escaping it counts as a scan error.
+  std::function<void(const std::string& peer, const wire::DecodedMessage& message)> on_scan_frame;
 };
 
 struct StreamServerStats {
@@ -140,6 +145,7 @@ class StreamServer {
   void service(Conn& c);
   Step apply(Conn& c);
   void take_over(Conn& c, const char* why);
+  void forward(const Conn& c);  // on_scan_frame for message_
   void drop(Conn& c, bool timeout, ScanStatus why = ScanStatus::Disconnected);
   void deliver(const ScanAssembler::Callback& on_scan, const Scan& scan);
   void send_heartbeat(Conn& c);
@@ -173,7 +179,8 @@ struct ScanJob {
   msg::ScanBegin refused_begin;
   std::string refusal;  // why the ScanBegin was refused (empty for a scan)
   std::string peer;
-  std::uint64_t bytes = 0;  // memory the copy holds (approximately)
+  std::uint64_t bytes = 0;   // memory the copy holds (approximately)
+  std::uint64_t stream = 0;  // the gateway's stream of this scan (serve --nats --stream); 0: none
 };
 
 // Memory a copy of `scan` holds (its slots and stored stripe points).

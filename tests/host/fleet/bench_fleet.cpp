@@ -4,7 +4,11 @@
 // does, each at scanner rate (one scan per --period seconds).
 //
 //   bench_fleet [--workers 1,2,4] [--scanners 3] [--period 2.5] [--latency-scans 12] [--burst 16]
-//               [--steps 500] [--dir DIR]
+//               [--steps 500] [--stream] [--dir DIR]
+//
+// --stream: the latency phase streams each scan as `serve --nats --stream` does
+// (host/fleet/scan_streamer.hpp): its stripes go out as parts at the scanner's rate (200 stripes/s) and
+// ScanEnd is the end of the last stripe; the burst phase publishes whole scans as without it.
 //
 // Per worker count:
 //   latency   scans published at scanner rate (no queueing expected): ScanEnd (publish starts) -> result
@@ -40,6 +44,7 @@
 #include "host/fleet/results_client.hpp"
 #include "host/fleet/scan_publisher.hpp"
 #include "host/fleet/scan_spool.hpp"
+#include "host/fleet/scan_streamer.hpp"
 #include "host/io/scan_bytes.hpp"
 #include "host/library/mesh_files.hpp"
 #include "host/match/params.hpp"
@@ -74,6 +79,38 @@ struct Round {
   int results = 0, duplicates = 0;
 };
 
+// Streams one recorded scan as the streaming gateway does, at the scanner's rate (200 stripes/s): ScanBegin,
+// the stripes paced, then the end. `sent[id]` is the end (the scanner's ScanEnd), `publish_ms[id]` the end
+// until the last part was stored.
+void stream_scan(fleet::ScanStreamer& streamer, const std::vector<std::uint8_t>& image,
+                 const std::string& scanner, std::mutex& mu, std::map<std::string, Clock::time_point>& sent,
+                 std::map<std::string, double>& publish_ms) {
+  Scan scan;
+  load_scan_bytes(image, "scan", scan);
+  const auto t0 = Clock::now();
+  streamer.begin(scanner, scan.begin_message());
+  std::uint32_t n = 0;
+  for (std::uint32_t k = 0; k < scan.slot_count(); ++k) {
+    if (!scan.has_stripe(k)) continue;
+    std::this_thread::sleep_until(t0 + std::chrono::microseconds(5000) * ++n);  // 200 stripes/s
+    const auto points = scan.stripe_points(k);
+    fs::msg::Stripe m;
+    m.header = scan.stripe_header(k);
+    m.points =
+        std::span<fs::msg::StripePoint>(const_cast<fs::msg::StripePoint*>(points.data()), points.size());
+    streamer.stripe(m);
+  }
+  const std::string id = streamer.open_scan_id();
+  {
+    std::lock_guard lock(mu);
+    sent[id] = Clock::now();
+  }
+  const fleet::StreamOutcome o = streamer.wait(streamer.end(scan));
+  if (!o.stored) throw fs::Error("stream of " + id + " failed: " + o.error);
+  std::lock_guard lock(mu);
+  publish_ms[id] = o.last_ms;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -83,6 +120,7 @@ int main(int argc, char** argv) {
   double period_s = 2.5;
   std::string dir = "bench-fleet";
   bool plain = false;
+  bool stream = false;
   int steps = 500;
   app.add_option("--workers", worker_counts, "Worker counts to run")->delimiter(',');
   app.add_option("--scanners", scanners, "Simulated scanners (distinct scan streams)")
@@ -93,6 +131,8 @@ int main(int argc, char** argv) {
   app.add_option("--dir", dir, "Working folder (fleet, store, logs, recorded scans)");
   app.add_option("--steps", steps, "Stripes per scan (the scan's size: ~12 kB per stripe)")
       ->check(CLI::Range(10, 4000));
+  app.add_flag("--stream", stream,
+               "Latency phase: stream each scan in parts while it is scanned (serve --stream)");
   app.add_flag("--plain", plain, "Plain nats:// on loopback instead of the shipped TLS (what TLS costs)");
   CLI11_PARSE(app, argc, argv);
   try {
@@ -201,6 +241,7 @@ int main(int argc, char** argv) {
       for (int s = 0; s < scanners; ++s)
         threads.emplace_back([&, s] {
           fleet::ScanPublisher publisher(pub, fmt::format("scanner-{}", s + 1));
+          fleet::ScanStreamer streamer(pub, fleet::FleetSettings{});
           int k = 0;
           for (int i = s; i < count; i += scanners, ++k) {
             if (paced)
@@ -208,6 +249,10 @@ int main(int argc, char** argv) {
                   start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(
                               period_s * (k + static_cast<double>(s) / scanners))));
             const auto& image = scans[static_cast<std::size_t>(i)].second;
+            if (stream && paced) {
+              stream_scan(streamer, image, publisher.scanner_id(), mu, sent, publish_ms);
+              continue;
+            }
             const fs::msg::ScanBegin b = peek_scan_begin(image, "scan");
             const std::string id =
                 fleet::scan_message_id(publisher.scanner_id(), b.scan_id, b.start_time_ns, image);
@@ -251,9 +296,13 @@ int main(int argc, char** argv) {
         const auto& t = j["timings"];
         const double pub_ms = publish_ms.count(res->scan_id) ? publish_ms[res->scan_id] : 0.0;
         r.publish_ms.push_back(pub_ms);
-        r.queued_ms.push_back(t["queued_ms"].get<double>());
+        // A streamed scan was taken at its ScanBegin: what follows its end is the last part's way to the
+        // worker.
+        const double queued =
+            t.contains("last_part_ms") ? t["last_part_ms"].get<double>() : t["queued_ms"].get<double>();
+        r.queued_ms.push_back(queued);
         r.extra_ms.push_back(t["worker_ms"].get<double>() - worker);
-        r.after_ms.push_back(latency - pub_ms - t["queued_ms"].get<double>() - t["worker_ms"].get<double>());
+        r.after_ms.push_back(latency - pub_ms - queued - t["worker_ms"].get<double>());
       }
       r.seconds = std::chrono::duration<double>(last - first).count();  // first to last result
       for (auto& t : threads) t.join();
@@ -282,9 +331,9 @@ int main(int argc, char** argv) {
                  lat.duplicates + thr.duplicates);
       fmt::print(
           "|   | broker path parts p50: publish + store {:.1f}, stored -> worker {:.1f}, worker outside "
-          "load+recognize {:.1f}, result publish -> reader {:.1f} ms | | | | | |\n",
+          "load+recognize {:.1f}, result publish -> reader {:.1f} ms{} | | | | | |\n",
           quantile(lat.publish_ms, 0.5), quantile(lat.queued_ms, 0.5), quantile(lat.extra_ms, 0.5),
-          quantile(lat.after_ms, 0.5));
+          quantile(lat.after_ms, 0.5), stream ? " (streamed: the last part)" : "");
       std::fflush(stdout);
     }
     if (rate.count(1) && rate.count(2))

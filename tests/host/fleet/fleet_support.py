@@ -27,10 +27,31 @@ ARGS = None
 HANG_GUARD_S = 90  # generous guard against hangs; no test asserts a duration
 
 
+_PICKED = set()
+
+
 def free_port():
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+    """A port free now and outside the kernel's ephemeral range: a port the kernel hands out (bind to 0) can be
+    taken again as the source port of an outgoing connection (a server dialling its cluster routes) before the
+    server meant to listen there starts."""
+    try:
+        with open("/proc/sys/net/ipv4/ip_local_port_range") as f:
+            low = int(f.read().split()[0])
+    except (OSError, ValueError, IndexError):
+        low = 32768
+    rng = secrets.SystemRandom()
+    for _ in range(1000):
+        port = rng.randrange(10000, max(low, 10001))
+        if port in _PICKED:
+            continue
+        with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+            try:
+                s.bind(("0.0.0.0", port))
+            except OSError:
+                continue
+        _PICKED.add(port)
+        return port
+    raise AssertionError("no free port below the ephemeral range")
 
 
 def wait_until(pred, what, timeout=HANG_GUARD_S, step=0.1):

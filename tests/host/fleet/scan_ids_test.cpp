@@ -59,4 +59,17 @@ TEST(ScanIds, Format) {
   EXPECT_EQ(fleet::scan_message_id("cell-7", 42, 123, bytes), "cell-7-42-123-352441c2");
 }
 
+TEST(ScanIds, StreamedScanIdsAndSubjects) {
+  // Fixed at ScanBegin (no image yet): the gateway's nonce tells two scans with equal ids and start times
+  // apart. Every id is one subject token (no '.', '*', '>', spaces).
+  const std::string id = fleet::streamed_scan_id("cell-7", 42, 123, 0xab);
+  EXPECT_EQ(id, "cell-7-42-123-s00000000000000ab");
+  EXPECT_NE(id, fleet::streamed_scan_id("cell-7", 42, 123, 0xac));
+  EXPECT_EQ(id.find_first_of(".*> "), std::string::npos);
+  EXPECT_EQ(fleet::parts_subject("cell-7", id), "facetscan.parts.cell-7." + id);
+  EXPECT_EQ(fleet::part_message_id(id, 12), id + "-p12");
+  // A streamed id never equals a whole scan's id (their last fields differ in form).
+  EXPECT_NE(id.substr(id.rfind('-') + 1).size(), 8u);
+}
+
 }  // namespace

@@ -112,4 +112,27 @@ TEST(SpoolTokens, EveryStatusRoundTrips) {
   EXPECT_THROW(fleet::parse_status_token("sideways"), fs::Error);
 }
 
+TEST_F(SpoolTest, AStreamedScansNonceSurvivesARestart) {
+  // A streamed scan whose stream failed is spooled with the nonce of its streamed id (it keeps that id when
+  // sent whole); a scanner id with '_' still parses.
+  {
+    ScanSpool spool(dir_, 1000);
+    const auto a = spool.put(bytes(10, 1), "cell_7", ScanStatus::Complete, 0x0123456789abcdefu);
+    EXPECT_EQ(a.path.filename().string(), "000000000001_cell_7_complete_s0123456789abcdef.fscan");
+    spool.put(bytes(10, 2), "cell_8", ScanStatus::Aborted);
+  }
+  ScanSpool spool(dir_, 1000);
+  ASSERT_EQ(spool.count(), 2u);
+  auto e = spool.oldest();
+  EXPECT_EQ(e->scanner_id, "cell_7");
+  EXPECT_EQ(e->status, ScanStatus::Complete);
+  ASSERT_TRUE(e->stream_nonce);
+  EXPECT_EQ(*e->stream_nonce, 0x0123456789abcdefu);
+  spool.remove(*e);
+  e = spool.oldest();
+  EXPECT_EQ(e->scanner_id, "cell_8");
+  EXPECT_EQ(e->status, ScanStatus::Aborted);
+  EXPECT_FALSE(e->stream_nonce);
+}
+
 }  // namespace

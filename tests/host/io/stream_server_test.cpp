@@ -131,6 +131,44 @@ TEST_F(StreamTest, CompleteScanAndHeartbeatsToScanner) {
   ::close(fd);
 }
 
+TEST_F(StreamTest, TheScanInProgressIsForwardedFrameByFrame) {
+  // serve --nats --stream forwards what the assembler takes for the scan in progress: its ScanBegin and its
+  // stripes, not heartbeats, not the ScanEnd (the scan callback follows it), not stripes of another scan.
+  StreamServerOptions o;
+  o.listen = "127.0.0.1:0";
+  o.now_ns = clock.fn();
+  std::vector<std::pair<msg::Type, std::uint64_t>> forwarded;  // type, scan id
+  std::size_t forwarded_at_delivery = 0;
+  o.on_scan_frame = [&](const std::string& peer, const wire::DecodedMessage& m) {
+    EXPECT_NE(peer.find("127.0.0.1:"), std::string::npos);
+    forwarded.emplace_back(m.type,
+                           m.type == msg::Type::ScanBegin ? m.scan_begin.scan_id : m.stripe.header.scan_id);
+  };
+  StreamServer server(o, [&](const Scan& sc) {
+    statuses.push_back(sc.status());
+    forwarded_at_delivery = forwarded.size();
+  });
+  server.start();
+  const int fd = connect_to(server.port());
+  ASSERT_GE(fd, 0);
+  fs::test::SynthScan other = synth;  // a stripe of scan 99: an orphan
+  for (auto& st : other.stripes) st.header.scan_id = 99;
+  std::vector<std::uint8_t> bytes = frames(other, false, 0, 1, false);
+  const auto scan = frames(synth, true, 0, 10, true, 2);
+  bytes.insert(bytes.end(), scan.begin(), scan.end());
+  const auto late = frames(synth, false, 10, 11, false, 15);  // after the ScanEnd: an orphan too
+  bytes.insert(bytes.end(), late.begin(), late.end());
+  send_all(fd, bytes, 5);
+  ASSERT_TRUE(pump(server, [&] { return !statuses.empty() && server.stats().frames == 17u; }));
+  EXPECT_EQ(statuses.size(), 1u);  // 10 of its stripes: delivered as missing stripes
+  ASSERT_EQ(forwarded.size(), 11u);
+  EXPECT_EQ(forwarded_at_delivery, 11u);  // every stripe reached the hook before the scan was delivered
+  EXPECT_EQ(forwarded[0], std::make_pair(msg::Type::ScanBegin, synth.begin.scan_id));
+  for (std::size_t i = 1; i < forwarded.size(); ++i)
+    EXPECT_EQ(forwarded[i], std::make_pair(msg::Type::Stripe, synth.begin.scan_id)) << i;
+  ::close(fd);
+}
+
 TEST_F(StreamTest, DisconnectMidScanYieldsPartialScan) {
   auto server = make(0);
   const int fd = connect_to(server->port());
