@@ -2,19 +2,20 @@
 """Streamed scans (`facetscan serve --nats --stream`, docs/fleet.md#streamed-scans) against a real nats-server.
 
 The gateway publishes each scan's SCANS message at its ScanBegin and its frames as parts in PARTS while the
-simulated scanner streams; a worker takes the scan at once and reads the parts as they come. Tests: scanners +
-streaming gateway + two workers (one result each, equal to local recognition, taken before the scan ended);
-a worker SIGKILLed holding a streamed scan (redelivered, the other worker reads the parts again); the server
-SIGKILLed in the middle of a real-time scan (the stream is abandoned, the scan goes whole through the spool:
-one result); a scanner cut in the middle of its scan (the partial scan is streamed and recognized as such).
+scanner streams; a worker takes the scan at once and reads the parts as they come. Tests: simulated scanners +
+streaming gateway + two workers (one result each, equal to local recognition); a paced scan the worker takes
+before it ends; a worker SIGKILLed holding a streamed scan (redelivered, the other worker reads the parts
+again); the server SIGKILLed in the middle of a paced scan and a second scan during the outage (both streams
+abandoned, both scans sent whole through the spool: one result each); a scanner whose link drops mid-scan (the
+partial scan is streamed and recognized as such). Paced scans replay a recorded scan's frames over TCP
+(ReplayScanner): the real-time firmware twins are too slow under a sanitizer.
 """
-import atexit
-import json
 import os
 import re
 import signal
+import socket
 import sys
-import tempfile
+import threading
 import time
 
 import fleet_support as fs
@@ -22,25 +23,36 @@ import gateway_test as gt
 from fleet_support import HANG_GUARD_S, Proc, wait_until
 
 
-def realtime_config():
-    """A firmware config for real-time scans on a loaded machine: these tests are about streaming, so the loop
-    may run late (the deadline faults of a 2-core machine shared with nats-server are not what is tested)."""
-    fd, path = tempfile.mkstemp(prefix="fs_stream_fw_", suffix=".json")
-    with os.fdopen(fd, "w") as f:
-        json.dump({"stream_drain_ms": 60000,
-                   "loop": {"late_limit_us": 1000000, "max_consecutive_late": 1000000, "max_dwell_ms": 100000,
-                            "camera_timeout_ms": 100000}}, f)
-    atexit.register(os.remove, path)
-    return path
+FSCAN_HEADER_BYTES = 16  # a .fscan file is this header, then the frames exactly as the scanner sent them
 
 
-REALTIME_CONFIG = realtime_config()
+class ReplayScanner(threading.Thread):
+    """A scanner at a chosen pace: replays a recorded scan's frames over TCP to the gateway in `seconds`
+    (deterministic on any machine, unlike the real-time firmware twins under a sanitizer), or only the first
+    `fraction` of them before the connection drops."""
 
+    def __init__(self, port, fscan, seconds, fraction=1.0):
+        super().__init__(daemon=True)
+        with open(fscan, "rb") as f:
+            data = f.read()[FSCAN_HEADER_BYTES:]
+        self.data = data[:int(len(data) * fraction)]
+        self.port, self.seconds, self.error = port, seconds, None
+        self.start()
 
-def realtime_scanner(gateway, *extra):
-    """A simulated scanner at the scanner's own rate (500 stripes in about 2.5 s)."""
-    return Proc([fs.ARGS.fw_hil, "--config", REALTIME_CONFIG, "--realtime", *extra, "--stream",
-                 f"127.0.0.1:{gateway.port}"], None)
+    def run(self):
+        try:
+            chunks = [self.data[i:i + 65536] for i in range(0, len(self.data), 65536)]
+            with socket.create_connection(("127.0.0.1", self.port)) as sock:
+                for c in chunks:
+                    sock.sendall(c)
+                    time.sleep(self.seconds / len(chunks))
+                time.sleep(0.5)  # let the host read the end before the connection closes
+        except OSError as e:
+            self.error = e
+
+    def finish(self):
+        self.join(timeout=HANG_GUARD_S)
+        assert not self.is_alive() and self.error is None, self.error
 
 
 class StreamTest(fs.FleetCase):
@@ -67,8 +79,7 @@ class StreamTest(fs.FleetCase):
         return results
 
     def test_streamed_scans_two_workers(self):
-        self.worker("w1", "--threads", "1")
-        self.worker("w2", "--threads", "1")
+        workers = [self.worker("w1", "--threads", "1"), self.worker("w2", "--threads", "1")]
         spool = os.path.join(self.server.dir, "spool")
         gw = self.gateway(spool, "--part-size", "64KiB")
         for i, scene in enumerate(gt.SCENES):
@@ -92,13 +103,32 @@ class StreamTest(fs.FleetCase):
         self.assertTrue(any("3 scan(s) received, 3 published (3 streamed, 0 stream(s) abandoned" in line
                             for line in gw.lines), gw.lines)
         self.assertEqual(gt.spooled(spool), [])  # nothing went through the spool
+        for w in workers:  # a clean exit (under the sanitizer build: nothing leaked)
+            w.stop()
+            self.assertEqual(w.proc.returncode, 0, w.lines)
 
-    def test_realtime_scan_is_taken_before_it_ends(self):
+    def test_worker_stopped_while_reading_a_stream(self):
+        w1 = self.worker("w1")
+        gw = self.gateway(os.path.join(self.server.dir, "spool"))
+        scanner = ReplayScanner(gw.port, fs.ENV.scans["default"], 3.0)
+        w1.wait_line(r"reading the parts of ")
+        w1.stop()  # SIGTERM: the scan it reads goes back to the consumer at once, the worker exits cleanly
+        self.assertEqual(w1.proc.returncode, 0, w1.lines)
+        self.assertTrue(any("stopped: 0 result(s)" in line for line in w1.lines), w1.lines)
+        self.worker("w2")
+        scanner.finish()
+        [r] = self.one_result_each(1)
+        self.assertEqual(r["worker"], {"id": "w2", "delivery": 2})
+        # Every stripe once: the recording's size less its heartbeats (a few frames of tens of bytes).
+        recorded = os.path.getsize(fs.ENV.scans["default"])
+        self.assertTrue(recorded - 4096 < r["stream"]["bytes"] <= recorded, (r["stream"], recorded))
+        self.assertTrue(r["input"]["complete_scan"])
+        self.assertEqual([o["model"] for o in r["objects"]], [o["model"] for o in fs.ENV.expected["default"]])
+
+    def test_paced_scan_is_taken_before_it_ends(self):
         self.worker("w1")
         gw = self.gateway(os.path.join(self.server.dir, "spool"))
-        scanner = realtime_scanner(gw, "--steps", "200")
-        self.procs.append(scanner)
-        self.assertEqual(scanner.proc.wait(timeout=HANG_GUARD_S), 0)
+        ReplayScanner(gw.port, fs.ENV.scans["default"], 2.0).finish()
         [r] = self.one_result_each(1)
         # The worker took the scan at its ScanBegin and read it as it came: it had it before the last part.
         self.assertTrue(r["stream"]["taken_before_end"], r)
@@ -121,11 +151,10 @@ class StreamTest(fs.FleetCase):
         w1 = self.worker("w1", "--part-timeout", "5")
         spool = os.path.join(self.server.dir, "spool")
         gw = self.gateway(spool, "--scanner", "cell-k")
-        scanner = realtime_scanner(gw)
-        self.procs.append(scanner)
-        w1.wait_line(r"reading the parts of cell-k-1-")  # the scan streams (2.5 s at the scanner's rate)
+        scanner = ReplayScanner(gw.port, fs.ENV.scans["default"], 3.0)
+        w1.wait_line(r"reading the parts of cell-k-1-")  # the scan streams (for 3 s)
         self.server.kill()
-        self.assertEqual(scanner.proc.wait(timeout=HANG_GUARD_S), 0)
+        scanner.finish()
         first = gw.wait_line(r"streaming scan 1 as (\S+) failed \(.*\): it goes whole through the spool").group(1)
         # A second scan while the server is still away: its stream fails at once and it waits in the spool
         # too (the gateway goes on taking scans while the first stream's "abandoned" waits for the server).
@@ -147,14 +176,10 @@ class StreamTest(fs.FleetCase):
         self.assertEqual(self.results("--dead", user="client"), [])
         self.assertEqual(gt.spooled(spool), [])
 
-    def test_scanner_cut_mid_scan_streams_a_partial_scan(self):
-        w1 = self.worker("w1")
+    def test_link_dropped_mid_scan_streams_a_partial_scan(self):
+        self.worker("w1")
         gw = self.gateway(os.path.join(self.server.dir, "spool"), "--reconnect-grace", "500")
-        scanner = realtime_scanner(gw)
-        self.procs.append(scanner)
-        w1.wait_line(r"reading the parts of 127-0-0-1-1-")  # the scan began
-        time.sleep(1.0)  # about 200 of 500 stripes
-        scanner.stop(signal.SIGKILL)
+        ReplayScanner(gw.port, fs.ENV.scans["default"], 2.0, fraction=0.4).finish()  # then the link drops
         [r] = self.one_result_each(1)
         self.assertEqual(r["scan_status"], "disconnected before ScanEnd")
         self.assertFalse(r["input"]["complete_scan"])
