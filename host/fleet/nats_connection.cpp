@@ -83,6 +83,41 @@ void throw_nats(natsStatus s, const std::string& what, jsErrCode err) {
   throw Error(nats_error_text(s, what, err));
 }
 
+bool nats_transient(natsStatus st) {
+  return st == NATS_TIMEOUT || st == NATS_CONNECTION_DISCONNECTED || st == NATS_NO_RESPONDERS;
+}
+
+std::string nats_header(natsMsg* m, const char* key) {
+  const char* v = nullptr;
+  if (natsMsgHeader_Get(m, key, &v) != NATS_OK || v == nullptr) return {};
+  return v;
+}
+
+natsStatus js_publish_once(jsCtx* js, const std::string& subject, const std::string& msg_id,
+                           const char* stream, std::span<const std::uint8_t> body, const NatsHeaders& headers,
+                           JsPublished& out, jsErrCode& err) {
+  natsMsg* m = nullptr;
+  natsStatus st = natsMsg_Create(&m, subject.c_str(), nullptr, reinterpret_cast<const char*>(body.data()),
+                                 static_cast<int>(body.size()));
+  if (st != NATS_OK) throw_nats(st, "message for " + subject);
+  for (const auto& [k, v] : headers)
+    if (!v.empty()) natsMsgHeader_Set(m, k.c_str(), v.c_str());
+  jsPubOptions po;
+  jsPubOptions_Init(&po);
+  po.MsgId = msg_id.c_str();
+  po.ExpectStream = stream;
+  jsPubAck* ack = nullptr;
+  err = static_cast<jsErrCode>(0);
+  st = js_PublishMsg(&ack, js, m, &po, &err);
+  natsMsg_Destroy(m);
+  if (st == NATS_OK) {
+    out.sequence = ack->Sequence;
+    out.duplicate = ack->Duplicate;
+    jsPubAck_Destroy(ack);
+  }
+  return st;
+}
+
 namespace {
 
 void check(natsStatus s, const char* what) {

@@ -4,7 +4,9 @@
 // `insecure` (--insecure) is set. The connection reconnects by itself (forever, every 250 ms); JetStream
 // calls made meanwhile fail with a timeout and the callers retry.
 #include <cstdint>
+#include <span>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <nats/nats.h>
@@ -42,6 +44,26 @@ void check_transport_policy(const std::string& urls, bool insecure);
 std::string nats_error_text(natsStatus s, const std::string& what, jsErrCode err = static_cast<jsErrCode>(0));
 [[noreturn]] void throw_nats(natsStatus s, const std::string& what,
                              jsErrCode err = static_cast<jsErrCode>(0));
+
+// A failure that may pass (a timeout, the connection lost, no responder while a leader is elected): the same
+// request again may succeed.
+bool nats_transient(natsStatus st);
+
+// A message header's value; "" when the message has none.
+std::string nats_header(natsMsg* m, const char* key);
+
+using NatsHeaders = std::vector<std::pair<std::string, std::string>>;
+struct JsPublished {
+  std::uint64_t sequence = 0;  // in the stream (of the first copy when duplicate)
+  bool duplicate = false;      // the stream already held this message id: stored once
+};
+// One JetStream publish of `body` to `subject` under message id `msg_id` (the stream de-duplicates by it),
+// expecting `stream`, with `headers` (empty values left out). Returns the status: NATS_OK fills `out`, else
+// `err` holds the JetStream error. Throws fs::Error when the message cannot be made. Each caller retries as
+// its role needs (gateway, streamer, worker).
+natsStatus js_publish_once(jsCtx* js, const std::string& subject, const std::string& msg_id,
+                           const char* stream, std::span<const std::uint8_t> body, const NatsHeaders& headers,
+                           JsPublished& out, jsErrCode& err);
 
 class NatsConnection {
  public:

@@ -8,16 +8,6 @@
 
 namespace fs::host::fleet {
 
-namespace {
-
-std::string header(natsMsg* m, const char* key) {
-  const char* v = nullptr;
-  if (natsMsgHeader_Get(m, key, &v) != NATS_OK || v == nullptr) return {};
-  return v;
-}
-
-}  // namespace
-
 ResultsReader::ResultsReader(NatsConnection& connection, Source source, const std::string& scanner_id) {
   const bool dead = source == Source::Dead;
   const char* stream = dead ? kDeadStream : kResultsStream;
@@ -54,9 +44,9 @@ std::optional<FleetResult> ResultsReader::next(std::int64_t timeout_ms) {
   if (st != NATS_OK) throw_nats(st, "read results");
   FleetResult r;
   r.subject = natsMsg_GetSubject(m);
-  r.scan_id = header(m, kHeaderScanId);
-  r.scanner_id = header(m, kHeaderScanner);
-  r.reason = header(m, kHeaderReason);
+  r.scan_id = nats_header(m, kHeaderScanId);
+  r.scanner_id = nats_header(m, kHeaderScanner);
+  r.reason = nats_header(m, kHeaderReason);
   r.body.assign(natsMsg_GetData(m), static_cast<std::size_t>(natsMsg_GetDataLength(m)));
   jsMsgMetaData* meta = nullptr;
   if (natsMsg_GetMetaData(&meta, m) == NATS_OK) {

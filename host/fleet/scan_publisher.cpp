@@ -36,33 +36,20 @@ PublishedScan ScanPublisher::publish(std::span<const std::uint8_t> fscan, const 
                     "max_payload in the server config, toolchain/deploy/nats/)",
                     out.message_id, fscan.size(), max_payload));
   const auto t0 = std::chrono::steady_clock::now();
+  const NatsHeaders headers = {{kHeaderScanId, id}, {kHeaderScanner, scanner_id_}, {kHeaderStatus, status}};
   for (int attempt = 0;; ++attempt) {
-    natsMsg* m = nullptr;
-    natsStatus st = natsMsg_Create(&m, subject_.c_str(), nullptr, reinterpret_cast<const char*>(fscan.data()),
-                                   static_cast<int>(fscan.size()));
-    if (st != NATS_OK) throw_nats(st, "scan message");
-    natsMsgHeader_Set(m, kHeaderScanId, id.c_str());
-    natsMsgHeader_Set(m, kHeaderScanner, scanner_id_.c_str());
-    natsMsgHeader_Set(m, kHeaderStatus, status.c_str());
-    jsPubOptions po;
-    jsPubOptions_Init(&po);
-    po.MsgId = out.message_id.c_str();
-    po.ExpectStream = kScansStream;
-    jsPubAck* ack = nullptr;
+    JsPublished ack;
     jsErrCode err = static_cast<jsErrCode>(0);
-    st = js_PublishMsg(&ack, connection_.js(), m, &po, &err);
-    natsMsg_Destroy(m);
+    const natsStatus st =
+        js_publish_once(connection_.js(), subject_, out.message_id, kScansStream, fscan, headers, ack, err);
     if (st == NATS_OK) {
-      out.sequence = ack->Sequence;
-      out.duplicate = ack->Duplicate;
-      jsPubAck_Destroy(ack);
+      out.sequence = ack.sequence;
+      out.duplicate = ack.duplicate;
       break;
     }
     // A timeout or a lost connection (server restarting, cluster electing a leader): the same message id
     // again; the stream stores it once. Errors of the request itself (too large, no stream) are final.
-    const bool transient =
-        st == NATS_TIMEOUT || st == NATS_CONNECTION_DISCONNECTED || st == NATS_NO_RESPONDERS;
-    if (!transient || attempt >= retries)
+    if (!nats_transient(st) || attempt >= retries)
       throw_nats(st, fmt::format("publish scan {} to {}", out.message_id, subject_), err);
     std::this_thread::sleep_for(std::chrono::milliseconds(250));
   }

@@ -150,36 +150,19 @@ void ScanStreamer::publish(State& s, const Task& t) {
     throw Error(fmt::format("part {} of {} bytes exceeds the server's max_payload of {} bytes", s.next_part,
                             t.bytes.size(), max_payload));
   if (item) s.item_sent = true;  // from the first attempt on it may be stored (a timed-out publish may be)
+  NatsHeaders headers = {{kHeaderScanId, s.scan_id}, {kHeaderScanner, s.scanner}};
+  if (item) {
+    headers.insert(headers.end(), {{kHeaderStatus, "streaming"}, {kHeaderParts, s.parts_subject}});
+  } else {
+    headers.emplace_back(kHeaderPart, std::to_string(s.next_part));
+    if (t.kind == Kind::Last) headers.insert(headers.end(), {{kHeaderLast, "1"}, {kHeaderStatus, t.status}});
+  }
   for (int attempt = 0;; ++attempt) {
-    natsMsg* m = nullptr;
-    natsStatus st =
-        natsMsg_Create(&m, subject.c_str(), nullptr, reinterpret_cast<const char*>(t.bytes.data()),
-                       static_cast<int>(t.bytes.size()));
-    if (st != NATS_OK) throw_nats(st, "part message");
-    natsMsgHeader_Set(m, kHeaderScanId, s.scan_id.c_str());
-    natsMsgHeader_Set(m, kHeaderScanner, s.scanner.c_str());
-    if (item) {
-      natsMsgHeader_Set(m, kHeaderStatus, "streaming");
-      natsMsgHeader_Set(m, kHeaderParts, s.parts_subject.c_str());
-    } else {
-      natsMsgHeader_Set(m, kHeaderPart, std::to_string(s.next_part).c_str());
-      if (t.kind == Kind::Last) {
-        natsMsgHeader_Set(m, kHeaderLast, "1");
-        natsMsgHeader_Set(m, kHeaderStatus, t.status.c_str());
-      }
-    }
-    jsPubOptions po;
-    jsPubOptions_Init(&po);
-    po.MsgId = msg_id.c_str();
-    po.ExpectStream = item ? kScansStream : kPartsStream;
-    jsPubAck* ack = nullptr;
+    JsPublished ack;
     jsErrCode err = static_cast<jsErrCode>(0);
-    st = js_PublishMsg(&ack, connection_.js(), m, &po, &err);
-    natsMsg_Destroy(m);
-    if (st == NATS_OK) {
-      jsPubAck_Destroy(ack);
-      break;
-    }
+    const natsStatus st = js_publish_once(connection_.js(), subject, msg_id,
+                                          item ? kScansStream : kPartsStream, t.bytes, headers, ack, err);
+    if (st == NATS_OK) break;
     // A timeout may be a slow acknowledgement: the same message id again is stored once. Anything else, or
     // a third timeout, abandons the stream (the scan goes whole through the spool).
     if (st != NATS_TIMEOUT || attempt >= 2)

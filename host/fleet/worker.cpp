@@ -24,16 +24,6 @@ double ms_since(Clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 }
 
-std::string header(natsMsg* m, const char* key) {
-  const char* v = nullptr;
-  if (natsMsgHeader_Get(m, key, &v) != NATS_OK || v == nullptr) return {};
-  return v;
-}
-
-bool transient(natsStatus st) {
-  return st == NATS_TIMEOUT || st == NATS_CONNECTION_DISCONNECTED || st == NATS_NO_RESPONDERS;
-}
-
 }  // namespace
 
 struct Worker::Job {
@@ -66,8 +56,6 @@ struct Worker::Job {
             static_cast<std::size_t>(natsMsg_GetDataLength(msg))};
   }
 };
-
-namespace {}  // namespace
 
 // The closure of a streamed scan's part subscription: the scan is found by its number (a late part meets no
 // released scan); freed when the subscription has delivered its last callback
@@ -234,9 +222,9 @@ void Worker::take(std::unique_ptr<Job> job) {
     jsMsgMetaData_Destroy(meta);
   }
   job->scanner_id = scanner_of_subject(natsMsg_GetSubject(m), kScansPrefix);
-  job->scan_id = header(m, kHeaderScanId);
-  job->status = header(m, kHeaderStatus);
-  job->parts_subject = header(m, kHeaderParts);
+  job->scan_id = nats_header(m, kHeaderScanId);
+  job->status = nats_header(m, kHeaderStatus);
+  job->parts_subject = nats_header(m, kHeaderParts);
   job->taken_ns = nats_NowInNanoSeconds();
   job->marked = Clock::now();
   Job* j = job.get();
@@ -320,10 +308,10 @@ void Worker::on_part(natsConnection*, natsSubscription*, natsMsg* msg, void* clo
     const auto it = w.collecting_.find(c->job);
     if (it != w.collecting_.end()) {
       Job& j = *it->second;
-      const std::string last = header(msg, kHeaderLast);
-      const std::string status = header(msg, kHeaderStatus);
+      const std::string last = nats_header(msg, kHeaderLast);
+      const std::string status = nats_header(msg, kHeaderStatus);
       std::uint64_t n = 0;
-      const std::string part = header(msg, kHeaderPart);
+      const std::string part = nats_header(msg, kHeaderPart);
       const bool numbered =
           !part.empty() && part.find_first_not_of("0123456789") == std::string::npos && part.size() < 20;
       if (numbered) n = std::stoull(part);
@@ -447,28 +435,19 @@ void Worker::purge_parts(const Job& job) {
 bool Worker::publish_retrying(const char* subject, const std::string& msg_id, const std::string& body,
                               const std::vector<std::pair<std::string, std::string>>& headers,
                               const char* stream, const std::atomic<bool>& stop, bool& duplicate) {
+  const std::span<const std::uint8_t> bytes(reinterpret_cast<const std::uint8_t*>(body.data()), body.size());
   for (int attempt = 0;; ++attempt) {
-    natsMsg* m = nullptr;
-    natsStatus st = natsMsg_Create(&m, subject, nullptr, body.data(), static_cast<int>(body.size()));
-    if (st != NATS_OK) throw_nats(st, "result message");
-    for (const auto& [k, v] : headers)
-      if (!v.empty()) natsMsgHeader_Set(m, k.c_str(), v.c_str());
-    jsPubOptions po;
-    jsPubOptions_Init(&po);
-    po.MsgId = msg_id.c_str();
-    po.ExpectStream = stream;
-    jsPubAck* ack = nullptr;
+    JsPublished ack;
     jsErrCode err = static_cast<jsErrCode>(0);
-    st = js_PublishMsg(&ack, connection_.js(), m, &po, &err);
-    natsMsg_Destroy(m);
+    const natsStatus st =
+        js_publish_once(connection_.js(), subject, msg_id, stream, bytes, headers, ack, err);
     if (st == NATS_OK) {
-      duplicate = ack->Duplicate;
-      jsPubAck_Destroy(ack);
+      duplicate = ack.duplicate;
       return true;
     }
     if (attempt % 20 == 0) say(nats_error_text(st, fmt::format("publish {} to {}", msg_id, subject), err));
     // Not stored: keep trying while the server is away; on stop the scan stays unacked (redelivered).
-    if (stop.load() || (!transient(st) && attempt >= 3)) return false;
+    if (stop.load() || (!nats_transient(st) && attempt >= 3)) return false;
     std::this_thread::sleep_for(std::chrono::milliseconds(250));
   }
 }
@@ -627,13 +606,13 @@ void Worker::dead_letter_after_advisory(natsMsg* advisory) {
   natsStatus st = js_GetMsg(&m, connection_.js(), kScansStream, seq, nullptr, &err);
   if (st != NATS_OK) return;  // acked meanwhile, or another worker moved it
   const std::string scanner = scanner_of_subject(natsMsg_GetSubject(m), kScansPrefix);
-  std::string id = header(m, kHeaderScanId);
+  std::string id = nats_header(m, kHeaderScanId);
   if (id.empty()) id = fmt::format("seq-{}", seq);
   const std::string reason = fmt::format(
       "delivered {} time(s) without an acknowledgement (a worker died on it or exceeded AckWait {} ms)",
       deliveries, consumer_.ack_wait_ms);
   const std::string body(natsMsg_GetData(m), static_cast<std::size_t>(natsMsg_GetDataLength(m)));
-  const std::string parts = header(m, kHeaderParts);  // a streamed scan: its parts stay in PARTS
+  const std::string parts = nats_header(m, kHeaderParts);  // a streamed scan: its parts stay in PARTS
   natsMsg_Destroy(m);
   std::atomic<bool> never{false};
   bool duplicate = false;
