@@ -4,6 +4,7 @@
 #include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace fs::host::rec {
 
@@ -51,6 +52,69 @@ TranslationFit fit_translation(const Model& model, const Mat3& R, std::span<cons
   }
   fit.rms_mm = pairs.empty() ? 0.0 : std::sqrt(r2 / static_cast<double>(pairs.size()));
   return fit;
+}
+
+double outside_face_mm(const ModelFace& f, const Vec3& q) {
+  const Vec3 u = f.normal.unitOrthogonal();
+  const Vec3 v = f.normal.cross(u);
+  const double px = q.dot(u), py = q.dot(v);
+  bool inside = false;
+  double best2 = std::numeric_limits<double>::infinity();
+  for (const auto& loop : f.loops) {
+    if (loop.empty()) continue;
+    double bx = loop.back().dot(u), by = loop.back().dot(v);
+    for (const Vec3& p : loop) {
+      const double ax = p.dot(u), ay = p.dot(v);
+      if ((ay > py) != (by > py) && px < (bx - ax) * (py - ay) / (by - ay) + ax) inside = !inside;
+      const double ex = bx - ax, ey = by - ay;
+      const double t =
+          std::clamp(((px - ax) * ex + (py - ay) * ey) / std::max(ex * ex + ey * ey, 1e-12), 0.0, 1.0);
+      const double dx = ax + t * ex - px, dy = ay + t * ey - py;
+      best2 = std::min(best2, dx * dx + dy * dy);
+      bx = ax;
+      by = ay;
+    }
+  }
+  return inside ? 0.0 : std::sqrt(best2);
+}
+
+bool consistent_placement(const Model& model, const Mat3& R, std::span<const PlanePair> pairs,
+                          const PlacementCheck& check) {
+  // fit_translation's least squares without its centroid fill-in, with the closed-form 3 x 3 eigensolver:
+  // this runs for every solution of every search.
+  Mat3 A = Mat3::Zero();
+  Vec3 b = Vec3::Zero();
+  for (const PlanePair& p : pairs) {
+    const double w = std::sqrt(std::max(p.scene_area, 1e-9));
+    const double d = p.scene_offset - model.faces[static_cast<std::size_t>(p.model_face)].offset;
+    A += w * p.scene_normal * p.scene_normal.transpose();
+    b += w * d * p.scene_normal;
+  }
+  Eigen::SelfAdjointEigenSolver<Mat3> es;
+  es.computeDirect(A);
+  const Vec3 ev = es.eigenvalues();  // ascending
+  const double emax = std::max(ev(2), 1e-12);
+  Vec3 t = Vec3::Zero();
+  bool free = false;
+  for (int k = 0; k < 3; ++k) {
+    if (ev(k) > 0.02 * emax)
+      t += es.eigenvectors().col(k) * (es.eigenvectors().col(k).dot(b) / ev(k));
+    else
+      free = true;
+  }
+  double r2 = 0.0;
+  for (const PlanePair& p : pairs) {
+    const double r =
+        p.scene_normal.dot(t) - (p.scene_offset - model.faces[static_cast<std::size_t>(p.model_face)].offset);
+    r2 += r * r;
+  }
+  if (!pairs.empty() && r2 > check.rms_mm * check.rms_mm * static_cast<double>(pairs.size())) return false;
+  if (free) return true;  // where the faces lie along the free direction is not known: no outline test
+  for (const PlanePair& p : pairs) {
+    const ModelFace& f = model.faces[static_cast<std::size_t>(p.model_face)];
+    if (outside_face_mm(f, R.transpose() * (p.scene_centroid - t)) > check.outside_mm) return false;
+  }
+  return true;
 }
 
 double rotation_angle_deg(const Mat3& R1, const Mat3& R2) {

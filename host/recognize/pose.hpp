@@ -30,6 +30,23 @@ struct TranslationFit {
 TranslationFit fit_translation(const Model& model, const Mat3& R, std::span<const PlanePair> pairs,
                                double min_eigen_ratio = 0.02);
 
+// How far point q (model frame), projected onto face f's plane, lies outside f's polygon (mm; 0 inside, by
+// the even-odd rule over its loops).
+double outside_face_mm(const ModelFace& f, const Vec3& q);
+
+// Whether a correspondence of scene faces to model faces can be one rigid placement (beyond the thesis: the
+// matcher checks normals, areas and adjacency, not where the faces lie): the matched planes agree on a
+// translation within rms_mm, and (when the planes fix the translation) under it every matched scene face's
+// centroid lies within outside_mm of its model face (a visible part of a face lies on the face). Among
+// look-alikes with many parallel faces (polycubes) most of a search's equal-cost solutions pair a scene face
+// with a parallel face a cube away.
+struct PlacementCheck {
+  double rms_mm = 3.0;
+  double outside_mm = 5.0;
+};
+bool consistent_placement(const Model& model, const Mat3& R, std::span<const PlanePair> pairs,
+                          const PlacementCheck& check);
+
 // Angle of the rotation R1^T R2 (degrees).
 double rotation_angle_deg(const Mat3& R1, const Mat3& R2);
 // Smallest angle between R1 and R2 S over the model's symmetries S (degrees).

@@ -40,6 +40,7 @@ Recognizer::Impl::Impl(const Library& lib, const RecognizeParams& p, int threads
   }
   second_search = p.second_search;
   second_search_min_level = p.second_search_min_level;
+  placement = p.placement;
   worker_pairs.resize(static_cast<std::size_t>(pool.threads()));
   for (auto& w : worker_pairs) w.reserve(256);
   for (auto& pm : batch) {

@@ -21,6 +21,7 @@
 #include "host/match/inexact.hpp"
 #include "host/match/params.hpp"
 #include "host/pfrg/pfrg.hpp"
+#include "host/recognize/pose.hpp"
 #include "host/recognize/verify.hpp"
 #include "host/segment/scene_pfrg.hpp"
 #include "host/segment/segment_params.hpp"
@@ -83,6 +84,11 @@ struct RecognizeParams {
   // makes the best-first search try the correspondences whose areas agree first; it adds at most 0.01 to a
   // cost whose threshold (t9.3's TH_cost) is 0.1. Overrides the match parameters' alpha; < 0 = keep theirs.
   double area_cost = 0.01;
+  // Solutions whose matched faces cannot lie where the scene's do (consistent_placement, pose.hpp) go after
+  // the others of their search, so a model's share of the pool goes to placements that can be right: among
+  // polycubes most equal-cost solutions pair a scene face with a parallel model face a cube away.
+  // placement.rms_mm <= 0 = off (the matcher's order).
+  PlacementCheck placement;
   // Rigidity from level-1 parents (match::MatchParams::rigidity_pairs): the angle between two matched normals
   // is the same in the scene and the reference. Overrides the match parameters' switch when set.
   bool rigidity_pairs = true;

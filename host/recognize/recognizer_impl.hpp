@@ -67,6 +67,7 @@ struct Recognizer::Impl {
   std::vector<match::NodeSet> search_roots;
   bool second_search = false;  // RecognizeParams::second_search
   int second_search_min_level = 0;
+  PlacementCheck placement;  // RecognizeParams::placement
   // References are matched kMatchBatch at a time: batch[k] holds the solutions of model batch_first + k until
   // they are collected into hyps (collect_batch), so this memory does not grow with the library.
   static constexpr std::size_t kMatchBatch = 256;
@@ -270,7 +271,7 @@ struct Recognizer::Impl {
   // makes leave `order`.
   const HypothesisContext* hctx = nullptr;
   double reseat_min_confidence = 0.0;
-  std::vector<std::vector<PlanePair>> worker_pairs;  // by worker
+  std::vector<std::vector<PlanePair>> worker_pairs;  // by worker (reseat.cpp, match_round.cpp)
   std::vector<char> reseated, dropped;               // by hypothesis index
   std::vector<double> raw_confidence;  // coarse, before the explained share; by hypothesis index
   void reseat(std::size_t index, int worker);

@@ -68,6 +68,12 @@ inline void add_recognize_flags(CLI::App& app, fs::host::rec::RecognizeParams& p
          "--confidence-weight", p.confidence_weight,
          "RecognizeParams::confidence_weight (default 0.2): the ordering key's weight of the confidence")
       ->check(CLI::NonNegativeNumber);
+  app.add_option("--placement-rms", p.placement.rms_mm,
+                 "RecognizeParams::placement.rms_mm (default 3): solutions whose matched planes disagree on "
+                 "the translation by more go after the others of their search; <= 0 = the matcher's order");
+  app.add_option("--placement-outside", p.placement.outside_mm,
+                 "RecognizeParams::placement.outside_mm (default 5): ... or whose scene face lies farther "
+                 "outside its posed model face");
   app.add_option("--rounds", p.rounds, "RecognizeParams::rounds (default 3): matching + verification rounds")
       ->check(CLI::Range(1, 100));
 }

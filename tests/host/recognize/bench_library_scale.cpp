@@ -45,6 +45,7 @@
 #include "host/match/node_set.hpp"
 #include "host/recognize/pose.hpp"
 #include "host/recognize/recognizer.hpp"
+#include "host/recognize/verify.hpp"
 #include "hw-sim/scene/polycube_catalog.hpp"
 #include "hw-sim/scene/random_scene.hpp"
 #include "library_scale_scenes.hpp"
@@ -233,8 +234,61 @@ void profile_references(const fs::host::rec::Recognizer& rec, const Library& lib
   }
 }
 
+// A miss explained (--verbose): the verification of the true model in its true pose against that of the
+// object reported there, on the same samples (no refinement): more inliers or fewer violations for the truth
+// mean the search or the selection lost it, equal counts that the view cannot tell them apart. Then the true
+// model searched alone (the first round's matching parameters, 64 solutions kept): at which rank its true
+// placement comes, among all solutions and among those that pass the placement check.
+void why_missed(const BenchScene& sc, const fs::bench::TrueObject& o, const fs::host::Model& tm,
+                const fs::host::rec::Hypothesis* reported, const Library& lib,
+                const fs::host::rec::Recognizer& recognizer) {
+  namespace rec = fs::host::rec;
+  const rec::VerifyParams vp;
+  rec::SampleSet samples;
+  samples.build(sc.cloud,
+                rec::sample_steps(rec::grid_spacing_mm(sc.cloud), vp.sample_step, vp.sample_spacing_mm));
+  rec::Verifier verifier(vp);
+  auto line = [&](const char* what, const fs::host::Model& m, fs::Mat3 R, fs::Vec3 t) {
+    const rec::ModelGeometry g(m);
+    const rec::VerifyResult v = verifier.verify(samples, g, R, t, false);
+    std::printf("    %s %s: inliers %d, violations %d, occluded %d, confidence %.3f\n", what, m.name.c_str(),
+                v.inliers, v.violations, v.occluded, v.confidence);
+  };
+  line("truth", tm, o.R, o.t);
+  if (reported)
+    line("reported", lib.models[static_cast<std::size_t>(reported->model)], reported->R, reported->t);
+  const fs::host::match::MatchParams mp = rec::match_params(recognizer.params());
+  fs::host::match::InexactMatcher matcher(fs::host::match::MatcherLimits{200000, 64});
+  const fs::host::Pfrg& sg = recognizer.scene_graph();
+  const auto& r = matcher.match(sg, tm.graph, mp);
+  int placeable = 0, truth_rank = 0, truth_placeable_rank = 0;
+  std::vector<rec::PlanePair> pairs;
+  for (const auto& sol : r.solutions) {
+    pairs.clear();
+    for (const auto& nm : sol.matches)
+      if (const auto* n = sg.find(nm.scene); n && n->has_plane)
+        pairs.push_back({n->normal, n->offset, n->centroid, n->area, nm.ref});
+    const bool ok = rec::consistent_placement(tm, sol.rotation, pairs, recognizer.params().placement);
+    placeable += ok ? 1 : 0;
+    // The true correspondence: the true rotation, and in the true pose every matched scene face on its plane
+    // and its model face.
+    bool truth = rec::rotation_angle_deg(sol.rotation, o.R) < 2.0;
+    for (const auto& pp : pairs) {
+      const auto& f = tm.faces[static_cast<std::size_t>(pp.model_face)];
+      truth = truth && std::abs(pp.scene_normal.dot(o.t) - (pp.scene_offset - f.offset)) < 3.0 &&
+              rec::outside_face_mm(f, o.R.transpose() * (pp.scene_centroid - o.t)) < 5.0;
+    }
+    if (truth && truth_rank == 0) truth_rank = sol.rank, truth_placeable_rank = ok ? placeable : -1;
+  }
+  std::printf(
+      "    the true model searched alone: %zu solutions (%d placeable), the true placement at rank %d "
+      "(%d among the placeable; 0 = none, -1 = not placeable)\n",
+      r.solutions.size(), placeable, truth_rank, truth_placeable_rank);
+}
+
 void evaluate(const BenchScene& sc, const std::vector<fs::host::rec::Hypothesis>& found, const Library& lib,
-              const std::unordered_map<std::string, int>& index, Stats& s, bool verbose) {
+              const std::unordered_map<std::string, int>& index, Stats& s, bool verbose,
+              const fs::host::rec::Recognizer* recognizer = nullptr) {
   std::vector<bool> used(found.size(), false);
   for (const auto& o : sc.objects) {
     if (o.model.empty()) continue;
@@ -263,9 +317,13 @@ void evaluate(const BenchScene& sc, const std::vector<fs::host::rec::Hypothesis>
           if (alt.model == truth) ++s.ambiguous_ok, got += " (true model listed as an alternative)";
       }
     }
-    if (verbose && (nearest < 0 || found[static_cast<std::size_t>(nearest)].model != truth))
+    if (verbose && (nearest < 0 || found[static_cast<std::size_t>(nearest)].model != truth)) {
       std::printf("  seed %llu %s: %s -> %s\n", static_cast<unsigned long long>(sc.seed),
                   fs::sim::to_string(sc.category), o.model.c_str(), got.c_str());
+      if (recognizer)
+        why_missed(sc, o, tm, nearest >= 0 ? &found[static_cast<std::size_t>(nearest)] : nullptr, lib,
+                   *recognizer);
+    }
   }
   int extra = 0;
   for (std::size_t j = 0; j < found.size(); ++j) {
@@ -432,7 +490,7 @@ LibraryRun run_library(const Args& a, const LibrarySpec& spec, const std::vector
           "objects\n",
           static_cast<unsigned long long>(sc.seed), fs::sim::to_string(sc.category), cpu, r.stats.match_ms,
           r.stats.verify_ms, static_cast<long long>(r.stats.states), r.stats.rounds, found.size());
-    evaluate(sc, found, lib, index, s, a.verbose);
+    evaluate(sc, found, lib, index, s, a.verbose, rec.get());
     truth_among_hypotheses(sc, *rec, lib, index, s, a.verbose);
     // Every K-th scene of each category (its first included).
     if (a.alloc_every > 0 && (s.scenes - 1) % a.alloc_every == 0) {

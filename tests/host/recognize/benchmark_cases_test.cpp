@@ -169,6 +169,11 @@ TEST(RecognizeBenchmarkCases, ASecondSearchFindsTheModelWhoseFirstSolutionLayOnA
     RecognizeParams params;
     params.threads = 2;
     EXPECT_EQ(recognized_at(fs::sim::SceneCategory::cluttered, 500, seed, i, params), names.first);
+    // The placement check (RecognizeParams::placement) puts the first search's solutions on the neighbour
+    // after the others, and of seed 435's cupola the true one then fits in the search's share of the pool
+    // without a second search: off, to see what the second search does.
+    params.placement.rms_mm = 0.0;
+    EXPECT_EQ(recognized_at(fs::sim::SceneCategory::cluttered, 500, seed, i, params), names.first);
     params.second_search = false;
     EXPECT_EQ(recognized_at(fs::sim::SceneCategory::cluttered, 500, seed, i, params), names.second);
   }

@@ -12,7 +12,9 @@
 #include "common/mesh.hpp"
 #include "host/library/library.hpp"
 #include "host/library/model.hpp"
+#include "host/library/polycubes.hpp"
 #include "host/recognize/hypotheses.hpp"
+#include "host/recognize/pose.hpp"
 #include "host/recognize/recognizer.hpp"
 #include "host/recognize/report.hpp"
 #include "support/test_paths.hpp"
@@ -95,6 +97,74 @@ TEST(Prescore, SceneFacesLargerThanTheModelsArePenalized) {
   const CubeScene ok = make_cube_scene(1.08);
   const fs::host::rec::HypothesisContext hk{ok.library, ok.scene, ok.index, ok.viewpoint, ok.params};
   EXPECT_NEAR(fs::host::rec::prescore(hk, all_visible_matched(ok)), 1.0, 1e-9);
+}
+
+// A stair of three cubes (edge 20 mm): two along x, the third on top of the second. Its two top faces
+// (+z at z = 20 and z = 40) and its two -x faces (x = 0 and x = 20) are parallel pairs a cube apart.
+struct Stair {
+  fs::host::Model model = fs::host::polycube_model({{0, 0, 0}, {1, 0, 0}, {1, 0, 1}}, 20.0, "stair");
+  int face(const Vec3& n, double offset) const {
+    for (std::size_t f = 0; f < model.faces.size(); ++f)
+      if (model.faces[f].normal.dot(n) > 0.999 && std::abs(model.faces[f].offset - offset) < 1e-6)
+        return static_cast<int>(f);
+    ADD_FAILURE() << "no face";
+    return 0;
+  }
+  // The scene face of model face f seen whole in pose (R, t), matched to model face `as`.
+  fs::host::rec::PlanePair seen(int f, int as, const Mat3& R, const Vec3& t) const {
+    const auto& mf = model.faces[static_cast<std::size_t>(f)];
+    const Vec3 n = R * mf.normal;
+    const Vec3 c = R * mf.centroid + t;
+    return {n, n.dot(c), c, mf.area, as};
+  }
+};
+
+TEST(Placement, OutsideFaceIsTheDistanceToTheOutlineOfTheFace) {
+  const Stair s;
+  const auto& top = s.model.faces[static_cast<std::size_t>(s.face(Vec3::UnitZ(), 20.0))];  // x, y in 0..20
+  EXPECT_DOUBLE_EQ(fs::host::rec::outside_face_mm(top, Vec3(10, 10, 20)), 0.0);
+  EXPECT_DOUBLE_EQ(fs::host::rec::outside_face_mm(top, Vec3(1, 19, 25)), 0.0);  // off the plane: projected
+  EXPECT_NEAR(fs::host::rec::outside_face_mm(top, Vec3(30, 10, 20)), 10.0, 1e-9);
+  EXPECT_NEAR(fs::host::rec::outside_face_mm(top, Vec3(23, 24, 20)), 5.0, 1e-9);
+  // The -y side is L-shaped (three squares): the missing square's middle is 10 mm outside it.
+  const auto& side = s.model.faces[static_cast<std::size_t>(s.face(-Vec3::UnitY(), 0.0))];
+  EXPECT_DOUBLE_EQ(fs::host::rec::outside_face_mm(side, Vec3(30, 0, 30)), 0.0);
+  EXPECT_NEAR(fs::host::rec::outside_face_mm(side, Vec3(15, 0, 25)), 5.0, 1e-9);
+  EXPECT_NEAR(fs::host::rec::outside_face_mm(side, Vec3(10, 0, 35)), 10.0, 1e-9);
+}
+
+TEST(Placement, OnlyTheTrueCorrespondenceOfParallelFacesIsOnePlacement) {
+  const Stair s;
+  const Mat3 R = Eigen::AngleAxisd(0.7, Vec3(1, 2, 3).normalized()).toRotationMatrix();
+  const Vec3 t(100, -50, 400);
+  const int top_low = s.face(Vec3::UnitZ(), 20.0), top_high = s.face(Vec3::UnitZ(), 40.0);
+  const int px = s.face(Vec3::UnitX(), 40.0), my = s.face(-Vec3::UnitY(), 0.0);
+  const fs::host::rec::PlacementCheck check;
+  using Pairs = std::vector<fs::host::rec::PlanePair>;
+  // The true correspondence of four faces (two of them parallel).
+  const Pairs truth{s.seen(top_low, top_low, R, t), s.seen(top_high, top_high, R, t), s.seen(px, px, R, t),
+                    s.seen(my, my, R, t)};
+  EXPECT_TRUE(fs::host::rec::consistent_placement(s.model, R, truth, check));
+  EXPECT_NEAR(fs::host::rec::fit_translation(s.model, R, truth).t.x(), t.x(), 1e-9);
+  // The two tops swapped: same normals, same areas, no translation puts both where they are seen.
+  const Pairs swapped{s.seen(top_low, top_high, R, t), s.seen(top_high, top_low, R, t), s.seen(px, px, R, t),
+                      s.seen(my, my, R, t)};
+  EXPECT_GT(fs::host::rec::fit_translation(s.model, R, swapped).rms_mm, check.rms_mm);
+  EXPECT_FALSE(fs::host::rec::consistent_placement(s.model, R, swapped, check));
+  // Three faces that fix the translation, the upper top taken for the lower: the planes agree (one cube
+  // up), but the top is then seen a cube beside the top it is matched to.
+  const Pairs shifted{s.seen(top_high, top_low, R, t), s.seen(px, px, R, t), s.seen(my, my, R, t)};
+  EXPECT_LT(fs::host::rec::fit_translation(s.model, R, shifted).rms_mm, 1e-9);
+  EXPECT_FALSE(fs::host::rec::consistent_placement(s.model, R, shifted, check));
+  const Pairs right{s.seen(top_high, top_high, R, t), s.seen(px, px, R, t), s.seen(my, my, R, t)};
+  EXPECT_TRUE(fs::host::rec::consistent_placement(s.model, R, right, check));
+  // A face seen in part (its visible part's centroid) still lies on its model face.
+  Pairs partial = right;
+  partial[2].scene_centroid = R * Vec3(32, 0, 30) + t;  // the -y face's upper square
+  EXPECT_TRUE(fs::host::rec::consistent_placement(s.model, R, partial, check));
+  // Two faces leave the translation open along their common edge: no test of where they lie.
+  const Pairs two{s.seen(top_high, top_low, R, t), s.seen(my, my, R, t)};
+  EXPECT_TRUE(fs::host::rec::consistent_placement(s.model, R, two, check));
 }
 
 TEST(Support, RestingOnTheTableIsSupported) {

@@ -116,12 +116,14 @@ TEST(IndependentScans, LookalikeGyrateRhombicosidodecahedronIsOneObjectWithItsMo
   const Scan s = recognize("lookalike-01", default_params());
   expect_truth("lookalike-01", s);
   EXPECT_GE(s.result.stats.reseated, 1);
-  // Without the near-symmetric placements and with t9.3's search cost (the version that failed): the
-  // trigyrate one at confidence 1.00, without the gyrate one among its candidates. (With the area cost the
-  // search itself finds the gyrate one's correspondence.)
+  // Without the near-symmetric placements, with t9.3's search cost and without the placement check (the
+  // version that failed): the trigyrate one at confidence 1.00, without the gyrate one among its candidates.
+  // (With the area cost, or with the placement check, the search itself brings the gyrate one's
+  // correspondence into the pool.)
   fs::host::rec::RecognizeParams without = default_params();
   without.near_symmetry_share = 0.0;
   without.area_cost = -1.0;
+  without.placement.rms_mm = 0.0;
   const Scan before = recognize("lookalike-01", without);
   EXPECT_LT(object_for(before, truth_object(before, "gyrate-rhombicosidodecahedron")), 0) << before.table;
   EXPECT_EQ(before.result.stats.reseated, 0);
