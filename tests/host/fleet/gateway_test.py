@@ -175,7 +175,6 @@ class Node:
         self.conf = os.path.join(self.dir, "nats-server.conf")
         with open(self.conf, "w") as f:
             f.write(text)
-        shutil.copy(os.path.join(fs.ENV.deploy, "accounts.conf"), os.path.dirname(self.dir))
         self.proc = None
         self.start()
 
@@ -197,6 +196,11 @@ class ClusterTest(unittest.TestCase):
     def setUp(self):
         work = os.path.join(fs.ENV.work, "cluster")
         ports = [(free_port(), free_port()) for _ in range(3)]
+        # The nodes include ../accounts.conf: written once, before any node starts. (Copied by each node's
+        # constructor, node 3's copy truncated the file while node 2 was reading it: node 2 ran without the
+        # FACETSCAN account, "Unknown account" on its routes, and fleet-setup failed for the whole wait.)
+        os.makedirs(work, exist_ok=True)
+        shutil.copy(os.path.join(fs.ENV.deploy, "accounts.conf"), work)
         self.nodes = []
         # Cleanups run even when setUp fails below (tearDown would not): no server outlives the test.
         self.addCleanup(lambda: [n.kill() for n in self.nodes])
