@@ -43,7 +43,7 @@ void update_translation(const HypothesisContext& c, Hypothesis& h, std::vector<P
   for (const FaceMatch& m : h.matches) {
     const PfrgNode* n = scene_node(c, m.scene);
     if (!n || !n->has_plane) continue;
-    scratch.push_back(PlanePair{n->normal, n->offset, n->centroid, n->area, m.ref});
+    scratch.push_back(plane_pair(*n, m.ref));
   }
   const Model& model = c.library.models[static_cast<std::size_t>(h.model)];
   const TranslationFit fit = fit_translation(model, h.R, scratch);

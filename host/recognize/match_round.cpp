@@ -3,7 +3,6 @@
 // hypotheses, at most RecognizeParams::max_hypotheses of them (each model's best ones per part, see
 // collect_batch).
 #include <algorithm>
-#include <cstdint>
 #include <limits>
 
 #include "host/match/node_set.hpp"
@@ -24,44 +23,46 @@ bool placeable(const Pfrg& part, const Model& model, const match::Solution& s, c
   pairs.clear();
   for (const match::NodeMatch& nm : s.matches) {
     const PfrgNode* node = part.find(nm.scene);
-    if (node && node->has_plane)
-      pairs.push_back(PlanePair{node->normal, node->offset, node->centroid, node->area, nm.ref});
+    if (node && node->has_plane) pairs.push_back(plane_pair(*node, nm.ref));
   }
   return consistent_placement(model, s.rotation, pairs, check);
 }
 
+void take_one(ModelSlots& ms, const match::Solution& s, int part_rank) {
+  SolutionSlot& slot = ms.slots[static_cast<std::size_t>(ms.count++)];
+  slot.part_rank = part_rank;
+  slot.path.assign(s.path.begin(), s.path.end());
+  slot.matches.assign(s.matches.begin(), s.matches.end());
+  slot.rotation = s.rotation;
+  slot.cost = s.cost;
+  slot.rotfit = s.rotfit_error;
+  slot.level = s.level;
+  slot.rank = s.rank;
+  slot.degenerate = s.degenerate;
+}
+
 // Copies r's solutions into ms, at most `room` of them, with part ranks 0, 1, ...: with the placement check
-// on, those that pass it first (each group in the matcher's order). Among polycubes a search finds a dozen
-// correspondences of equal cost, most of them a cube off, and the model's share of the pool holds only a few.
-// (Ranking each group by its prescore as well was tried: bench_library_scale, 1,230 polycubes, 83 % top-1
-// against 88 %.)
+// on, those that pass it first, then the others (`later`, their indices), each group in the matcher's order.
+// Among polycubes a search finds a dozen correspondences of equal cost, most of them a cube off, and the
+// model's share of the pool holds only a few. (Ranking each group by its prescore as well was tried:
+// bench_library_scale, 1,230 polycubes, 83 % top-1 against 88 %.)
 void take_solutions(ModelSlots& ms, const match::MatchResult& r, int room, const Pfrg& part,
-                    const Model& model, const PlacementCheck& check, std::vector<PlanePair>& pairs) {
-  int taken = 0;
+                    const Model& model, const PlacementCheck& check, std::vector<PlanePair>& pairs,
+                    std::vector<int>& later) {
   const bool checked = check.rms_mm > 0;
-  std::uint64_t failed = 0;  // of the first 64 solutions, those the check failed in the first pass
-  for (int pass = checked ? 0 : 1; pass < 2; ++pass)
-    for (std::size_t k = 0; k < r.solutions.size(); ++k) {
-      const match::Solution& s = r.solutions[k];
-      if (ms.count >= static_cast<int>(ms.slots.size()) || taken >= room) return;
-      if (s.partial) continue;
-      if (checked) {
-        const bool known = k < 64 && pass == 1;
-        const bool ok = known ? !((failed >> k) & 1u) : placeable(part, model, s, check, pairs);
-        if (!ok && pass == 0 && k < 64) failed |= std::uint64_t{1} << k;
-        if (ok != (pass == 0)) continue;
-      }
-      SolutionSlot& slot = ms.slots[static_cast<std::size_t>(ms.count++)];
-      slot.part_rank = taken++;
-      slot.path.assign(s.path.begin(), s.path.end());
-      slot.matches.assign(s.matches.begin(), s.matches.end());
-      slot.rotation = s.rotation;
-      slot.cost = s.cost;
-      slot.rotfit = s.rotfit_error;
-      slot.level = s.level;
-      slot.rank = s.rank;
-      slot.degenerate = s.degenerate;
-    }
+  int taken = 0;
+  later.clear();
+  auto full = [&] { return ms.count >= static_cast<int>(ms.slots.size()) || taken >= room; };
+  for (std::size_t k = 0; k < r.solutions.size() && !full(); ++k) {
+    const match::Solution& s = r.solutions[k];
+    if (s.partial) continue;
+    if (checked && !placeable(part, model, s, check, pairs))
+      later.push_back(static_cast<int>(k));
+    else
+      take_one(ms, s, taken++);
+  }
+  for (std::size_t k = 0; k < later.size() && !full(); ++k)
+    take_one(ms, r.solutions[static_cast<std::size_t>(later[k])], taken++);
 }
 
 // The faces of scene graph g (node indices) that the object of solution s holds: its matched faces and, grown
@@ -108,6 +109,7 @@ void match_model(void* ctx, std::size_t task, int worker) {
   const std::uint64_t mask = m.part_mask[m.batch_first + task];
   match::InexactMatcher& matcher = *m.matchers[static_cast<std::size_t>(worker)];
   std::vector<PlanePair>& pairs = m.worker_pairs[static_cast<std::size_t>(worker)];
+  std::vector<int>& later = m.worker_later[static_cast<std::size_t>(worker)];
   match::SearchScope scope = match::full_scope();
   if (!m.search_roots.empty()) scope.first_refs = m.search_roots[m.batch_first + task];
   for (std::size_t part = 0; part < m.nparts; ++part) {
@@ -117,7 +119,7 @@ void match_model(void* ctx, std::size_t task, int worker) {
     scope.scene = ~match::NodeSet{};
     const match::MatchResult& r = matcher.match(m.parts[part], model.graph, mp, scope);
     ms.states += r.stats.states_created;
-    take_solutions(ms, r, per_part, m.parts[part], model, m.placement, pairs);
+    take_solutions(ms, r, per_part, m.parts[part], model, m.placement, pairs, later);
     if (!m.second_search || r.stats.stop != match::StopReason::kSolutionsFound) continue;
     // The part without the object of the first solution: searched again when it has faces enough.
     const match::Solution* first = nullptr;
@@ -134,7 +136,7 @@ void match_model(void* ctx, std::size_t task, int worker) {
     const match::MatchResult& r2 =
         matcher.match(m.parts[part], model.graph, small ? m.mparams_small_second : m.mparams_second, scope);
     ms.states += r2.stats.states_created;
-    take_solutions(ms, r2, per_part, m.parts[part], model, m.placement, pairs);
+    take_solutions(ms, r2, per_part, m.parts[part], model, m.placement, pairs, later);
   }
 }
 

@@ -8,19 +8,46 @@
 
 namespace fs::host::rec {
 
-TranslationFit fit_translation(const Model& model, const Mat3& R, std::span<const PlanePair> pairs,
-                               double min_eigen_ratio) {
-  TranslationFit fit;
-  Mat3 A = Mat3::Zero();
-  Vec3 b = Vec3::Zero();
-  Vec3 centroid_shift = Vec3::Zero();
-  double wsum = 0.0;
+namespace {
+
+// The matched planes' normal equations n_s . t = d_s - d_m, each pair weighted by sqrt(its scene area):
+// A t = b in least squares.
+void plane_system(const Model& model, std::span<const PlanePair> pairs, Mat3& A, Vec3& b) {
+  A = Mat3::Zero();
+  b = Vec3::Zero();
   for (const PlanePair& p : pairs) {
     const ModelFace& f = model.faces[static_cast<std::size_t>(p.model_face)];
     const double w = std::sqrt(std::max(p.scene_area, 1e-9));
     A += w * p.scene_normal * p.scene_normal.transpose();
     b += w * p.scene_normal * (p.scene_offset - f.offset);
-    centroid_shift += w * (p.scene_centroid - R * f.centroid);
+  }
+}
+
+// Sum of the squared plane residuals n_s . t - (d_s - d_m).
+double plane_residual2(const Model& model, std::span<const PlanePair> pairs, const Vec3& t) {
+  double r2 = 0.0;
+  for (const PlanePair& p : pairs) {
+    const ModelFace& f = model.faces[static_cast<std::size_t>(p.model_face)];
+    const double r = p.scene_normal.dot(t) - (p.scene_offset - f.offset);
+    r2 += r * r;
+  }
+  return r2;
+}
+
+}  // namespace
+
+TranslationFit fit_translation(const Model& model, const Mat3& R, std::span<const PlanePair> pairs,
+                               double min_eigen_ratio) {
+  TranslationFit fit;
+  Mat3 A;
+  Vec3 b;
+  plane_system(model, pairs, A, b);
+  Vec3 centroid_shift = Vec3::Zero();
+  double wsum = 0.0;
+  for (const PlanePair& p : pairs) {
+    const double w = std::sqrt(std::max(p.scene_area, 1e-9));
+    centroid_shift +=
+        w * (p.scene_centroid - R * model.faces[static_cast<std::size_t>(p.model_face)].centroid);
     wsum += w;
   }
   if (wsum <= 0.0) {
@@ -44,13 +71,8 @@ TranslationFit fit_translation(const Model& model, const Mat3& R, std::span<cons
     }
   }
   fit.t = t;
-  double r2 = 0.0;
-  for (const PlanePair& p : pairs) {
-    const ModelFace& f = model.faces[static_cast<std::size_t>(p.model_face)];
-    const double r = p.scene_normal.dot(t) - (p.scene_offset - f.offset);
-    r2 += r * r;
-  }
-  fit.rms_mm = pairs.empty() ? 0.0 : std::sqrt(r2 / static_cast<double>(pairs.size()));
+  fit.rms_mm =
+      pairs.empty() ? 0.0 : std::sqrt(plane_residual2(model, pairs, t) / static_cast<double>(pairs.size()));
   return fit;
 }
 
@@ -82,14 +104,9 @@ bool consistent_placement(const Model& model, const Mat3& R, std::span<const Pla
                           const PlacementCheck& check) {
   // fit_translation's least squares without its centroid fill-in, with the closed-form 3 x 3 eigensolver:
   // this runs for every solution of every search.
-  Mat3 A = Mat3::Zero();
-  Vec3 b = Vec3::Zero();
-  for (const PlanePair& p : pairs) {
-    const double w = std::sqrt(std::max(p.scene_area, 1e-9));
-    const double d = p.scene_offset - model.faces[static_cast<std::size_t>(p.model_face)].offset;
-    A += w * p.scene_normal * p.scene_normal.transpose();
-    b += w * d * p.scene_normal;
-  }
+  Mat3 A;
+  Vec3 b;
+  plane_system(model, pairs, A, b);
   Eigen::SelfAdjointEigenSolver<Mat3> es;
   es.computeDirect(A);
   const Vec3 ev = es.eigenvalues();  // ascending
@@ -102,13 +119,8 @@ bool consistent_placement(const Model& model, const Mat3& R, std::span<const Pla
     else
       free = true;
   }
-  double r2 = 0.0;
-  for (const PlanePair& p : pairs) {
-    const double r =
-        p.scene_normal.dot(t) - (p.scene_offset - model.faces[static_cast<std::size_t>(p.model_face)].offset);
-    r2 += r * r;
-  }
-  if (!pairs.empty() && r2 > check.rms_mm * check.rms_mm * static_cast<double>(pairs.size())) return false;
+  if (plane_residual2(model, pairs, t) > check.rms_mm * check.rms_mm * static_cast<double>(pairs.size()))
+    return false;
   if (free) return true;  // where the faces lie along the free direction is not known: no outline test
   for (const PlanePair& p : pairs) {
     const ModelFace& f = model.faces[static_cast<std::size_t>(p.model_face)];

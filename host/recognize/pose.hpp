@@ -20,6 +20,11 @@ struct PlanePair {
   int model_face;  // index into Model::faces
 };
 
+// A matched scene face (with its plane) and the model face it stands for.
+inline PlanePair plane_pair(const PfrgNode& scene_face, int model_face) {
+  return {scene_face.normal, scene_face.offset, scene_face.centroid, scene_face.area, model_face};
+}
+
 struct TranslationFit {
   Vec3 t = Vec3::Zero();
   int free_dims = 0;             // 0 = determined by the planes; 1 or 2 = filled in from centroids

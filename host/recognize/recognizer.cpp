@@ -43,6 +43,8 @@ Recognizer::Impl::Impl(const Library& lib, const RecognizeParams& p, int threads
   placement = p.placement;
   worker_pairs.resize(static_cast<std::size_t>(pool.threads()));
   for (auto& w : worker_pairs) w.reserve(256);
+  worker_later.resize(static_cast<std::size_t>(pool.threads()));
+  for (auto& w : worker_later) w.reserve(static_cast<std::size_t>(limits.max_reported));
   for (auto& pm : batch) {
     pm.slots.resize(static_cast<std::size_t>(std::max(p.solutions_per_model, 0)));
     if (second_search) pm.slots.resize(2 * pm.slots.size());  // the second search's solutions too

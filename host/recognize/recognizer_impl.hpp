@@ -272,6 +272,7 @@ struct Recognizer::Impl {
   const HypothesisContext* hctx = nullptr;
   double reseat_min_confidence = 0.0;
   std::vector<std::vector<PlanePair>> worker_pairs;  // by worker (reseat.cpp, match_round.cpp)
+  std::vector<std::vector<int>> worker_later;        // by worker: solutions taken last (match_round.cpp)
   std::vector<char> reseated, dropped;               // by hypothesis index
   std::vector<double> raw_confidence;  // coarse, before the explained share; by hypothesis index
   void reseat(std::size_t index, int worker);

@@ -266,8 +266,7 @@ void why_missed(const BenchScene& sc, const fs::bench::TrueObject& o, const fs::
   for (const auto& sol : r.solutions) {
     pairs.clear();
     for (const auto& nm : sol.matches)
-      if (const auto* n = sg.find(nm.scene); n && n->has_plane)
-        pairs.push_back({n->normal, n->offset, n->centroid, n->area, nm.ref});
+      if (const auto* n = sg.find(nm.scene); n && n->has_plane) pairs.push_back(rec::plane_pair(*n, nm.ref));
     const bool ok = rec::consistent_placement(tm, sol.rotation, pairs, recognizer.params().placement);
     placeable += ok ? 1 : 0;
     // The true correspondence: the true rotation, and in the true pose every matched scene face on its plane
