@@ -81,6 +81,7 @@ Recognizer::Impl::Impl(const Library& lib, const RecognizeParams& p, int threads
   dropped.reserve(max_h);
   raw_confidence.reserve(max_h);
   picked.reserve(max_h);
+  waiting.reserve(max_h);
   order_copy.reserve(max_h);
   coarse_order.reserve(max_h);
   refined.reserve(max_h);

@@ -195,6 +195,10 @@ struct RecognizeParams {
   int max_screened = 2048;
   int screen_per_face = 512;
   int refine_per_face = 3;  // ... and into refinement
+  // A hypothesis whose coarse check ties one of its own model's on a scene face they share (the same inliers,
+  // violations and occluded points: placements that differ only out of view) gets its share of that face's
+  // refinements after the other models': a look-alike that ties them gets a slot too.
+  bool refine_models_first = true;
   // A scene face whose refined hypotheses all fail the fine check gets refine_per_face more of those whose
   // coarse confidence is within this margin of its best (in the refinement slots left). < 0 = off.
   double refine_again_margin = 0.05;

@@ -101,6 +101,7 @@ struct Recognizer::Impl {
   std::vector<Hypothesis> spare_objects;
   std::vector<std::size_t> slot_owner;
   std::vector<std::size_t> picked;        // scratch of select_covering
+  std::vector<std::size_t> waiting;       // ... the positions of those that wait their turn
   std::vector<std::size_t> order_copy;    // scratch: order kept aside (screening, second refinement)
   std::vector<std::size_t> coarse_order;  // the coarse-checked hypotheses, best first (refine_again)
   std::vector<char> refined;              // by hypothesis index (refine_again)

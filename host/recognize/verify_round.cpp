@@ -3,6 +3,7 @@
 // then matching cost; every scene face its share), then ICP refinement and the fine check of those that pass
 // it.
 #include <algorithm>
+#include <cmath>
 
 #include "host/recognize/recognizer_impl.hpp"
 
@@ -21,23 +22,61 @@ int max_scene_id_of(const Recognizer::Impl& im) {
 }
 
 // Filters im.order (kept in order) to at most `limit` hypotheses that pass `ok` and hold a scene face that
-// fewer than `per_face` earlier picks hold.
-template <class Ok>
-void select_covering(Recognizer::Impl& im, int per_face, std::size_t limit, Ok ok) {
+// fewer than `per_face` earlier picks hold. One for which `waits(h)` holds (asked with the picks so far in
+// im.picked, as positions in im.order) has its turn after all the others, and keeps its place in the order.
+template <class Ok, class Waits>
+void select_covering(Recognizer::Impl& im, int per_face, std::size_t limit, Ok ok, Waits waits) {
   im.face_cover.assign(static_cast<std::size_t>(max_scene_id_of(im)) + 1, 0);
   im.picked.clear();
-  for (std::size_t i : im.order) {
-    if (im.picked.size() >= limit) break;
-    const Hypothesis& h = im.hyps[i];
-    if (!ok(h)) continue;
+  im.waiting.clear();
+  auto take = [&](std::size_t k) {
+    const Hypothesis& h = im.hyps[im.order[k]];
     bool wanted = false;
     for (const FaceMatch& m : h.matches)
       wanted = wanted || im.face_cover[static_cast<std::size_t>(m.scene)] < per_face;
-    if (!wanted) continue;
+    if (!wanted) return;
     for (const FaceMatch& m : h.matches) ++im.face_cover[static_cast<std::size_t>(m.scene)];
-    im.picked.push_back(i);
+    im.picked.push_back(k);
+  };
+  for (std::size_t k = 0; k < im.order.size() && im.picked.size() < limit; ++k) {
+    const Hypothesis& h = im.hyps[im.order[k]];
+    if (!ok(h)) continue;
+    if (waits(h))
+      im.waiting.push_back(k);
+    else
+      take(k);
   }
+  for (std::size_t k : im.waiting) {
+    if (im.picked.size() >= limit) break;
+    take(k);
+  }
+  if (!im.waiting.empty()) std::sort(im.picked.begin(), im.picked.end());
+  for (std::size_t& k : im.picked) k = im.order[k];
   im.order.assign(im.picked.begin(), im.picked.end());
+}
+
+template <class Ok>
+void select_covering(Recognizer::Impl& im, int per_face, std::size_t limit, Ok ok) {
+  select_covering(im, per_face, limit, ok, [](const Hypothesis&) { return false; });
+}
+
+// The refinement's waiting rule (RecognizeParams::refine_models_first): h ties a pick of its own model on a
+// scene face they share (the coarse check counted the same inliers, violations and occluded points). Such
+// ties are placements of one model that differ only out of view (its near symmetries; an augmentation on a
+// hidden side): refining several tells nothing that one does not, while a look-alike model that ties them too
+// would get no place on the face.
+bool ties_a_pick_of_its_model(const Recognizer::Impl& im, const Hypothesis& h) {
+  for (std::size_t k : im.picked) {
+    const Hypothesis& q = im.hyps[im.order[k]];
+    if (q.model != h.model || q.verify.inliers != h.verify.inliers ||
+        q.verify.violations != h.verify.violations || q.verify.occluded != h.verify.occluded ||
+        std::abs(q.verify.confidence - h.verify.confidence) > 1e-9)
+      continue;
+    for (const FaceMatch& a : h.matches)
+      for (const FaceMatch& b : q.matches)
+        if (a.scene == b.scene) return true;
+  }
+  return false;
 }
 
 // Worker task: verifies hypothesis order[task] (coarse, or refined and fine in the refine phase), then
@@ -198,8 +237,10 @@ void Recognizer::Impl::verify_hypotheses(Recognizer& rz, const HypothesisContext
     for (const FaceMatch& m : hyps[i].matches)
       face_best[static_cast<std::size_t>(m.scene)] =
           std::max(face_best[static_cast<std::size_t>(m.scene)], hyps[i].verify.confidence);
-  select_covering(*this, params.refine_per_face, static_cast<std::size_t>(params.max_refined),
-                  [&](const Hypothesis& h) { return h.verify.confidence >= min_plausible; });
+  select_covering(
+      *this, params.refine_per_face, static_cast<std::size_t>(params.max_refined),
+      [&](const Hypothesis& h) { return h.verify.confidence >= min_plausible; },
+      [&](const Hypothesis& h) { return params.refine_models_first && ties_a_pick_of_its_model(*this, h); });
   std::size_t plausible = order.size();
   refine_phase = true;
   slot_base = 0;

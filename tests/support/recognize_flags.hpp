@@ -56,6 +56,9 @@ inline void add_recognize_flags(CLI::App& app, fs::host::rec::RecognizeParams& p
   app.add_option("--refine-per-face", p.refine_per_face,
                  "RecognizeParams::refine_per_face (default 3): a scene face's share of the refinements")
       ->check(at_least(1));
+  app.add_flag("--no-refine-models-first{false}", p.refine_models_first,
+               "RecognizeParams::refine_models_first off: a face's refinements in the order of the coarse "
+               "check alone");
   app.add_option(
       "--refine-again-margin", p.refine_again_margin,
       "RecognizeParams::refine_again_margin (default 0.05): a second refinement for a face whose "
