@@ -194,11 +194,16 @@ struct RecognizeParams {
   // polycube's visible faces fit hundreds of others); the measured points tell them apart. 0 = no screening.
   int max_screened = 2048;
   int screen_per_face = 512;
+  // When all hypotheses fit in max_verified, all are checked, past verify_per_face: the prescore does not
+  // know what hides an object, so a partly hidden one ranks below the look-alikes that share its faces
+  // (pentagons, triangles), however many faces it matches.
+  bool check_all_that_fit = true;
   int refine_per_face = 3;  // ... and into refinement
-  // A hypothesis whose coarse check ties one of its own model's on a scene face they share (the same inliers,
-  // violations and occluded points: placements that differ only out of view) gets its share of that face's
-  // refinements after the other models': a look-alike that ties them gets a slot too.
+  // A hypothesis that shares a scene face with a refinement pick of its own model (another placement of it)
+  // gets its share of that face's refinements after the other models' whose coarse confidence is at most
+  // refine_wait_margin lower: a look-alike, or the true model whose coarse pose sits worse, gets a slot too.
   bool refine_models_first = true;
+  double refine_wait_margin = 0.05;
   // A scene face whose refined hypotheses all fail the fine check gets refine_per_face more of those whose
   // coarse confidence is within this margin of its best (in the refinement slots left). < 0 = off.
   double refine_again_margin = 0.05;

@@ -23,12 +23,15 @@ int max_scene_id_of(const Recognizer::Impl& im) {
 
 // Filters im.order (kept in order) to at most `limit` hypotheses that pass `ok` and hold a scene face that
 // fewer than `per_face` earlier picks hold. One for which `waits(h)` holds (asked with the picks so far in
-// im.picked, as positions in im.order) has its turn after all the others, and keeps its place in the order.
-template <class Ok, class Waits>
-void select_covering(Recognizer::Impl& im, int per_face, std::size_t limit, Ok ok, Waits waits) {
+// im.picked, as positions in im.order) has its turn after the others, and keeps its place in the order: it
+// goes before the first other h for which `ends_wait(w, h)` holds, or after all.
+template <class Ok, class Waits, class EndsWait>
+void select_covering(Recognizer::Impl& im, int per_face, std::size_t limit, Ok ok, Waits waits,
+                     EndsWait ends_wait) {
   im.face_cover.assign(static_cast<std::size_t>(max_scene_id_of(im)) + 1, 0);
   im.picked.clear();
   im.waiting.clear();
+  bool deferred = false;
   auto take = [&](std::size_t k) {
     const Hypothesis& h = im.hyps[im.order[k]];
     bool wanted = false;
@@ -41,37 +44,47 @@ void select_covering(Recognizer::Impl& im, int per_face, std::size_t limit, Ok o
   for (std::size_t k = 0; k < im.order.size() && im.picked.size() < limit; ++k) {
     const Hypothesis& h = im.hyps[im.order[k]];
     if (!ok(h)) continue;
-    if (waits(h))
+    if (waits(h)) {
       im.waiting.push_back(k);
-    else
-      take(k);
+      deferred = true;
+      continue;
+    }
+    for (std::size_t w = 0; w < im.waiting.size() && im.picked.size() < limit;) {
+      if (ends_wait(im.hyps[im.order[im.waiting[w]]], h)) {
+        take(im.waiting[w]);
+        im.waiting.erase(im.waiting.begin() + static_cast<std::ptrdiff_t>(w));
+      } else {
+        ++w;
+      }
+    }
+    if (im.picked.size() < limit) take(k);
   }
   for (std::size_t k : im.waiting) {
     if (im.picked.size() >= limit) break;
     take(k);
   }
-  if (!im.waiting.empty()) std::sort(im.picked.begin(), im.picked.end());
+  if (deferred) std::sort(im.picked.begin(), im.picked.end());
   for (std::size_t& k : im.picked) k = im.order[k];
   im.order.assign(im.picked.begin(), im.picked.end());
 }
 
 template <class Ok>
 void select_covering(Recognizer::Impl& im, int per_face, std::size_t limit, Ok ok) {
-  select_covering(im, per_face, limit, ok, [](const Hypothesis&) { return false; });
+  select_covering(
+      im, per_face, limit, ok, [](const Hypothesis&) { return false; },
+      [](const Hypothesis&, const Hypothesis&) { return false; });
 }
 
-// The refinement's waiting rule (RecognizeParams::refine_models_first): h ties a pick of its own model on a
-// scene face they share (the coarse check counted the same inliers, violations and occluded points). Such
-// ties are placements of one model that differ only out of view (its near symmetries; an augmentation on a
-// hidden side): refining several tells nothing that one does not, while a look-alike model that ties them too
-// would get no place on the face.
-bool ties_a_pick_of_its_model(const Recognizer::Impl& im, const Hypothesis& h) {
+// The refinement's waiting rule (RecognizeParams::refine_models_first): a pick of h's own model already holds
+// a scene face h holds. Placements of one model on the same faces differ in the coarse check by how well the
+// coarse pose sits (a partly hidden face fixes the translation loosely) or only out of view (near symmetries;
+// an augmentation on a hidden side): a look-alike model next in the order, or the true model whose coarse
+// pose sits a little worse, would get no place on the face. The wait ends at the first other hypothesis whose
+// coarse confidence is lower by more than refine_wait_margin: that one is no rival.
+bool holds_a_face_of_a_pick_of_its_model(const Recognizer::Impl& im, const Hypothesis& h) {
   for (std::size_t k : im.picked) {
     const Hypothesis& q = im.hyps[im.order[k]];
-    if (q.model != h.model || q.verify.inliers != h.verify.inliers ||
-        q.verify.violations != h.verify.violations || q.verify.occluded != h.verify.occluded ||
-        std::abs(q.verify.confidence - h.verify.confidence) > 1e-9)
-      continue;
+    if (q.model != h.model) continue;
     for (const FaceMatch& a : h.matches)
       for (const FaceMatch& b : q.matches)
         if (a.scene == b.scene) return true;
@@ -217,9 +230,11 @@ void Recognizer::Impl::verify_hypotheses(Recognizer& rz, const HypothesisContext
   screen_hypotheses(params);
   // Keep the order but give every scene face its share: a hypothesis is checked when one of its matched
   // scene faces has been claimed by fewer than verify_per_face better hypotheses (so the faces of a small
-  // object are not crowded out by the many hypotheses of a large one).
-  select_covering(*this, params.verify_per_face, static_cast<std::size_t>(params.max_verified),
-                  [](const Hypothesis&) { return true; });
+  // object are not crowded out by the many hypotheses of a large one). The shares ration a budget that is
+  // short: when all fit in it, all are checked (check_all_that_fit).
+  if (!params.check_all_that_fit || order.size() > static_cast<std::size_t>(params.max_verified))
+    select_covering(*this, params.verify_per_face, static_cast<std::size_t>(params.max_verified),
+                    [](const Hypothesis&) { return true; });
   // Phase 1: coarse check of every candidate (no refinement); then a hypothesis of a near-symmetric model
   // moves to its best placement (reseat.cpp).
   refine_phase = false;
@@ -240,7 +255,12 @@ void Recognizer::Impl::verify_hypotheses(Recognizer& rz, const HypothesisContext
   select_covering(
       *this, params.refine_per_face, static_cast<std::size_t>(params.max_refined),
       [&](const Hypothesis& h) { return h.verify.confidence >= min_plausible; },
-      [&](const Hypothesis& h) { return params.refine_models_first && ties_a_pick_of_its_model(*this, h); });
+      [&](const Hypothesis& h) {
+        return params.refine_models_first && holds_a_face_of_a_pick_of_its_model(*this, h);
+      },
+      [&](const Hypothesis& w, const Hypothesis& h) {
+        return h.verify.confidence < w.verify.confidence - params.refine_wait_margin;
+      });
   std::size_t plausible = order.size();
   refine_phase = true;
   slot_base = 0;

@@ -50,6 +50,9 @@ inline void add_recognize_flags(CLI::App& app, fs::host::rec::RecognizeParams& p
   app.add_option("--screen-per-face", p.screen_per_face,
                  "RecognizeParams::screen_per_face (default 512): a scene face's share of the screening")
       ->check(at_least(1));
+  app.add_flag("--no-check-all-that-fit{false}", p.check_all_that_fit,
+               "RecognizeParams::check_all_that_fit off: verify_per_face holds when all hypotheses fit in "
+               "max_verified");
   app.add_option("--max-refined", p.max_refined,
                  "RecognizeParams::max_refined (default 24): coarse-checked hypotheses refined by ICP")
       ->check(at_least(1));
@@ -59,6 +62,10 @@ inline void add_recognize_flags(CLI::App& app, fs::host::rec::RecognizeParams& p
   app.add_flag("--no-refine-models-first{false}", p.refine_models_first,
                "RecognizeParams::refine_models_first off: a face's refinements in the order of the coarse "
                "check alone");
+  app.add_option(
+      "--refine-wait-margin", p.refine_wait_margin,
+      "RecognizeParams::refine_wait_margin (default 0.05): a second placement of a model waits for "
+      "the other models' hypotheses down to this much lower coarse confidence");
   app.add_option(
       "--refine-again-margin", p.refine_again_margin,
       "RecognizeParams::refine_again_margin (default 0.05): a second refinement for a face whose "
