@@ -3,7 +3,7 @@
 // then matching cost; every scene face its share), then ICP refinement and the fine check of those that pass
 // it.
 #include <algorithm>
-#include <cmath>
+#include <cstddef>
 
 #include "host/recognize/recognizer_impl.hpp"
 

@@ -276,8 +276,7 @@ int run(const Args& args) {
             const auto& tm = library.models[static_cast<std::size_t>(h->model)];
             std::printf(
                 "  truth-hyp %s lvl %d faces %zu pre %.3f scr %.3f cost %.4f rot-to-truth %.1f t-err %.1f "
-                "hits %d in "
-                "%d viol %d occ %d expl %.2f conf %.3f scene",
+                "hits %d in %d viol %d occ %d expl %.2f conf %.3f scene",
                 tm.name.c_str(), h->level, h->matches.size(), h->prescore, h->screened, h->cost,
                 fs::host::rec::rotation_angle_deg_sym(rs.scene.objects[oi].rotation, h->R, tm),
                 (h->t - rs.scene.objects[oi].translation).norm(), h->verify.hits, h->verify.inliers,

@@ -29,6 +29,7 @@ using fs::host::rec::Recognizer;
 
 using Bench = fs::test::PolyhedraCatalog;
 const Bench& bench() { return fs::test::polyhedra_catalog(); }
+// The catalog of `bench_recognition --seed 1000` (its solids sized with seed 1000).
 const Bench& bench_seed_1000() { return fs::test::polyhedra_catalog(1000); }
 
 // The name of the model reported within 10 mm of scene object `index`'s centre ("" = none).
@@ -136,6 +137,24 @@ TEST(RecognizeBenchmarkCases, LookAlikesAreListedAsAlternatives) {
   EXPECT_GE(without, 1);
 }
 
+// A 250-step benchmark scene (catalog `b`): the model reported at object `name` with the default parameters,
+// then with `change` applied to them.
+template <class Change>
+std::pair<std::string, std::string> with_and_without(fs::sim::SceneCategory category, std::uint64_t seed,
+                                                     const std::string& name, Change change,
+                                                     const Bench& b = bench()) {
+  const auto rs = fs::sim::make_random_scene(b.catalog, {.category = category, .steps = 250}, seed);
+  const std::size_t i = index_of(rs, name, b);
+  if (i >= rs.catalog_index.size()) return {"the benchmark scene changed", ""};
+  RecognizeParams params;
+  params.threads = 2;
+  std::pair<std::string, std::string> out;
+  out.first = recognized_at(category, 250, seed, i, params, b);
+  change(params);
+  out.second = recognized_at(category, 250, seed, i, params, b);
+  return out;
+}
+
 // Seeds 53 (occluded) and 292 (separated), 250 steps: an augmented truncated dodecahedron shows its cupola
 // and what the metabiaugmented one has too. Three hypotheses of the metabiaugmented model, placements that
 // differ only in the second cupola out of view, tied the true model's best in the coarse check
@@ -147,15 +166,10 @@ TEST(RecognizeBenchmarkCases, CopiesOfOnePlacementLeaveALookAlikeItsRefinement) 
   const std::pair<fs::sim::SceneCategory, std::uint64_t> cases[] = {{fs::sim::SceneCategory::occluded, 53},
                                                                     {fs::sim::SceneCategory::separated, 292}};
   for (const auto& [category, seed] : cases) {
-    const auto rs = fs::sim::make_random_scene(bench().catalog, {.category = category, .steps = 250}, seed);
-    const std::size_t i = index_of(rs, "augmented-truncated-dodecahedron");
-    ASSERT_LT(i, rs.catalog_index.size()) << "the benchmark scene changed";
-    RecognizeParams params;
-    params.threads = 2;
-    EXPECT_EQ(recognized_at(category, 250, seed, i, params), "augmented-truncated-dodecahedron") << seed;
-    params.refine_models_first = false;
-    EXPECT_EQ(recognized_at(category, 250, seed, i, params), "metabiaugmented-truncated-dodecahedron")
-        << seed;
+    const auto atd = with_and_without(category, seed, "augmented-truncated-dodecahedron",
+                                      [](RecognizeParams& p) { p.refine_models_first = false; });
+    EXPECT_EQ(atd.first, "augmented-truncated-dodecahedron") << seed;
+    EXPECT_EQ(atd.second, "metabiaugmented-truncated-dodecahedron") << seed;
   }
 }
 
@@ -167,31 +181,15 @@ TEST(RecognizeBenchmarkCases, CopiesOfOnePlacementLeaveALookAlikeItsRefinement) 
 // (0.93) and reported. The wait ends there: in seed 1072 of `--seed 1000` (cluttered, 250 steps) the
 // gyrobifastigium's second placement (0.661 against its first's 0.795) refines to the true pose (0.935); with
 // no end to the wait, two prisms of 0.507 and 0.476 take its place and the gyrobifastigium is lost.
-// A cluttered 250-step benchmark scene (catalog `b`): the model reported at object `name` with the default
-// parameters, then with `change` applied to them.
-template <class Change>
-std::pair<std::string, std::string> cluttered_with_and_without(std::uint64_t seed, const std::string& name,
-                                                               Change change, const Bench& b = bench()) {
-  constexpr auto kCluttered = fs::sim::SceneCategory::cluttered;
-  const auto rs = fs::sim::make_random_scene(b.catalog, {.category = kCluttered, .steps = 250}, seed);
-  const std::size_t i = index_of(rs, name, b);
-  if (i >= rs.catalog_index.size()) return {"the benchmark scene changed", ""};
-  RecognizeParams params;
-  params.threads = 2;
-  std::pair<std::string, std::string> out;
-  out.first = recognized_at(kCluttered, 250, seed, i, params, b);
-  change(params);
-  out.second = recognized_at(kCluttered, 250, seed, i, params, b);
-  return out;
-}
-
 TEST(RecognizeBenchmarkCases, AnotherModelIsRefinedBeforeASecondPlacementOfOne) {
+  constexpr auto kCluttered = fs::sim::SceneCategory::cluttered;
   const auto cube =
-      cluttered_with_and_without(460, "cube", [](RecognizeParams& p) { p.refine_models_first = false; });
+      with_and_without(kCluttered, 460, "cube", [](RecognizeParams& p) { p.refine_models_first = false; });
   EXPECT_EQ(cube.first, "cube");
   EXPECT_EQ(cube.second, "augmented-hexagonal-prism");
-  const auto gyrobifastigium = cluttered_with_and_without(
-      1072, "gyrobifastigium", [](RecognizeParams& p) { p.refine_wait_margin = 1.0; }, bench_seed_1000());
+  const auto gyrobifastigium = with_and_without(
+      kCluttered, 1072, "gyrobifastigium", [](RecognizeParams& p) { p.refine_wait_margin = 1.0; },
+      bench_seed_1000());
   EXPECT_EQ(gyrobifastigium.first, "gyrobifastigium");
   EXPECT_EQ(gyrobifastigium.second, "");
 }
@@ -202,8 +200,8 @@ TEST(RecognizeBenchmarkCases, AnotherModelIsRefinedBeforeASecondPlacementOfOne) 
 // first acceptance every face had verify_per_face better hypotheses, so it was never checked, though all of
 // that round's hypotheses fit in max_verified. Now they are all checked (check_all_that_fit).
 TEST(RecognizeBenchmarkCases, AllHypothesesAreCheckedWhenTheyFitTheBudget) {
-  const auto dodecahedron = cluttered_with_and_without(
-      50, "dodecahedron", [](RecognizeParams& p) { p.check_all_that_fit = false; });
+  const auto dodecahedron = with_and_without(fs::sim::SceneCategory::cluttered, 50, "dodecahedron",
+                                             [](RecognizeParams& p) { p.check_all_that_fit = false; });
   EXPECT_EQ(dodecahedron.first, "dodecahedron");
   EXPECT_EQ(dodecahedron.second, "");
 }
@@ -252,8 +250,6 @@ TEST(RecognizeBenchmarkCases, ASecondSearchFindsTheModelWhoseFirstSolutionLayOnA
     EXPECT_EQ(recognized_at(fs::sim::SceneCategory::cluttered, 500, seed, i, params), names.second);
   }
 }
-
-// The catalog of `bench_recognition --seed 1000` (its solids sized with seed 1000).
 
 // `bench_recognition --steps 250 --categories single --seed 1000 --only 11`: the augmented truncated
 // tetrahedron stands on its cupola and shows two hexagons and a triangle of its body. The search placed the
