@@ -1,5 +1,6 @@
 #include "host/segment/grid_kernels.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -26,11 +27,13 @@ void soa_row(const float* __restrict S, int w, Viewpoint vp, float jump_abs, flo
 }
 
 void normals_row_fast(const float* __restrict X, const float* __restrict Y, const float* __restrict Z,
-                      const float* __restrict J2, int c0, int c1, std::ptrdiff_t s, std::ptrdiff_t ws,
-                      Viewpoint vp, float* __restrict NX, float* __restrict NY, float* __restrict NZ,
-                      float* __restrict AR, float* __restrict LU, float* __restrict LV) {
+                      const float* __restrict J2, float floor2_x, float floor2_y, int c0, int c1, int sx,
+                      int sy, std::ptrdiff_t W, Viewpoint vp, float* __restrict NX, float* __restrict NY,
+                      float* __restrict NZ, float* __restrict AR, float* __restrict LU,
+                      float* __restrict LV) {
   const float nan = std::numeric_limits<float>::quiet_NaN();
-  const float inv = 0.5f / float(s), s2 = float(s * s);
+  const std::ptrdiff_t s = sx, ws = sy * W;
+  const float invx = 0.5f / float(sx), invy = 0.5f / float(sy);
   for (int c = c0; c < c1; ++c) {
     const std::ptrdiff_t i = c;
     const float px = X[i], py = Y[i], pz = Z[i];
@@ -38,16 +41,18 @@ void normals_row_fast(const float* __restrict X, const float* __restrict Y, cons
     const float xr = X[i + s], yr = Y[i + s], zr = Z[i + s];
     const float xu = X[i - ws], yu = Y[i - ws], zu = Z[i - ws];
     const float xd = X[i + ws], yd = Y[i + ws], zd = Z[i + ws];
-    const float lim = J2[i] * s2;
+    const float lim_x = std::max(J2[i], floor2_x) * float(sx * sx),
+                lim_y = std::max(J2[i], floor2_y) * float(sy * sy);
     const float dl = (xl - px) * (xl - px) + (yl - py) * (yl - py) + (zl - pz) * (zl - pz);
     const float dr = (xr - px) * (xr - px) + (yr - py) * (yr - py) + (zr - pz) * (zr - pz);
     const float du = (xu - px) * (xu - px) + (yu - py) * (yu - py) + (zu - pz) * (zu - pz);
     const float dd = (xd - px) * (xd - px) + (yd - py) * (yd - py) + (zd - pz) * (zd - pz);
-    const float ux = (xr - xl) * inv, uy = (yr - yl) * inv, uz = (zr - zl) * inv;
-    const float tx = (xd - xu) * inv, ty = (yd - yu) * inv, tz = (zd - zu) * inv;
+    const float ux = (xr - xl) * invx, uy = (yr - yl) * invx, uz = (zr - zl) * invx;
+    const float tx = (xd - xu) * invy, ty = (yd - yu) * invy, tz = (zd - zu) * invy;
     const float cx = uy * tz - uz * ty, cy = uz * tx - ux * tz, cz = ux * ty - uy * tx;
     const float a = std::sqrt(cx * cx + cy * cy + cz * cz);
-    const bool ok = (int(dl <= lim) & int(dr <= lim) & int(du <= lim) & int(dd <= lim) & int(a > 0.f)) != 0;
+    const bool ok =
+        (int(dl <= lim_x) & int(dr <= lim_x) & int(du <= lim_y) & int(dd <= lim_y) & int(a > 0.f)) != 0;
     const float sgn = (vp.x - px) * cx + (vp.y - py) * cy + (vp.z - pz) * cz < 0.f ? -1.f : 1.f;
     const float ia = sgn / a;
     NX[i] = ok ? cx * ia : nan;
@@ -60,15 +65,17 @@ void normals_row_fast(const float* __restrict X, const float* __restrict Y, cons
 }
 
 void cont_seeds_row_fast(const float* __restrict X, const float* __restrict Y, const float* __restrict Z,
-                         const float* __restrict J2, const float* __restrict NX, const float* __restrict NY,
-                         const float* __restrict NZ, int c0, int c1, std::ptrdiff_t W, Viewpoint vp,
-                         float jmax2, float cos2, float cos_seed, std::uint8_t* __restrict CT) {
+                         const float* __restrict J2, float floor2_x, float floor2_y,
+                         const float* __restrict NX, const float* __restrict NY, const float* __restrict NZ,
+                         int c0, int c1, std::ptrdiff_t W, Viewpoint vp, float jmax2, float cos2,
+                         float cos_seed, std::uint8_t* __restrict CT) {
   for (int c = c0; c < c1; ++c) {
     const std::ptrdiff_t i = c;
-    const bool l = continuous(X, Y, Z, J2, i, i - 1, vp, jmax2, cos2);
-    const bool r = continuous(X, Y, Z, J2, i, i + 1, vp, jmax2, cos2);
-    const bool u = continuous(X, Y, Z, J2, i, i - W, vp, jmax2, cos2);
-    const bool d = continuous(X, Y, Z, J2, i, i + W, vp, jmax2, cos2);
+    const float jx = std::max(J2[i], floor2_x), jy = std::max(J2[i], floor2_y);
+    const bool l = continuous(X, Y, Z, jx, i, i - 1, vp, jmax2, cos2);
+    const bool r = continuous(X, Y, Z, jx, i, i + 1, vp, jmax2, cos2);
+    const bool u = continuous(X, Y, Z, jy, i, i - W, vp, jmax2, cos2);
+    const bool d = continuous(X, Y, Z, jy, i, i + W, vp, jmax2, cos2);
     const float nx = NX[i], ny = NY[i], nz = NZ[i];
     const bool seed = (int(NX[i - 1] * nx + NY[i - 1] * ny + NZ[i - 1] * nz >= cos_seed) &
                        int(NX[i + 1] * nx + NY[i + 1] * ny + NZ[i + 1] * nz >= cos_seed) &

@@ -22,32 +22,35 @@ void soa_row(const float* __restrict S, int w, Viewpoint vp, float jump_abs, flo
              float dist_rel, float* __restrict X, float* __restrict Y, float* __restrict Z,
              float* __restrict J2, float* __restrict DI, std::uint8_t* __restrict valid);
 
-// Normals of cells [c0, c1) of one row from central differences over +-s cells (ws = s * row stride), for
-// cells whose 4 neighbours at +-s have data and are within jump^2 * s^2; NaN normal (and 0 area / lengths)
+// Normals of cells [c0, c1) of one row from central differences over +-sx cells along the row and +-sy rows
+// (row stride W), for cells whose 4 neighbours there have data and are within jump^2 * s^2 (jump^2 at least
+// floor2_x along the row, floor2_y across); NaN normal (and 0 area / lengths)
 // where that fast path does not apply. All pointers point at the row's first cell. Normal toward the
 // viewpoint; AR = |du x dv|, LU = |du|^2, LV = |dv|^2.
 void normals_row_fast(const float* __restrict X, const float* __restrict Y, const float* __restrict Z,
-                      const float* __restrict J2, int c0, int c1, std::ptrdiff_t s, std::ptrdiff_t ws,
-                      Viewpoint vp, float* __restrict NX, float* __restrict NY, float* __restrict NZ,
-                      float* __restrict AR, float* __restrict LU, float* __restrict LV);
+                      const float* __restrict J2, float floor2_x, float floor2_y, int c0, int c1, int sx,
+                      int sy, std::ptrdiff_t W, Viewpoint vp, float* __restrict NX, float* __restrict NY,
+                      float* __restrict NZ, float* __restrict AR, float* __restrict LU, float* __restrict LV);
 
-// Depth continuity of cell i toward cell j: |d| <= jump, or |d| <= jump_max at more than the jump angle to
+// Depth continuity of cell i toward cell j: |d|^2 <= jump2, or |d| <= jump_max at more than the jump angle to
 // the viewing ray (cos2 = cos^2 of that angle).
-inline bool continuous(const float* X, const float* Y, const float* Z, const float* J2, std::ptrdiff_t i,
+inline bool continuous(const float* X, const float* Y, const float* Z, float jump2, std::ptrdiff_t i,
                        std::ptrdiff_t j, Viewpoint vp, float jmax2, float cos2) {
   const float dx = X[j] - X[i], dy = Y[j] - Y[i], dz = Z[j] - Z[i];
   const float dd = dx * dx + dy * dy + dz * dz;
   const float rx = X[i] - vp.x, ry = Y[i] - vp.y, rz = Z[i] - vp.z;
   const float cr = rx * dx + ry * dy + rz * dz;
   const float r2 = rx * rx + ry * ry + rz * rz;
-  return (int(dd <= J2[i]) | (int(dd <= jmax2) & int(cr * cr < cos2 * dd * r2))) != 0;
+  return (int(dd <= jump2) | (int(dd <= jmax2) & int(cr * cr < cos2 * dd * r2))) != 0;
 }
 
 // Continuity bits of cells [c0, c1) of an inner row (row stride W; 1 <= c0, c1 <= W - 1) plus kContSeed where
-// the cell's normal agrees with its 4 neighbours' (dot >= cos_seed) and all 4 are continuous.
+// the cell's normal agrees with its 4 neighbours' (dot >= cos_seed) and all 4 are continuous. The jump
+// threshold^2 is J2[i], at least floor2_x toward the row's neighbours and floor2_y toward the next rows'.
 void cont_seeds_row_fast(const float* __restrict X, const float* __restrict Y, const float* __restrict Z,
-                         const float* __restrict J2, const float* __restrict NX, const float* __restrict NY,
-                         const float* __restrict NZ, int c0, int c1, std::ptrdiff_t W, Viewpoint vp,
-                         float jmax2, float cos2, float cos_seed, std::uint8_t* __restrict CT);
+                         const float* __restrict J2, float floor2_x, float floor2_y,
+                         const float* __restrict NX, const float* __restrict NY, const float* __restrict NZ,
+                         int c0, int c1, std::ptrdiff_t W, Viewpoint vp, float jmax2, float cos2,
+                         float cos_seed, std::uint8_t* __restrict CT);
 
 }  // namespace fs::host::seg::kernels

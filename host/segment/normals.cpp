@@ -12,6 +12,32 @@ namespace fs::host::seg {
 
 using namespace detail;
 
+// Medians over a subsample of the cells whose right / lower neighbour has data: depth jumps are a small
+// share of the neighbour pairs, so they do not move the median (a mean would need a cap).
+Eigen::Vector2d Segmenter::estimate_spacing(const OrganizedCloud& cloud) {
+  const std::uint32_t w = cloud.width, h = cloud.height;
+  Eigen::Vector2d out = Eigen::Vector2d::Zero();
+  if (w < 2 || h < 2) return out;
+  const std::size_t half = kNoiseSamples / 2;
+  const std::uint32_t stride = std::max<std::uint32_t>(
+      1, static_cast<std::uint32_t>((std::size_t(w - 1) * (h - 1) + half - 1) / half));
+  for (int axis = 0; axis < 2; ++axis) {
+    noise_samples_.clear();
+    const std::size_t step = axis == 0 ? 1 : w;
+    for (std::size_t k = 0; k < std::size_t(w - 1) * (h - 1) && noise_samples_.size() < half; k += stride) {
+      const std::size_t i = (k / (w - 1)) * w + k % (w - 1);
+      const Eigen::Vector3f& p = cloud.points[i];
+      const Eigen::Vector3f& q = cloud.points[i + step];
+      if (finite(p) && finite(q)) noise_samples_.push_back((q - p).norm());
+    }
+    if (noise_samples_.size() < 64) continue;
+    auto mid = noise_samples_.begin() + static_cast<std::ptrdiff_t>(noise_samples_.size() / 2);
+    std::nth_element(noise_samples_.begin(), mid, noise_samples_.end());
+    out[axis] = double(*mid);
+  }
+  return out;
+}
+
 // The component of p[c-1] - 2 p[c] + p[c+1] across the local tangent p[c+1] - p[c-1]: 0 on a plane (the three
 // points lie on the line where the row meets the surface, whatever their spacing), noise of variance ~6
 // sigma^2 otherwise. The median over a subsample of depth-continuous triples ignores creases and edges.
@@ -22,7 +48,7 @@ double Segmenter::estimate_noise(const OrganizedCloud& cloud) {
   const std::size_t per_row = w - 2;
   const std::uint32_t stride = std::max<std::uint32_t>(
       1, static_cast<std::uint32_t>((per_row * h + kNoiseSamples - 1) / kNoiseSamples));
-  const float jump2 = float(params_.jump_abs_mm * params_.jump_abs_mm);
+  const float jump2 = std::max(float(params_.jump_abs_mm * params_.jump_abs_mm), floor2_x_);
   for (std::uint32_t r = 0; r < h; r += stride) {
     const Eigen::Vector3f* row = cloud.points.data() + std::size_t(r) * w;
     for (std::uint32_t c = 1; c + 1 < w && noise_samples_.size() < kNoiseSamples; ++c) {
@@ -53,6 +79,16 @@ void Segmenter::compute_normals(const OrganizedCloud& cloud) {
   const auto& P = cloud.points;
   const float nan = std::numeric_limits<float>::quiet_NaN();
   const int span = std::max(1, params_.normal_span);
+  // Per axis (x along a row: the next column; y along a column: the next row), the span reaches at most
+  // normal_span_mm, or farther where the depth noise needs it: a tangent reaching r mm turns the normal by
+  // about noise / r, kept within half the seed angle.
+  const double noise_reach = noise_mm_ / std::tan(params_.seed_angle_deg * kPi / 360.0);
+  auto axis_span = [&](double spacing) {
+    const double reach = std::max(params_.normal_span_mm, noise_reach);
+    if (params_.normal_span_mm <= 0.0 || spacing <= 0.0 || spacing * span <= reach) return span;
+    return std::clamp(int(reach / spacing), 1, span);
+  };
+  const int sx = axis_span(spacing_.x()), sy = axis_span(spacing_.y());
   const Viewpoint vpk{vp_f_.x(), vp_f_.y(), vp_f_.z()};
   float* X = px_.data();
   float* Y = py_.data();
@@ -82,8 +118,8 @@ void Segmenter::compute_normals(const OrganizedCloud& cloud) {
   auto tangent = [&](int r, int c, int dr, int dc, Eigen::Vector3f& t) {
     const std::size_t i = std::size_t(r) * W + std::size_t(c);
     const Eigen::Vector3f& p = P[i];
-    for (int s = span; s >= 1; s = (s == 1 ? 0 : 1)) {
-      const float lim = J2[i] * float(s * s);
+    for (int s = dc != 0 ? sx : sy; s >= 1; s = (s == 1 ? 0 : 1)) {
+      const float lim = std::max(J2[i], dc != 0 ? floor2_x_ : floor2_y_) * float(s * s);
       const int r1 = r + dr * s, c1 = c + dc * s, r0 = r - dr * s, c0 = c - dc * s;
       auto ok = [&](const Eigen::Vector3f& q) {
         const Eigen::Vector3f d = q - p;
@@ -116,11 +152,11 @@ void Segmenter::compute_normals(const OrganizedCloud& cloud) {
   const Eigen::Vector3f vp = vp_f_;
   auto normals_row = [&](int r) {
     const std::size_t b = std::size_t(r) * W;
-    const bool inner_row = r >= span && r + span < h && w > 2 * span;
-    const int c0 = inner_row ? span : 0, c1 = inner_row ? w - span : 0;
+    const bool inner_row = r >= sy && r + sy < h && w > 2 * sx;
+    const int c0 = inner_row ? sx : 0, c1 = inner_row ? w - sx : 0;
     if (inner_row) {
-      normals_row_fast(X + b, Y + b, Z + b, J2 + b, c0, c1, span, sW * span, vpk, NX + b, NY + b, NZ + b,
-                       AR + b, LU + b, LV + b);
+      normals_row_fast(X + b, Y + b, Z + b, J2 + b, floor2_x_, floor2_y_, c0, c1, sx, sy, sW, vpk, NX + b,
+                       NY + b, NZ + b, AR + b, LU + b, LV + b);
     }
     for (int c = 0; c < w; ++c) {
       const std::size_t i = b + std::size_t(c);
@@ -154,8 +190,8 @@ void Segmenter::compute_normals(const OrganizedCloud& cloud) {
     const bool inner_row = r >= 1 && r + 1 < h && w > 2;
     const int c0 = inner_row ? 1 : 0, c1 = inner_row ? w - 1 : 0;
     if (inner_row) {
-      cont_seeds_row_fast(X + b, Y + b, Z + b, J2 + b, NX + b, NY + b, NZ + b, c0, c1, sW, vpk, jump_max2_,
-                          cos2_jump_, cs, CT + b);
+      cont_seeds_row_fast(X + b, Y + b, Z + b, J2 + b, floor2_x_, floor2_y_, NX + b, NY + b, NZ + b, c0, c1,
+                          sW, vpk, jump_max2_, cos2_jump_, cs, CT + b);
     }
     for (int c = 0; c < w; ++c) {
       const std::ptrdiff_t i = std::ptrdiff_t(b) + c;
@@ -165,18 +201,19 @@ void Segmenter::compute_normals(const OrganizedCloud& cloud) {
         continue;
       }
       std::uint8_t bits = 0;
-      if (c > 0 && kernels::continuous(X, Y, Z, J2, i, i - 1, vpk, jump_max2_, cos2_jump_)) bits |= kContL;
-      if (c + 1 < w && kernels::continuous(X, Y, Z, J2, i, i + 1, vpk, jump_max2_, cos2_jump_))
+      const float jx = std::max(J2[i], floor2_x_), jy = std::max(J2[i], floor2_y_);
+      if (c > 0 && kernels::continuous(X, Y, Z, jx, i, i - 1, vpk, jump_max2_, cos2_jump_)) bits |= kContL;
+      if (c + 1 < w && kernels::continuous(X, Y, Z, jx, i, i + 1, vpk, jump_max2_, cos2_jump_))
         bits |= kContR;
-      if (r > 0 && kernels::continuous(X, Y, Z, J2, i, i - sW, vpk, jump_max2_, cos2_jump_)) bits |= kContU;
-      if (r + 1 < h && kernels::continuous(X, Y, Z, J2, i, i + sW, vpk, jump_max2_, cos2_jump_))
+      if (r > 0 && kernels::continuous(X, Y, Z, jy, i, i - sW, vpk, jump_max2_, cos2_jump_)) bits |= kContU;
+      if (r + 1 < h && kernels::continuous(X, Y, Z, jy, i, i + sW, vpk, jump_max2_, cos2_jump_))
         bits |= kContD;
       CT[i] = bits;
     }
   };
-  for (int r = 0; r < h + span + 1; ++r) {
+  for (int r = 0; r < h + sy + 1; ++r) {
     if (r < h) thresholds_row(r);
-    const int rn = r - span;
+    const int rn = r - sy;
     if (rn >= 0 && rn < h) normals_row(rn);
     const int rs = rn - 1;
     if (rs >= 0 && rs < h) seeds_row(rs);

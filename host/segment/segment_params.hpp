@@ -7,8 +7,14 @@
 namespace fs::host::seg {
 
 struct SegmentParams {
-  // Normals: cross product of the grid tangents over +-normal_span cells (one-sided at depth jumps).
+  // Normals: cross product of the grid tangents over +-normal_span cells (one-sided at depth jumps). Along a
+  // grid axis whose median neighbour spacing x normal_span exceeds normal_span_mm, the span is cut to
+  // max(1, normal_span_mm / spacing) cells: a coarser sweep would otherwise reach across the edges of the
+  // faces it lights at a grazing angle, only a few columns wide (0 = normal_span cells on every grid). The
+  // reach stays at least noise / tan(seed_angle_deg / 2) (the scan's estimated depth noise), so that noise
+  // does not turn the normals by more than half the seed angle.
   int normal_span = 2;
+  double normal_span_mm = 1.6;
   // Depth continuity between grid neighbours p, q: |p - q| <= jump_abs_mm + jump_rel * range.
   double jump_abs_mm = 2.5;
   double jump_rel = 0.0;
@@ -16,6 +22,11 @@ struct SegmentParams {
   // the viewing ray: a surface seen at a grazing angle, not a jump edge (which runs along the ray).
   double jump_angle_deg = 6.0;
   double jump_max_mm = 25.0;
+  // Along each grid axis the jump threshold is at least this many times the scan's median neighbour spacing
+  // along that axis (Segmentation::spacing_mm): a coarser sweep puts the points of a surface the laser meets
+  // at a grazing angle farther apart than jump_abs_mm. 4 x the bench scanner's 0.62 mm at 500 steps stays
+  // below jump_abs_mm; 0 = jump_abs_mm (+ jump_rel) alone.
+  double jump_spacing_factor = 4.0;
   // Region growing: cell normal vs region normal, and point-to-plane distance to the region's plane
   // <= dist_abs_mm + dist_rel * range^2 (the range^2 term models triangulation / Kinect depth noise).
   double angle_deg = 15.0;
@@ -51,6 +62,7 @@ struct SegmentParams {
   static SegmentParams kinect() {
     SegmentParams p;
     p.normal_span = 4;
+    p.normal_span_mm = 0.0;
     p.jump_abs_mm = 0.0;
     p.jump_rel = 0.025;
     p.jump_angle_deg = 10.0;

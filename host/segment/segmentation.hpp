@@ -41,7 +41,11 @@ struct Segmentation {
   std::vector<Border> borders;
   bool truncated = false;  // the region / border budget ran out; the rest is left unknown
   double noise_mm = 0.0;   // the scan's estimated depth noise (sigma, mm; 0 = too few samples)
-  double dist_mm = 0.0;    // the point-to-plane tolerance used: max(dist_abs_mm, dist_noise_factor x noise)
+  double dist_mm = 0.0;
+  // Median distance of grid neighbours along a row (x: the next column) and a column (y: the next row), mm
+  // (0 = too few samples); SegmentParams::jump_spacing_factor scales it into the jump thresholds.
+  Eigen::Vector2d spacing_mm = Eigen::Vector2d::Zero();  // the point-to-plane tolerance used:
+                                                         // max(dist_abs_mm, dist_noise_factor x noise)
 
   // Reserves everything for grids up to max_cells and up to max_regions regions (no allocation later).
   void reserve(std::size_t max_cells, std::size_t max_regions, std::size_t max_borders) {

@@ -85,7 +85,11 @@ void Segmenter::segment(const OrganizedCloud& cloud, Segmentation& out) {
     }
   }
   region_count_ = 0;
-  out.noise_mm = estimate_noise(cloud);
+  spacing_ = out.spacing_mm = estimate_spacing(cloud);
+  const Eigen::Vector2d floor = params_.jump_spacing_factor * spacing_;
+  floor2_x_ = float(floor.x() * floor.x());
+  floor2_y_ = float(floor.y() * floor.y());
+  noise_mm_ = out.noise_mm = estimate_noise(cloud);
   dist_abs_ = std::max(params_.dist_abs_mm, params_.dist_noise_factor * out.noise_mm);
   out.dist_mm = dist_abs_;
   compute_normals(cloud);

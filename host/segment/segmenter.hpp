@@ -55,6 +55,8 @@ class Segmenter {
     Eigen::Vector3f c = Eigen::Vector3f::Zero();
   };
 
+  // Median distance of grid neighbours along a row (x) and a column (y) over a subsample (0 = too few).
+  Eigen::Vector2d estimate_spacing(const OrganizedCloud& cloud);
   // Robust depth-noise estimate (sigma, mm; 0 = too few samples) from second differences along the grid rows.
   double estimate_noise(const OrganizedCloud& cloud);
   void compute_normals(const OrganizedCloud& cloud);
@@ -75,6 +77,11 @@ class Segmenter {
   // enough, or (up to jump_max_mm) a step that is not along the viewing ray, i.e. a surface seen at a grazing
   // angle rather than a jump edge.
   float jump_max2_ = 0.f, cos2_jump_ = 1.f;
+  // This scan's floor of the squared jump threshold along a row (toward the next column) and a column
+  // (toward the next row): (jump_spacing_factor x Segmentation::spacing_mm)^2.
+  float floor2_x_ = 0.f, floor2_y_ = 0.f;
+  Eigen::Vector2d spacing_ = Eigen::Vector2d::Zero();  // this scan's Segmentation::spacing_mm
+  double noise_mm_ = 0.0;                              // and its Segmentation::noise_mm
   Eigen::Vector3f vp_f_ = Eigen::Vector3f::Zero();
   // Border pair table (open addressing); returns the index in out.borders or -1 when full.
   int border_slot(Segmentation& out, std::int32_t a, std::int32_t b);

@@ -171,6 +171,13 @@ Args parse_args(CLI::App& app, int argc, char** argv) {
       ->check(non_negative);
   app.add_option("--seg-merge-angle", p.segment.merge_angle_deg, "segmentation merge_angle_deg")
       ->check(non_negative);
+  app.add_option("--seg-normal-span-mm", p.segment.normal_span_mm,
+                 "segmentation normal_span_mm: the normals' span on a coarse grid (0 = normal_span cells)")
+      ->check(non_negative);
+  app.add_option(
+         "--seg-jump-spacing", p.segment.jump_spacing_factor,
+         "segmentation jump_spacing_factor: jump threshold floor in grid spacings (0 = jump_abs_mm alone)")
+      ->check(non_negative);
   app.parse(argc, argv);
   if (!categories.empty()) {
     a.categories.clear();

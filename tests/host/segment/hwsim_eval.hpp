@@ -13,6 +13,7 @@
 #include "host/segment/scene_pfrg.hpp"
 #include "host/segment/segmenter.hpp"
 #include "hw-sim/scene/ground_truth_grid.hpp"
+#include "hw-sim/scene/scene.hpp"
 
 namespace fs::test {
 
@@ -32,14 +33,19 @@ struct HwsimEval {
   std::vector<std::string> problems;
 };
 
-inline HwsimEval evaluate_hwsim_scene(const std::filesystem::path& scene_file, double noise_mm,
-                                      double min_share = 0.02, std::uint64_t seed = 7) {
+// steps > 0 resamples the scene's sweep to that many galvo steps (same first and last mirror angle).
+inline HwsimEval evaluate_hwsim_scene(
+    const std::filesystem::path& scene_file, double noise_mm, double min_share = 0.02, std::uint64_t seed = 7,
+    std::uint32_t steps = 0,
+    const fs::host::seg::SegmentParams& params = fs::host::seg::SegmentParams::laser()) {
   HwsimEval ev;
-  const auto gt = fs::sim::make_ground_truth_grid(scene_file, {.depth_noise_mm = noise_mm, .seed = seed});
+  fs::sim::Scene scene = fs::sim::load_scene(scene_file);
+  if (steps > 0) fs::sim::resample_sweep(scene.calibration, steps);
+  const auto gt = fs::sim::make_ground_truth_grid(scene, {.depth_noise_mm = noise_mm, .seed = seed});
   gt.export_to(ev.cloud, true);
   fs::host::seg::SegmentLimits lim;
   lim.max_cells = ev.cloud.points.size();
-  fs::host::seg::Segmenter segmenter(fs::host::seg::SegmentParams::laser(), lim);
+  fs::host::seg::Segmenter segmenter(params, lim);
   segmenter.segment(ev.cloud, ev.seg);
   fs::host::seg::ScenePfrgBuilder builder(lim.max_regions, lim.max_borders);
   builder.build(ev.seg, ev.graph, &ev.stats);

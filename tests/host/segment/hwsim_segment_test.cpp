@@ -50,4 +50,23 @@ TEST(HwsimSegment, DemoSceneAllFacesIncludingGrazingOnes) {
   for (std::int32_t face : {1002, 2000, 4003}) EXPECT_TRUE(ev.hoover.gt_correct_region.count(face)) << face;
 }
 
+// The demo scene swept with 250 and 125 galvo steps (1.2 and 2.4 mm apart on the table; 500 steps: 0.6 mm).
+// On the faces the laser meets at a grazing angle the steps lie several mm apart: with the jump threshold of
+// jump_abs_mm alone some of them counted as depth jumps, and normals over 2 cells reached across the faces
+// lit only a few columns wide. The thresholds and spans now follow the scan's grid spacing.
+TEST(HwsimSegment, CoarseSweepsKeepEveryFace) {
+  const auto scene = fs::test::source_dir() / "hw-sim/scenes/default.json";
+  for (std::uint32_t steps : {250u, 125u}) {
+    const auto ev = evaluate_hwsim_scene(scene, 0.05, 0.02, 7, steps);
+    EXPECT_NEAR(ev.seg.spacing_mm.x(), 310.0 / steps, 0.25 * 310.0 / steps) << steps;  // along the sweep
+    for (const auto& p : ev.problems) ADD_FAILURE() << steps << ": " << p;
+    EXPECT_EQ(ev.significant_correct, int(ev.significant.size())) << steps;
+  }
+  auto by_cells = fs::host::seg::SegmentParams::laser();
+  by_cells.normal_span_mm = 0.0;
+  by_cells.jump_spacing_factor = 0.0;
+  const auto ev = evaluate_hwsim_scene(scene, 0.05, 0.02, 7, 125, by_cells);
+  EXPECT_LT(ev.significant_correct, int(ev.significant.size()));
+}
+
 }  // namespace
