@@ -25,7 +25,7 @@ struct SegmentParams {
   // Along each grid axis the jump threshold is at least this many times the scan's median neighbour spacing
   // along that axis (Segmentation::spacing_mm): a coarser sweep puts the points of a surface the laser meets
   // at a grazing angle farther apart than jump_abs_mm. 4 x the bench scanner's 0.62 mm at 500 steps stays
-  // below jump_abs_mm; 0 = jump_abs_mm (+ jump_rel) alone.
+  // below jump_abs_mm; at most jump_max_mm; 0 = jump_abs_mm (+ jump_rel) alone.
   double jump_spacing_factor = 4.0;
   // Region growing: cell normal vs region normal, and point-to-plane distance to the region's plane
   // <= dist_abs_mm + dist_rel * range^2 (the range^2 term models triangulation / Kinect depth noise).

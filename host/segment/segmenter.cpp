@@ -86,7 +86,8 @@ void Segmenter::segment(const OrganizedCloud& cloud, Segmentation& out) {
   }
   region_count_ = 0;
   spacing_ = out.spacing_mm = estimate_spacing(cloud);
-  const Eigen::Vector2d floor = params_.jump_spacing_factor * spacing_;
+  // capped at jump_max_mm: on a grid that sparse a jump cannot be told from a slope anyway
+  const Eigen::Vector2d floor = (params_.jump_spacing_factor * spacing_).cwiseMin(params_.jump_max_mm);
   floor2_x_ = float(floor.x() * floor.x());
   floor2_y_ = float(floor.y() * floor.y());
   noise_mm_ = out.noise_mm = estimate_noise(cloud);
