@@ -18,21 +18,21 @@ Eigen::Vector2d Segmenter::estimate_spacing(const OrganizedCloud& cloud) {
   const std::uint32_t w = cloud.width, h = cloud.height;
   Eigen::Vector2d out = Eigen::Vector2d::Zero();
   if (w < 2 || h < 2) return out;
-  const std::size_t half = kNoiseSamples / 2;
+  const std::size_t half = kSamples / 2;
   const std::uint32_t stride = std::max<std::uint32_t>(
       1, static_cast<std::uint32_t>((std::size_t(w - 1) * (h - 1) + half - 1) / half));
   for (int axis = 0; axis < 2; ++axis) {
-    noise_samples_.clear();
+    samples_.clear();
     const std::size_t step = axis == 0 ? 1 : w;
-    for (std::size_t k = 0; k < std::size_t(w - 1) * (h - 1) && noise_samples_.size() < half; k += stride) {
+    for (std::size_t k = 0; k < std::size_t(w - 1) * (h - 1) && samples_.size() < half; k += stride) {
       const std::size_t i = (k / (w - 1)) * w + k % (w - 1);
       const Eigen::Vector3f& p = cloud.points[i];
       const Eigen::Vector3f& q = cloud.points[i + step];
-      if (finite(p) && finite(q)) noise_samples_.push_back((q - p).norm());
+      if (finite(p) && finite(q)) samples_.push_back((q - p).norm());
     }
-    if (noise_samples_.size() < 64) continue;
-    auto mid = noise_samples_.begin() + static_cast<std::ptrdiff_t>(noise_samples_.size() / 2);
-    std::nth_element(noise_samples_.begin(), mid, noise_samples_.end());
+    if (samples_.size() < 64) continue;
+    auto mid = samples_.begin() + static_cast<std::ptrdiff_t>(samples_.size() / 2);
+    std::nth_element(samples_.begin(), mid, samples_.end());
     out[axis] = double(*mid);
   }
   return out;
@@ -42,16 +42,16 @@ Eigen::Vector2d Segmenter::estimate_spacing(const OrganizedCloud& cloud) {
 // points lie on the line where the row meets the surface, whatever their spacing), noise of variance ~6
 // sigma^2 otherwise. The median over a subsample of depth-continuous triples ignores creases and edges.
 double Segmenter::estimate_noise(const OrganizedCloud& cloud) {
-  noise_samples_.clear();
+  samples_.clear();
   const std::uint32_t w = cloud.width, h = cloud.height;
   if (w < 3 || h == 0) return 0.0;
   const std::size_t per_row = w - 2;
-  const std::uint32_t stride = std::max<std::uint32_t>(
-      1, static_cast<std::uint32_t>((per_row * h + kNoiseSamples - 1) / kNoiseSamples));
+  const std::uint32_t stride =
+      std::max<std::uint32_t>(1, static_cast<std::uint32_t>((per_row * h + kSamples - 1) / kSamples));
   const float jump2 = std::max(float(params_.jump_abs_mm * params_.jump_abs_mm), floor2_x_);
   for (std::uint32_t r = 0; r < h; r += stride) {
     const Eigen::Vector3f* row = cloud.points.data() + std::size_t(r) * w;
-    for (std::uint32_t c = 1; c + 1 < w && noise_samples_.size() < kNoiseSamples; ++c) {
+    for (std::uint32_t c = 1; c + 1 < w && samples_.size() < kSamples; ++c) {
       const Eigen::Vector3f& a = row[c - 1];
       const Eigen::Vector3f& b = row[c];
       const Eigen::Vector3f& d = row[c + 1];
@@ -60,12 +60,12 @@ double Segmenter::estimate_noise(const OrganizedCloud& cloud) {
       const float tt = t.squaredNorm();
       if (!(tt > 0.0f) || (b - a).squaredNorm() > jump2 || (d - b).squaredNorm() > jump2) continue;
       const Eigen::Vector3f d2 = a - 2.0f * b + d;
-      noise_samples_.push_back((d2 - (d2.dot(t) / tt) * t).norm());
+      samples_.push_back((d2 - (d2.dot(t) / tt) * t).norm());
     }
   }
-  if (noise_samples_.size() < 64) return 0.0;
-  auto mid = noise_samples_.begin() + static_cast<std::ptrdiff_t>(noise_samples_.size() / 2);
-  std::nth_element(noise_samples_.begin(), mid, noise_samples_.end());
+  if (samples_.size() < 64) return 0.0;
+  auto mid = samples_.begin() + static_cast<std::ptrdiff_t>(samples_.size() / 2);
+  std::nth_element(samples_.begin(), mid, samples_.end());
   // |N(0, 6 s^2)| has median 0.6745 sqrt(6) s.
   return double(*mid) / (0.6745 * std::sqrt(6.0));
 }
@@ -78,17 +78,7 @@ void Segmenter::compute_normals(const OrganizedCloud& cloud) {
   const std::ptrdiff_t sW = std::ptrdiff_t(W);  // row offsets for the kernels (signed: rows above)
   const auto& P = cloud.points;
   const float nan = std::numeric_limits<float>::quiet_NaN();
-  const int span = std::max(1, params_.normal_span);
-  // Per axis (x along a row: the next column; y along a column: the next row), the span reaches at most
-  // normal_span_mm, or farther where the depth noise needs it: a tangent reaching r mm turns the normal by
-  // about noise / r, kept within half the seed angle.
-  const double noise_reach = noise_mm_ / std::tan(params_.seed_angle_deg * kPi / 360.0);
-  auto axis_span = [&](double spacing) {
-    const double reach = std::max(params_.normal_span_mm, noise_reach);
-    if (params_.normal_span_mm <= 0.0 || spacing <= 0.0 || spacing * span <= reach) return span;
-    return std::clamp(int(reach / spacing), 1, span);
-  };
-  const int sx = axis_span(spacing_.x()), sy = axis_span(spacing_.y());
+  const int sx = span_x_, sy = span_y_;
   const Viewpoint vpk{vp_f_.x(), vp_f_.y(), vp_f_.z()};
   float* X = px_.data();
   float* Y = py_.data();
@@ -103,8 +93,8 @@ void Segmenter::compute_normals(const OrganizedCloud& cloud) {
   std::uint8_t* ST = state_.data();
   std::uint8_t* CT = cont_.data();
   // One streaming pass over the rows (the rows a step needs are still in cache): structure-of-arrays copy and
-  // thresholds of row r, normals of row r - span (its tangents need rows up to r), continuity bits and seeds
-  // of row r - span - 1 (they need the normals of the rows around them). The common interior cases run in the
+  // thresholds of row r, normals of row r - sy (its tangents need rows up to r), continuity bits and seeds
+  // of row r - sy - 1 (they need the normals of the rows around them). The common interior cases run in the
   // vectorized kernels of grid_kernels.hpp; the rest (image border, missing data, depth jumps) takes the
   // scalar path with one-sided tangents.
   auto thresholds_row = [&](int r) {
@@ -114,7 +104,8 @@ void Segmenter::compute_normals(const OrganizedCloud& cloud) {
     for (std::size_t i = b; i < b + W; ++i) lab_[i] = ST[i] ? kUnassigned : kNil;  // ST: 1 = kValid or 0
   };
   // One tangent along a grid axis: central difference over +-s cells when both sides are continuous,
-  // else one-sided; tries span, then 1. Returns false when no continuous neighbour exists.
+  // else one-sided; tries the axis's span (sx, sy), then 1. Returns false when no continuous neighbour
+  // exists.
   auto tangent = [&](int r, int c, int dr, int dc, Eigen::Vector3f& t) {
     const std::size_t i = std::size_t(r) * W + std::size_t(c);
     const Eigen::Vector3f& p = P[i];

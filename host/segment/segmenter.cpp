@@ -44,7 +44,7 @@ void Segmenter::reserve(std::size_t n) {
   edge_cell_.resize(2 * n + 8);
   edge_border_.resize(2 * n + 8);
   bins_.resize(n + 1024);
-  noise_samples_.reserve(kNoiseSamples);
+  samples_.reserve(kSamples);
   limits_.max_cells = std::max(limits_.max_cells, n);
 }
 
@@ -85,12 +85,24 @@ void Segmenter::segment(const OrganizedCloud& cloud, Segmentation& out) {
     }
   }
   region_count_ = 0;
-  spacing_ = out.spacing_mm = estimate_spacing(cloud);
+  out.spacing_mm = estimate_spacing(cloud);
   // capped at jump_max_mm: on a grid that sparse a jump cannot be told from a slope anyway
-  const Eigen::Vector2d floor = (params_.jump_spacing_factor * spacing_).cwiseMin(params_.jump_max_mm);
+  const Eigen::Vector2d floor = (params_.jump_spacing_factor * out.spacing_mm).cwiseMin(params_.jump_max_mm);
   floor2_x_ = float(floor.x() * floor.x());
   floor2_y_ = float(floor.y() * floor.y());
-  noise_mm_ = out.noise_mm = estimate_noise(cloud);
+  out.noise_mm = estimate_noise(cloud);
+  // Per axis (x along a row: the next column; y along a column: the next row), the normals' span reaches at
+  // most normal_span_mm, or farther where the depth noise needs it: a tangent reaching r mm turns the normal
+  // by about noise / r, kept within half the seed angle.
+  const int span = std::max(1, params_.normal_span);
+  const double reach =
+      std::max(params_.normal_span_mm, out.noise_mm / std::tan(params_.seed_angle_deg * kPi / 360.0));
+  auto axis_span = [&](double spacing) {
+    if (params_.normal_span_mm <= 0.0 || spacing <= 0.0 || spacing * span <= reach) return span;
+    return std::clamp(int(reach / spacing), 1, span);
+  };
+  span_x_ = axis_span(out.spacing_mm.x());
+  span_y_ = axis_span(out.spacing_mm.y());
   dist_abs_ = std::max(params_.dist_abs_mm, params_.dist_noise_factor * out.noise_mm);
   out.dist_mm = dist_abs_;
   compute_normals(cloud);

@@ -78,10 +78,10 @@ class Segmenter {
   // angle rather than a jump edge.
   float jump_max2_ = 0.f, cos2_jump_ = 1.f;
   // This scan's floor of the squared jump threshold along a row (toward the next column) and a column
-  // (toward the next row): (jump_spacing_factor x Segmentation::spacing_mm)^2.
+  // (toward the next row): (jump_spacing_factor x Segmentation::spacing_mm, at most jump_max_mm)^2.
   float floor2_x_ = 0.f, floor2_y_ = 0.f;
-  Eigen::Vector2d spacing_ = Eigen::Vector2d::Zero();  // this scan's Segmentation::spacing_mm
-  double noise_mm_ = 0.0;                              // and its Segmentation::noise_mm
+  // This scan's normal span per axis (cells): normal_span, shorter on a coarse grid (SegmentParams).
+  int span_x_ = 1, span_y_ = 1;
   Eigen::Vector3f vp_f_ = Eigen::Vector3f::Zero();
   // Border pair table (open addressing); returns the index in out.borders or -1 when full.
   int border_slot(Segmentation& out, std::int32_t a, std::int32_t b);
@@ -92,9 +92,9 @@ class Segmenter {
   Eigen::Vector3d origin_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d viewpoint_ = Eigen::Vector3d::Zero();
   std::uint32_t width_ = 0, height_ = 0;
-  static constexpr std::size_t kNoiseSamples = 32768;
-  double dist_abs_ = 0.0;  // this scan's max(dist_abs_mm, dist_noise_factor * estimate_noise())
-  std::vector<float> noise_samples_;
+  static constexpr std::size_t kSamples = 32768;  // of the spacing and noise estimates
+  double dist_abs_ = 0.0;       // this scan's max(dist_abs_mm, dist_noise_factor * estimate_noise())
+  std::vector<float> samples_;  // their scratch
 
   // per cell (structure of arrays: the normal pass is vectorized); points with NaN = no data
   std::vector<float> px_, py_, pz_, nx_, ny_, nz_;

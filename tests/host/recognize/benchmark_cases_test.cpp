@@ -21,6 +21,7 @@
 #include "hw-sim/scene/ground_truth_grid.hpp"
 #include "hw-sim/scene/random_scene.hpp"
 #include "support/polyhedra_catalog.hpp"
+#include "support/segment_by_cells.hpp"
 
 namespace {
 
@@ -137,14 +138,10 @@ TEST(RecognizeBenchmarkCases, LookAlikesAreListedAsAlternatives) {
   EXPECT_GE(without, 1);
 }
 
-// The segmentation these 250-step cases were found with: normals over 2 cells and the jump threshold of
-// jump_abs_mm on every grid. With the spans and thresholds that follow the sweep's spacing, the true model of
-// several of them is reported without the rule each case pins as well; on these scenes as they were segmented
-// then, only the rule gets there.
-void segment_by_cells(RecognizeParams& p) {
-  p.segment.normal_span_mm = 0.0;
-  p.segment.jump_spacing_factor = 0.0;
-}
+// The segmentation these 250-step cases were found with is by cells (fs::test::segment_by_cells). With the
+// spans and thresholds that follow the sweep's spacing, the true model of several of them is reported without
+// the rule each case pins as well; on these scenes as they were segmented then, only the rule gets there.
+void segment_by_cells(RecognizeParams& p) { fs::test::segment_by_cells(p.segment); }
 
 // A 250-step benchmark scene (catalog `b`), segmented by cells: the model reported at object `name` with the
 // default parameters, then with `change` applied to them.

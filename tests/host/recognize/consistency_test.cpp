@@ -22,6 +22,7 @@
 #include "hw-sim/scene/ground_truth_grid.hpp"
 #include "hw-sim/scene/random_scene.hpp"
 #include "hw-sim/scene/scene.hpp"
+#include "support/segment_by_cells.hpp"
 #include "support/test_paths.hpp"
 
 namespace {
@@ -354,10 +355,7 @@ void expect_exactly_the_clutter_objects(double area_cost, bool by_cells, bool re
   fs::host::rec::RecognizeParams params;
   params.threads = 2;
   params.area_cost = area_cost;
-  if (by_cells) {
-    params.segment.normal_span_mm = 0.0;
-    params.segment.jump_spacing_factor = 0.0;
-  }
+  if (by_cells) fs::test::segment_by_cells(params.segment);
   fs::host::rec::Recognizer rec(lib, params, cloud.points.size());
   const auto& r = rec.recognize(cloud, nullptr);
 

@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include "hwsim_eval.hpp"
+#include "support/segment_by_cells.hpp"
 #include "support/test_paths.hpp"
 
 namespace {
@@ -63,8 +64,7 @@ TEST(HwsimSegment, CoarseSweepsKeepEveryFace) {
     EXPECT_EQ(ev.significant_correct, int(ev.significant.size())) << steps;
   }
   auto by_cells = fs::host::seg::SegmentParams::laser();
-  by_cells.normal_span_mm = 0.0;
-  by_cells.jump_spacing_factor = 0.0;
+  fs::test::segment_by_cells(by_cells);
   const auto ev = evaluate_hwsim_scene(scene, 0.05, 0.02, 7, 125, by_cells);
   EXPECT_LT(ev.significant_correct, int(ev.significant.size()));
 }
