@@ -286,7 +286,7 @@ void Recognizer::Impl::alternatives_in_hiding(const RecognizeParams& params, std
     double score = fit(coarse, c, R, t, false, inliers);
     if (have_table && score >= 0.5 * params.min_confidence)
       score *= support_factor(library->models[static_cast<std::size_t>(c.model)], R, t, table,
-                              coarse.points(), support_params(c, score));
+                              MeasuredPoints(coarse), support_params(c, score));
     if (score < 0.5 * params.min_confidence) continue;
     // One per model: a better pose of a model already picked replaces it.
     std::size_t slot = picks;
@@ -315,7 +315,7 @@ void Recognizer::Impl::alternatives_in_hiding(const RecognizeParams& params, std
     Vec3 t = c.t;
     int inliers = 0;
     double conf = fit(fine, c, R, t, true, inliers);
-    if (have_table) conf *= support_factor(model, R, t, table, fine.points(), support_params(c, conf));
+    if (have_table) conf *= support_factor(model, R, t, table, MeasuredPoints(fine), support_params(c, conf));
     // A possible world: it may not interpenetrate the other accepted objects.
     bool clash = false;
     for (std::size_t a = 0; a < out.objects.size() && !clash; ++a) {

@@ -425,17 +425,23 @@ double lowest_point(const Model& model, const Mat3& R, const Vec3& t, const Plan
 }
 
 double support_factor(const Model& model, const Mat3& R, const Vec3& t, const Plane& table,
-                      std::span<const Eigen::Vector3f> points, const SupportParams& p, double* lowest) {
+                      const MeasuredPoints& points, const SupportParams& p, double* lowest) {
   Vec3 v_low = Vec3::Zero();
   const double low = lowest_point(model, R, t, table, &v_low);
   if (lowest) *lowest = low;
   if (std::abs(low) <= p.tol_mm) return 1.0;
   if (low > 0) {
     const double r2 = p.radius_mm * p.radius_mm;
-    for (const Eigen::Vector3f& pf : points) {
+    // Points within radius_mm of v_low lie in the cone from the sensor that holds that ball.
+    const Vec3 to_low = v_low - p.viewpoint;
+    const double d = to_low.norm();
+    const double cone = d > p.radius_mm ? std::asin(p.radius_mm / d) : M_PI;
+    const auto near_below = [&](const Eigen::Vector3f& pf) {
       const Vec3 q = pf.cast<double>();
-      if ((q - v_low).squaredNorm() <= r2 && table.signed_distance(q) < low - 1.0) return 1.0;
-    }
+      return (q - v_low).squaredNorm() <= r2 && table.signed_distance(q) < low - 1.0;
+    };
+    if (points.any_in_cone(p.viewpoint, d > 0.0 ? Vec3(to_low / d) : Vec3::UnitZ(), cone, near_below))
+      return 1.0;
     if (p.look_below) {
       // The column under the solid's centre of mass, from the height of its lowest point: a solid at rest is
       // held up under it (an overhanging part may have the table seen under it, and the part of the base the
@@ -450,7 +456,7 @@ double support_factor(const Model& model, const Mat3& R, const Vec3& t, const Pl
 }
 
 SpaceBelow look_below(const Vec3& top, const Plane& table, const Vec3& viewpoint,
-                      std::span<const Eigen::Vector3f> points, double tol_mm) {
+                      const MeasuredPoints& points, double tol_mm) {
   constexpr double kStep = 2.0, kRay = 3.0, kMargin = 2.0;
   constexpr std::size_t kMaxProbes = 128;
   SpaceBelow out;
@@ -470,13 +476,14 @@ SpaceBelow look_below(const Vec3& top, const Plane& table, const Vec3& viewpoint
   const double mid_dist = to_mid.norm();
   if (!(mid_dist > 0.0)) return out;
   const Vec3 axis = to_mid / mid_dist;
-  const double cos_cone = std::cos(std::atan2(half, std::max(mid_dist - half, 1.0)));
-  for (const Eigen::Vector3f& pf : points) {
+  const double cone = std::atan2(half, std::max(mid_dist - half, 1.0));
+  const double cos_cone = std::cos(cone);
+  points.any_in_cone(viewpoint, axis, cone, [&](const Eigen::Vector3f& pf) {
     const Vec3 d = pf.cast<double>() - viewpoint;
     const double range = d.norm();
-    if (!(range > 0.0)) continue;
+    if (!(range > 0.0)) return false;
     const Vec3 u = d / range;
-    if (u.dot(axis) < cos_cone) continue;
+    if (u.dot(axis) < cos_cone) return false;
     bool through = false, in_front = false;
     for (std::size_t k = 0; k < n && !through; ++k) {
       const Vec3 w = probe[k] - viewpoint;
@@ -487,7 +494,8 @@ SpaceBelow look_below(const Vec3& top, const Plane& table, const Vec3& viewpoint
     }
     out.seen_through += through ? 1 : 0;
     out.hidden += !through && in_front ? 1 : 0;
-  }
+    return false;
+  });
   return out;
 }
 

@@ -2,11 +2,14 @@
 // From matching solutions to pose hypotheses (thesis ch. 8.1.3 and 9.4.1, plus the pose beyond the thesis):
 // translation from the matched planes, expanded solutions (unmatched scene faces that fit a predicted
 // reference face), merging of compatible solutions of one list, and helpers of the recognition step.
+#include <algorithm>
+#include <cmath>
 #include <span>
 #include <vector>
 
 #include "host/recognize/pose.hpp"
 #include "host/recognize/recognizer.hpp"
+#include "host/recognize/verify.hpp"
 
 namespace fs::host::rec {
 
@@ -102,6 +105,41 @@ double prescore(const HypothesisContext& c, const Hypothesis& h);
 // that explains more of the scene (look-alikes whose visible faces all fit: polycubes).
 double matched_scene_area(const HypothesisContext& c, const Hypothesis& h);
 
+// The measured points the support test looks at: a SampleSet's, whose blocks' ray cones let a query about one
+// place visit only the blocks that can reach it, or plain points (every one visited).
+class MeasuredPoints {
+ public:
+  MeasuredPoints() = default;
+  MeasuredPoints(std::span<const Eigen::Vector3f> points) : points_(points) {}  // NOLINT: implicit on purpose
+  MeasuredPoints(const std::vector<Eigen::Vector3f>& points) : points_(points) {}  // NOLINT
+  explicit MeasuredPoints(const SampleSet& s)
+      : points_(s.points()), blocks_(s.blocks()), from_(s.viewpoint()) {}
+
+  // Calls f(point) for every point whose ray from `from` may lie within `angle` (rad) of the unit direction
+  // `dir`, and some others (all of them without blocks, or when `from` is not their viewpoint), in the
+  // points' order; stops at the first f that returns true and returns whether one did.
+  template <class F>
+  bool any_in_cone(const Vec3& from, const Vec3& dir, double angle, F&& f) const {
+    // Beyond the blocks' own margin: the float rounding of their directions and angles.
+    constexpr double kSlack = 1e-3;
+    const bool prune = !blocks_.empty() && from == from_;
+    if (!prune) return std::any_of(points_.begin(), points_.end(), f);
+    for (const SampleSet::Block& b : blocks_) {
+      const double c = std::clamp(b.dir.cast<double>().dot(dir), -1.0, 1.0);
+      if (std::acos(c) > static_cast<double>(b.angle) + angle + kSlack) continue;
+      for (std::uint32_t k = b.begin; k < b.end; ++k)
+        if (f(points_[k])) return true;
+    }
+    return false;
+  }
+  std::span<const Eigen::Vector3f> points() const { return points_; }
+
+ private:
+  std::span<const Eigen::Vector3f> points_;
+  std::span<const SampleSet::Block> blocks_;
+  Vec3 from_ = Vec3::Zero();
+};
+
 // Support (beyond the thesis): a solid object rests on the table or on something measured just below its
 // lowest point. Returns 1 when the model's lowest point in pose (R, t) lies within tol_mm of the table plane
 // (normal toward the sensor), or above it with a measured point within radius_mm of that point and more than
@@ -117,8 +155,7 @@ struct SupportParams {
   Vec3 viewpoint = Vec3::Zero();  // the sensor, for look_below
 };
 double support_factor(const Model& model, const Mat3& R, const Vec3& t, const Plane& table,
-                      std::span<const Eigen::Vector3f> points, const SupportParams& p,
-                      double* lowest = nullptr);
+                      const MeasuredPoints& points, const SupportParams& p, double* lowest = nullptr);
 
 // The space under a floating solid, seen from the sensor (beyond the thesis): probe points on the vertical
 // under `top` (a point at the height of the solid's lowest point), every 2 mm (more when the solid is high;
@@ -134,7 +171,7 @@ struct SpaceBelow {
   int seen_through = 0;
 };
 SpaceBelow look_below(const Vec3& top, const Plane& table, const Vec3& viewpoint,
-                      std::span<const Eigen::Vector3f> points, double tol_mm);
+                      const MeasuredPoints& points, double tol_mm);
 
 // Height above the table of the posed model's lowest vertex (negative: it sinks into the table); where: that
 // vertex.

@@ -50,7 +50,7 @@ void Recognizer::Impl::reseat(std::size_t index, int worker) {
   const Model& mdl = library->models[model];
   const SupportParams sp = support_params(h, raw_confidence[index]);
   auto support = [&](const Mat3& R, const Vec3& t) {
-    return have_table ? support_factor(mdl, R, t, table, coarse.points(), sp) : 1.0;
+    return have_table ? support_factor(mdl, R, t, table, MeasuredPoints(coarse), sp) : 1.0;
   };
   double best = raw_confidence[index] * support(h.R, h.t) + kReseatMargin;
   const NearSymmetry* pick = nullptr;
@@ -59,9 +59,11 @@ void Recognizer::Impl::reseat(std::size_t index, int worker) {
     Mat3 R = h.R;
     Vec3 t = h.t;
     apply_near_symmetry(T, R, t);
-    const VerifyResult r = v.verify(coarse, g, R, t, false);
-    if (r.confidence <= best) continue;  // the support factor is at most 1
-    const double score = r.confidence * support(R, t);
+    // The fit is at most 1: a placement that the support test scales down to `best` or below cannot win, and
+    // one that it scales by f must fit better than best / f (a hair less: the product's rounding).
+    const double f = support(R, t);
+    if (f <= best) continue;
+    const double score = v.check_above(coarse, g, R, t, best / f * (1.0 - 1e-12)).confidence * f;
     if (score > best) {
       best = score;
       pick = &T;

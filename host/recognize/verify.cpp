@@ -51,16 +51,6 @@ ModelGeometry::ModelGeometry(const Model& model)
     faces_.push_back(std::move(f));
     all_faces_.push_back(static_cast<std::uint32_t>(all_faces_.size()));
   }
-  // The normals as padded columns for the four-lane clip (padding: zero normals, clip nothing).
-  for (const Face& f : faces_) {
-    nx_.push_back(f.n.x());
-    ny_.push_back(f.n.y());
-    nz_.push_back(f.n.z());
-  }
-  const std::size_t padded = (faces_.size() + kClipLanes - 1) / kClipLanes * kClipLanes;
-  nx_.resize(padded, 0.0);
-  ny_.resize(padded, 0.0);
-  nz_.resize(padded, 0.0);
   // Convex: closed, and every vertex on the inner side of every face plane. A ray then enters through exactly
   // one front face, so cast() may stop at the first front face that contains its hit, and cast_convex() may
   // clip. An open model (a face missing) is no solid: a clip would close it.
@@ -181,18 +171,19 @@ int ModelGeometry::cast(const Vec3& origin, const Vec3& dir, double& distance,
   return best;
 }
 
-void ModelGeometry::heights(const Vec3& origin, std::vector<double>& out) const {
+void ModelGeometry::clip_faces(const Vec3& origin, ClipFaces& out) const {
   out.clear();
-  for (const Face& f : faces_) out.push_back(f.n.dot(origin) - f.offset);
-  out.resize(nx_.size(), -1.0);  // padding faces: inside, clip nothing
+  for (std::size_t i = 0; i < faces_.size(); ++i) {
+    const Face& f = faces_[i];
+    out.add(f.n.x(), f.n.y(), f.n.z(), f.n.dot(origin) - f.offset, static_cast<int>(i));
+  }
+  out.pad();
 }
 
 int ModelGeometry::cast_convex(const Vec3& origin, const Vec3& dir, double& distance,
-                               std::span<const double> heights) const {
+                               const ClipFaces& faces) const {
   distance = std::numeric_limits<double>::infinity();
-  assert(heights.size() >= nx_.size());  // heights() pads them
   if (misses_bounding_sphere(origin, dir)) return -1;
-  const ConvexFaces faces{nx_.data(), ny_.data(), nz_.data(), heights.data(), nx_.size()};
   return clip_convex(faces, dir.x(), dir.y(), dir.z(), distance);
 }
 
@@ -291,7 +282,7 @@ void SampleSet::build(const OrganizedCloud& cloud, SampleSteps steps, int block)
 }
 
 VerifyResult Verifier::evaluate(const SampleSet& samples, const ModelGeometry& g, const Mat3& R,
-                                const Vec3& t) {
+                                const Vec3& t, double floor) {
   VerifyResult r;
   inlier_cells_.clear();
   occluded_cells_.clear();
@@ -301,7 +292,7 @@ VerifyResult Verifier::evaluate(const SampleSet& samples, const ModelGeometry& g
   const Vec3& view = samples.viewpoint();
   const Vec3 origin_m = Rt * (view - t);
   if (g.convex())
-    g.heights(origin_m, heights_);
+    g.clip_faces(origin_m, clip_);
   else
     g.front_faces(origin_m, front_);
   const double tol = params_.inlier_mm;
@@ -317,31 +308,44 @@ VerifyResult Verifier::evaluate(const SampleSet& samples, const ModelGeometry& g
   const double oc2 = oc.squaredNorm();
   const double r2 = g.radius() * g.radius() * 1.001 + 1e-6;
   const auto& rays = samples.rays();
+  candidates_.clear();
   for (const SampleSet::Block& b : samples.blocks()) {
     const float c = std::clamp(b.dir.dot(dir_obj), -1.0f, 1.0f);
     if (std::acos(c) > b.angle + ang_obj) continue;
     for (std::uint32_t k = b.begin; k < b.end; ++k) {
       const SampleSet::Ray& ray = rays[k];
-      const double range = ray.range;
-      if (range <= 1e-9) continue;
+      if (ray.range <= 1e-9) continue;
       const double along = oc.dot(ray.dir);
-      if (oc2 - along * along > r2) continue;
-      const Vec3 d = Rt * ray.dir;  // model frame; the point lies at origin_m + range d
-      double s = 0.0;
-      const int face = g.convex() ? g.cast_convex(origin_m, d, s, heights_) : g.cast(origin_m, d, s, front_);
-      if (face < 0) continue;
-      ++r.hits;
-      if (range > s + tol) {
-        ++r.violations;
-      } else if (range < s - tol) {
-        ++r.occluded;
-        occluded_cells_.push_back(samples.cells()[k]);
-      } else {
-        ++r.inliers;
-        inlier_cells_.push_back(samples.cells()[k]);
-        inlier_sample_.push_back(k);
-        inlier_face_.push_back(face);
-      }
+      if (oc2 - along * along <= r2) candidates_.push_back(k);
+    }
+  }
+  // With a floor, every kCheckEvery samples: the confidence if every sample left were an inlier must still
+  // beat it.
+  constexpr std::size_t kCheckEvery = 16;
+  const double w = params_.occluded_weight;
+  const std::size_t n = candidates_.size();
+  for (std::size_t i = 0; i < n; ++i) {
+    if (floor >= 0.0 && i % kCheckEvery == 0 && i > 0) {
+      const double most = static_cast<double>(r.inliers) + static_cast<double>(n - i);
+      if (most < (floor - 1e-12) * (most + r.violations + w * r.occluded)) return VerifyResult{};
+    }
+    const std::uint32_t k = candidates_[i];
+    const double range = rays[k].range;
+    const Vec3 d = Rt * rays[k].dir;  // model frame; the point lies at origin_m + range d
+    double s = 0.0;
+    const int face = g.convex() ? g.cast_convex(origin_m, d, s, clip_) : g.cast(origin_m, d, s, front_);
+    if (face < 0) continue;
+    ++r.hits;
+    if (range > s + tol) {
+      ++r.violations;
+    } else if (range < s - tol) {
+      ++r.occluded;
+      occluded_cells_.push_back(samples.cells()[k]);
+    } else {
+      ++r.inliers;
+      inlier_cells_.push_back(samples.cells()[k]);
+      inlier_sample_.push_back(k);
+      inlier_face_.push_back(face);
     }
   }
   const double denom = static_cast<double>(r.inliers + r.violations) +
@@ -350,6 +354,13 @@ VerifyResult Verifier::evaluate(const SampleSet& samples, const ModelGeometry& g
   if (r.inliers < params_.min_inliers)
     r.confidence *= static_cast<double>(r.inliers) / static_cast<double>(std::max(1, params_.min_inliers));
   r.coverage = r.hits > 0 ? static_cast<double>(r.inliers) / r.hits : 0.0;
+  return r;
+}
+
+VerifyResult Verifier::check_above(const SampleSet& samples, const ModelGeometry& g, const Mat3& R,
+                                   const Vec3& t, double floor) {
+  VerifyResult r = evaluate(samples, g, R, t, std::max(0.0, floor));
+  if (r.confidence <= floor) r.confidence = 0.0;
   return r;
 }
 

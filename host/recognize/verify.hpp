@@ -59,12 +59,10 @@ class ModelGeometry {
   void front_faces(const Vec3& origin, std::vector<std::uint32_t>& out) const;
   // Convex models (closed: convex() is false for an open one): the same hit as cast() without a polygon test,
   // by clipping the ray against every face's half-space (the ray enters through the face of the latest entry,
-  // and hits when no face lets it out before; convex_clip.hpp, four faces at a time). heights:
-  // heights(origin) (each face's n . origin - offset, positive outside its plane, padded to the clip's
-  // lanes).
-  int cast_convex(const Vec3& origin, const Vec3& dir, double& distance,
-                  std::span<const double> heights) const;
-  void heights(const Vec3& origin, std::vector<double>& out) const;
+  // and hits when no face lets it out before; convex_clip.hpp, four faces at a time). faces:
+  // clip_faces(origin).
+  int cast_convex(const Vec3& origin, const Vec3& dir, double& distance, const ClipFaces& faces) const;
+  void clip_faces(const Vec3& origin, ClipFaces& out) const;
   const Model& model() const { return *model_; }
   double radius() const { return radius_; }
   const Vec3& center() const { return center_; }
@@ -111,7 +109,6 @@ class ModelGeometry {
   const Model* model_;
   std::vector<Face> faces_;
   std::vector<std::uint32_t> all_faces_;  // 0 .. faces - 1
-  std::vector<double> nx_, ny_, nz_;      // the unit normals as columns, padded (convex_clip.hpp)
   Vec3 center_;
   double radius_;
   bool convex_ = false;
@@ -194,11 +191,12 @@ class Verifier {
   // then never allocates).
   void reserve(std::size_t samples, std::size_t faces) {
     front_.reserve(faces);
-    heights_.reserve(faces + kClipLanes);  // padded (convex_clip.hpp)
+    clip_.reserve(faces);
     inlier_cells_.reserve(samples);
     occluded_cells_.reserve(samples);
     inlier_sample_.reserve(samples);
     inlier_face_.reserve(samples);
+    candidates_.reserve(samples);
   }
   // Verifies (and, with refine, refines R and t in place). Reuses internal buffers (no allocation once warm).
   VerifyResult verify(const SampleSet& samples, const ModelGeometry& geometry, Mat3& R, Vec3& t, bool refine);
@@ -209,6 +207,12 @@ class Verifier {
   // The search runs on `search` (the coarse samples: cheaper), the result is verify()'s on `samples`.
   VerifyResult verify_sliding(const SampleSet& samples, const SampleSet& search,
                               const ModelGeometry& geometry, Mat3& R, Vec3& t, const Vec3& free_dir);
+  // evaluate()'s result for the pose as it is (no refinement) when its confidence exceeds `floor`; otherwise
+  // a result whose confidence is 0, possibly after only part of the samples (it stops once the samples left
+  // could not lift the confidence above `floor`, each of them an inlier at best). The cell lists below are
+  // then partial.
+  VerifyResult check_above(const SampleSet& samples, const ModelGeometry& geometry, const Mat3& R,
+                           const Vec3& t, double floor);
   // Cell indices of the inliers of the last verify() call (for colouring the cloud by object).
   const std::vector<std::uint32_t>& inlier_cells() const { return inlier_cells_; }
   // Cell indices of the measured points in front of the predicted surface (occluded) in the last evaluation.
@@ -216,13 +220,16 @@ class Verifier {
   const VerifyParams& params() const { return params_; }
 
  private:
-  VerifyResult evaluate(const SampleSet& samples, const ModelGeometry& g, const Mat3& R, const Vec3& t);
+  // floor >= 0: check_above()'s early stop.
+  VerifyResult evaluate(const SampleSet& samples, const ModelGeometry& g, const Mat3& R, const Vec3& t,
+                        double floor = -1.0);
   VerifyParams params_;
+  std::vector<std::uint32_t> candidates_;  // samples whose rays pass the posed model's bounding sphere
   std::vector<std::uint32_t> inlier_cells_, occluded_cells_;
   std::vector<std::uint32_t> inlier_sample_;
   std::vector<std::int32_t> inlier_face_;
   std::vector<std::uint32_t> front_;  // front_faces() of the current pose's viewpoint
-  std::vector<double> heights_;       // ... or its heights() (convex models)
+  ClipFaces clip_;                    // ... or its clip_faces() (convex models)
 };
 
 }  // namespace fs::host::rec

@@ -354,7 +354,7 @@ SupportParams Recognizer::Impl::support_params(const Hypothesis& h, double fit) 
 
 void Recognizer::Impl::support_test(const Model& model, Hypothesis& h) const {
   if (!have_table) return;
-  h.verify.support = support_factor(model, h.R, h.t, table, fine.points(),
+  h.verify.support = support_factor(model, h.R, h.t, table, MeasuredPoints(fine),
                                     support_params(h, h.verify.confidence), &h.verify.lowest_mm);
   h.verify.confidence *= h.verify.support;
 }

@@ -3,7 +3,9 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <array>
+#include <random>
 #include <span>
 #include <vector>
 
@@ -331,6 +333,49 @@ TEST(Support, SparseSamplesStillProbeTheColumn) {
           << step_mm << " mm grid, " << lift << " mm up";
     }
   }
+}
+
+// The support test on a SampleSet visits only the blocks whose ray cones reach the place it asks about: the
+// same answers as over every point, for cubes at random places, heights and turns over a scene of a stack, a
+// lone cube and the table (both answers, and both ways of being held up, among them).
+TEST(Support, SampleBlocksGiveTheAnswersOfEveryPoint) {
+  const fs::Plane table{Vec3::UnitZ(), 0.0};
+  const Vec3 viewpoint(0, -300, 400);
+  const auto m = cube_model();
+  const fs::host::rec::ModelGeometry g(m);
+  const std::array<PosedCube, 3> scene{
+      PosedCube{Mat3::Identity(), Vec3(0, 10, -30)}, PosedCube{Mat3::Identity(), Vec3(0, 0, 20)},
+      PosedCube{Mat3(Eigen::AngleAxisd(0.4, Vec3::UnitZ())), Vec3(-70, 40, 0)}};
+  const auto pts = render_cubes(g, scene, viewpoint);
+  fs::host::OrganizedCloud cloud;
+  cloud.reset(301, 301);  // render_cubes' grid: x by rows, y by columns
+  std::copy(pts.begin(), pts.end(), cloud.points.begin());
+  cloud.viewpoint = viewpoint;
+  fs::host::rec::SampleSet samples;
+  samples.build(cloud, fs::host::rec::SampleSteps{2, 2});
+  const fs::host::rec::MeasuredPoints blocks(samples);
+  const std::span<const Eigen::Vector3f> every(samples.points());
+  fs::host::rec::SupportParams p{.tol_mm = 3.0, .radius_mm = 6.0, .unsupported = 0.5};
+  p.viewpoint = viewpoint;
+  p.look_below = true;
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> x(-110, 110), y(-110, 110), z(4, 90), yaw(0, M_PI);
+  int held = 0, not_held = 0, hidden_below = 0;
+  for (int k = 0; k < 400; ++k) {
+    const Mat3 R(Eigen::AngleAxisd(yaw(rng), Vec3::UnitZ()));
+    const Vec3 t(x(rng), y(rng), z(rng));
+    const double a = fs::host::rec::support_factor(m, R, t, table, blocks, p);
+    ASSERT_EQ(a, fs::host::rec::support_factor(m, R, t, table, every, p)) << k;
+    (a == 1.0 ? held : not_held) += 1;
+    const auto b = fs::host::rec::look_below(t, table, viewpoint, blocks, 3.0);
+    const auto e = fs::host::rec::look_below(t, table, viewpoint, every, 3.0);
+    ASSERT_EQ(b.hidden, e.hidden) << k;
+    ASSERT_EQ(b.seen_through, e.seen_through) << k;
+    hidden_below += e.hidden > 0 ? 1 : 0;
+  }
+  EXPECT_GT(held, 20);
+  EXPECT_GT(not_held, 100);
+  EXPECT_GT(hidden_below, 20);
 }
 
 }  // namespace

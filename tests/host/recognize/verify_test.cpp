@@ -71,7 +71,7 @@ TEST(ModelGeometry, ConvexClipGivesThePolygonTestsHitOnEveryPolyhedron) {
   const auto& lib = fs::test::polyhedra_catalog().library;
   std::mt19937_64 rng(7);
   std::normal_distribution<double> normal(0.0, 1.0);
-  std::vector<double> heights;
+  fs::host::rec::ClipFaces clip;
   int hits = 0, misses = 0, compared = 0, other_face = 0;
   for (const fs::host::Model& model : lib.models) {
     const fs::host::rec::ModelGeometry g(model);
@@ -82,10 +82,10 @@ TEST(ModelGeometry, ConvexClipGivesThePolygonTestsHitOnEveryPolyhedron) {
       const Vec3 aim =
           model.center + 1.2 * model.bounding_radius * Vec3(normal(rng), normal(rng), normal(rng)) / 2.0;
       const Vec3 dir = (aim - origin).normalized();
-      g.heights(origin, heights);
+      g.clip_faces(origin, clip);
       double s_poly = 0.0, s_clip = 0.0;
       const int f_poly = g.cast(origin, dir, s_poly);
-      const int f_clip = g.cast_convex(origin, dir, s_clip, heights);
+      const int f_clip = g.cast_convex(origin, dir, s_clip, clip);
       ++compared;
       if (f_poly < 0 && f_clip < 0) {
         ++misses;
@@ -105,9 +105,9 @@ TEST(ModelGeometry, ConvexClipGivesThePolygonTestsHitOnEveryPolyhedron) {
   EXPECT_GT(misses, compared / 10);
   // From inside the model nothing is hit (the verifier's sensor never is inside: evaluate() returns first).
   const fs::host::rec::ModelGeometry g(lib.models.front());
-  g.heights(lib.models.front().center, heights);
+  g.clip_faces(lib.models.front().center, clip);
   double s = 0.0;
-  EXPECT_EQ(g.cast_convex(lib.models.front().center, Vec3(0, 0, 1), s, heights), -1);
+  EXPECT_EQ(g.cast_convex(lib.models.front().center, Vec3(0, 0, 1), s, clip), -1);
 }
 
 // The clip four faces at a time (convex_clip.hpp) returns bit for bit what the face-by-face loop did: the
@@ -116,8 +116,11 @@ TEST(ModelGeometry, ConvexClipGivesThePolygonTestsHitOnEveryPolyhedron) {
 // several faces), and face counts that are not a multiple of the lanes.
 namespace {
 
-int clip_face_by_face(const fs::host::rec::ConvexFaces& f, std::size_t faces, const Vec3& dir,
-                      double& distance) {
+struct FaceColumns {
+  const double *nx, *ny, *nz, *h;  // unit normals, heights n . origin - offset
+};
+
+int clip_face_by_face(const FaceColumns& f, std::size_t faces, const Vec3& dir, double& distance) {
   distance = std::numeric_limits<double>::infinity();
   int best = -1;
   double enter = 0.0, leave = std::numeric_limits<double>::infinity();
@@ -148,11 +151,10 @@ TEST(ConvexClip, FourFacesAtATimeEqualTheFaceByFaceLoopBitForBit) {
   std::uniform_int_distribution<int> pick(0, 5);
   int compared = 0, hits = 0, grazing = 0, vertex = 0;
   std::vector<double> nx, ny, nz, h;
+  fs::host::rec::ClipFaces clip;
   for (const fs::host::Model& model : lib.models) {
     const std::size_t n = model.faces.size();
-    const std::size_t padded =
-        (n + fs::host::rec::kClipLanes - 1) / fs::host::rec::kClipLanes * fs::host::rec::kClipLanes;
-    nx.assign(padded, 0.0), ny.assign(padded, 0.0), nz.assign(padded, 0.0), h.assign(padded, -1.0);
+    nx.assign(n, 0.0), ny.assign(n, 0.0), nz.assign(n, 0.0), h.assign(n, 0.0);
     for (std::size_t i = 0; i < n; ++i) {
       const Vec3 nn = model.faces[i].normal.normalized();
       nx[i] = nn.x(), ny[i] = nn.y(), nz[i] = nn.z();
@@ -174,10 +176,13 @@ TEST(ConvexClip, FourFacesAtATimeEqualTheFaceByFaceLoopBitForBit) {
       vertex += kind == 3 ? 1 : 0;
       for (std::size_t i = 0; i < n; ++i)
         h[i] = model.faces[i].normal.normalized().dot(origin) - model.faces[i].offset;
-      const fs::host::rec::ConvexFaces f{nx.data(), ny.data(), nz.data(), h.data(), padded};
+      const FaceColumns f{nx.data(), ny.data(), nz.data(), h.data()};
+      clip.clear();
+      for (std::size_t i = 0; i < n; ++i) clip.add(nx[i], ny[i], nz[i], h[i], static_cast<int>(i));
+      clip.pad();
       double s_ref = 0.0, s_clip = 0.0;
       const int f_ref = clip_face_by_face(f, n, dir, s_ref);
-      const int f_clip = fs::host::rec::clip_convex_portable(f, dir.x(), dir.y(), dir.z(), s_clip);
+      const int f_clip = fs::host::rec::clip_convex_portable(clip, dir.x(), dir.y(), dir.z(), s_clip);
       ASSERT_EQ(f_clip, f_ref) << model.name << " ray " << k << " kind " << kind;
       if (f_ref >= 0) {
         ASSERT_EQ(s_clip, s_ref) << model.name << " ray " << k;  // bit for bit
@@ -186,7 +191,7 @@ TEST(ConvexClip, FourFacesAtATimeEqualTheFaceByFaceLoopBitForBit) {
 #if defined(__x86_64__)
       if (fs::host::rec::clip_convex_has_avx2()) {
         double s_avx = 0.0;
-        ASSERT_EQ(fs::host::rec::clip_convex_avx2(f, dir.x(), dir.y(), dir.z(), s_avx), f_ref)
+        ASSERT_EQ(fs::host::rec::clip_convex_avx2(clip, dir.x(), dir.y(), dir.z(), s_avx), f_ref)
             << model.name << " ray " << k << " kind " << kind;
         if (f_ref >= 0) {
           ASSERT_EQ(s_avx, s_ref) << model.name << " ray " << k;
@@ -202,36 +207,40 @@ TEST(ConvexClip, FourFacesAtATimeEqualTheFaceByFaceLoopBitForBit) {
   EXPECT_GT(vertex, compared / 10);
 }
 
-// The rules on their own, on the box [-10, 10]^3 with its faces in lanes chosen for them (lane = index % 4):
-// exactly equal entries in two lanes with the lower face in the later lane, and in one lane; a ray parallel
-// to a face plane on the plane (not outside it: no miss) and just outside it (a miss).
+// The rules on their own, on the box [-10, 10]^3: exactly equal entries through two front faces; a ray
+// parallel to a face plane on the plane (not outside it: no miss) and just outside it (a miss); a ray whose
+// exit through a back face equals its entry (through the edge of a front and a back face, where the clip
+// divides to decide), each as the face-by-face loop decides it.
 TEST(ConvexClip, EqualEntriesGiveTheFirstFaceAndARayOnAFacePlaneIsNoMiss) {
-  // Faces: 0 +z, 1 -z, 2 -x, 3 +x, 4 +y, 5 -y, then padding (normal 0, height -1).
-  const double nx[8] = {0, 0, -1, 1, 0, 0, 0, 0}, ny[8] = {0, 0, 0, 0, 1, -1, 0, 0},
-               nz[8] = {1, -1, 0, 0, 0, 0, 0, 0};
-  double h[8];
+  // Faces: 0 +z, 1 -z, 2 -x, 3 +x, 4 +y, 5 -y.
+  const double nx[6] = {0, 0, -1, 1, 0, 0}, ny[6] = {0, 0, 0, 0, 1, -1}, nz[6] = {1, -1, 0, 0, 0, 0};
+  double h[6];
+  fs::host::rec::ClipFaces clip;
   const auto run = [&](const Vec3& origin, const Vec3& dir, double& s) {
-    for (int i = 0; i < 6; ++i) h[i] = Vec3(nx[i], ny[i], nz[i]).dot(origin) - 10.0;
-    h[6] = h[7] = -1.0;
-    const fs::host::rec::ConvexFaces f{nx, ny, nz, h, 8};
+    clip.clear();
+    for (int i = 0; i < 6; ++i) {
+      h[i] = Vec3(nx[i], ny[i], nz[i]).dot(origin) - 10.0;
+      clip.add(nx[i], ny[i], nz[i], h[i], i);
+    }
+    clip.pad();
     double s_ref = 0.0;
-    const int f_ref = clip_face_by_face(f, 8, dir, s_ref);
-    const int f_clip = fs::host::rec::clip_convex_portable(f, dir.x(), dir.y(), dir.z(), s);
+    const int f_ref = clip_face_by_face(FaceColumns{nx, ny, nz, h}, 6, dir, s_ref);
+    const int f_clip = fs::host::rec::clip_convex_portable(clip, dir.x(), dir.y(), dir.z(), s);
     EXPECT_EQ(f_clip, f_ref);
 #if defined(__x86_64__)
     if (fs::host::rec::clip_convex_has_avx2()) {
       double s_avx = 0.0;
-      EXPECT_EQ(fs::host::rec::clip_convex_avx2(f, dir.x(), dir.y(), dir.z(), s_avx), f_clip);
+      EXPECT_EQ(fs::host::rec::clip_convex_avx2(clip, dir.x(), dir.y(), dir.z(), s_avx), f_clip);
       EXPECT_EQ(s_avx, s);
     }
 #endif
     return f_clip;
   };
   double s = 0.0;
-  // Through the edge of +x (face 3, lane 3) and +y (face 4, lane 0): both enter at 10 sqrt(2).
+  // Through the edge of +x (face 3) and +y (face 4): both enter at 10 sqrt(2).
   EXPECT_EQ(run(Vec3(20, 20, 0), Vec3(-1, -1, 0).normalized(), s), 3);
   EXPECT_NEAR(s, 10.0 * std::sqrt(2.0), 1e-12);
-  // Through the edge of +z (face 0, lane 0) and +y (face 4, lane 0).
+  // Through the edge of +z (face 0) and +y (face 4).
   EXPECT_EQ(run(Vec3(0, 20, 20), Vec3(0, -1, -1).normalized(), s), 0);
   // Along the plane of +x from a point on it: grazing inside the half-space closure, so it enters +y at 10.
   EXPECT_EQ(run(Vec3(10, 20, 0), Vec3(0, -1, 0), s), 4);
@@ -241,6 +250,17 @@ TEST(ConvexClip, EqualEntriesGiveTheFirstFaceAndARayOnAFacePlaneIsNoMiss) {
   // Leaving through -y before entering +x: a miss; from inside: a miss.
   EXPECT_EQ(run(Vec3(30, -5, 0), Vec3(-1, -2, 0).normalized(), s), -1);
   EXPECT_EQ(run(Vec3(0, 0, 0), Vec3(1, 0, 0), s), -1);
+  // Into +x (a front face) exactly at its edge with +z (a back face: the origin is below its plane), and the
+  // same ray a hair lower (a hit) and higher (it leaves through +z before it enters: a miss).
+  for (const double dz : {0.0, 1e-9, 5e-13, -5e-13, -1e-9}) {
+    const Vec3 origin(20, 0, 5);
+    const int f = run(origin, (Vec3(10, 0, 10 - dz) - origin).normalized(), s);
+    if (dz > 1e-10) {
+      EXPECT_EQ(f, 3) << dz;
+    } else if (dz < -1e-10) {
+      EXPECT_EQ(f, -1) << dz;
+    }
+  }
 }
 
 // An open model (a face missing, BuildOptions::allow_open) is no convex solid: verification must not close it
@@ -264,10 +284,10 @@ TEST(ModelGeometry, AnOpenBoxIsNotClippedAsASolid) {
   const int face = g.cast(origin, dir, s);
   ASSERT_EQ(face, -1);  // inner faces look away from the ray: nothing is hit in front
   // What the clip would say if the box counted as a solid: a hit in the air above it.
-  std::vector<double> heights;
-  g.heights(origin, heights);
+  fs::host::rec::ClipFaces clip;
+  g.clip_faces(origin, clip);
   double s_clip = 0.0;
-  const int f_clip = g.cast_convex(origin, dir, s_clip, heights);
+  const int f_clip = g.cast_convex(origin, dir, s_clip, clip);
   ASSERT_GE(f_clip, 0);
   EXPECT_GT((origin + s_clip * dir).z(), 50.0);
 }
@@ -349,31 +369,68 @@ TEST(SampleSet, StepsFollowTheGridSpacingInMillimetres) {
   EXPECT_EQ(sample_steps(fs::host::rec::grid_spacing_mm(cloud), 2, 1.5).col, 2u);
 }
 
+// A cube and the table around it, scanned: rays from a sensor in front and above through a grid on the table
+// (z = 0), onto the cube (resting on z = 0, centred on x = y = 0: the model frame) or the table; samples
+// every second cell, about 1.5 mm apart.
+class CubeScan : public ::testing::Test {
+ protected:
+  CubeScan() {
+    const Vec3 sensor(0, -250, 250);
+    fs::host::OrganizedCloud cloud;
+    cloud.reset(160, 160);
+    for (std::uint32_t r = 0; r < cloud.height; ++r)
+      for (std::uint32_t c = 0; c < cloud.width; ++c) {
+        const Vec3 on_table(-60.0 + 0.75 * c, -80.0 + 1.0 * r, 0.0);
+        const Vec3 dir = (on_table - sensor).normalized();
+        double s = 0.0;
+        const Vec3 p = g.cast(sensor, dir, s) >= 0 ? Vec3(sensor + s * dir) : on_table;
+        cloud.at(r, c) = p.cast<float>();
+      }
+    cloud.viewpoint = sensor;
+    samples.build(cloud, fs::host::rec::sample_steps(fs::host::rec::grid_spacing_mm(cloud), 2, 1.5));
+    v.reserve(samples.points().size(), cube.faces.size());
+  }
+  const fs::host::Model cube =
+      fs::host::build_model(fs::read_mesh(fs::test::source_dir() / "hw-sim/scenes/meshes/cube.off"));
+  const fs::host::rec::ModelGeometry g{cube};
+  fs::host::rec::SampleSet samples;
+  fs::host::rec::Verifier v;
+};
+
+// check_above (reseat's placements): the same result as verify() without refinement when the fit beats the
+// floor; 0 when it does not, and then it stops before the last sample once the samples left cannot lift it
+// (it casts fewer rays: fewer hits than the whole check).
+TEST_F(CubeScan, CheckAboveGivesTheFitAboveTheFloorAndStopsEarlyBelow) {
+  // Raised 12 mm and turned 20 degrees: most rays that meet it end on the table or the cube behind it.
+  const fs::Mat3 turned = Eigen::AngleAxisd(20.0 * M_PI / 180.0, Vec3::UnitZ()).toRotationMatrix();
+  const std::pair<fs::Mat3, Vec3> poses[] = {{fs::Mat3::Identity(), Vec3::Zero()}, {turned, Vec3(0, 0, 12)}};
+  int stopped = 0;
+  for (const auto& [R0, t0] : poses) {
+    fs::Mat3 R = R0;
+    Vec3 t = t0;
+    const auto whole = v.verify(samples, g, R, t, false);
+    ASSERT_GT(whole.hits, 200);
+    const auto above = v.check_above(samples, g, R0, t0, whole.confidence - 0.01);
+    EXPECT_EQ(above.confidence, whole.confidence);
+    EXPECT_EQ(above.inliers, whole.inliers);
+    EXPECT_EQ(above.violations, whole.violations);
+    EXPECT_EQ(above.occluded, whole.occluded);
+    const auto below = v.check_above(samples, g, R0, t0, whole.confidence);  // not above: equal
+    EXPECT_EQ(below.confidence, 0.0);
+    if (whole.confidence < 0.5) {
+      const auto early = v.check_above(samples, g, R0, t0, 0.9);
+      EXPECT_EQ(early.confidence, 0.0);
+      EXPECT_LT(early.hits, whole.hits / 2) << "stopped early";
+      ++stopped;
+    }
+  }
+  EXPECT_EQ(stopped, 1);  // the true pose fits, the other does not
+}
+
 // A cube seen from the front and above shows two faces: their planes fix y and z of the translation, not x.
 // The matcher fills x from the face centroids, which are off when a face is seen only in part; ICP cannot fix
 // it either (point-to-plane terms along x are zero). verify_sliding searches along that direction.
-TEST(Verifier, SlidingFindsTheTranslationThePlanesLeaveOpen) {
-  const fs::host::Model cube =
-      fs::host::build_model(fs::read_mesh(fs::test::source_dir() / "hw-sim/scenes/meshes/cube.off"));
-  const fs::host::rec::ModelGeometry g(cube);
-  // The scan: rays from the sensor through a grid on the table (z = 0), onto the cube (resting on z = 0,
-  // centred on x = y = 0, the model frame) or the table.
-  const Vec3 sensor(0, -250, 250);
-  fs::host::OrganizedCloud cloud;
-  cloud.reset(160, 160);
-  for (std::uint32_t r = 0; r < cloud.height; ++r)
-    for (std::uint32_t c = 0; c < cloud.width; ++c) {
-      const Vec3 on_table(-60.0 + 0.75 * c, -80.0 + 1.0 * r, 0.0);
-      const Vec3 dir = (on_table - sensor).normalized();
-      double s = 0.0;
-      const Vec3 p = g.cast(sensor, dir, s) >= 0 ? Vec3(sensor + s * dir) : on_table;
-      cloud.at(r, c) = p.cast<float>();
-    }
-  cloud.viewpoint = sensor;
-  fs::host::rec::SampleSet samples;
-  samples.build(cloud, fs::host::rec::sample_steps(fs::host::rec::grid_spacing_mm(cloud), 2, 1.5));
-  fs::host::rec::Verifier v;
-  v.reserve(samples.points().size(), cube.faces.size());
+TEST_F(CubeScan, SlidingFindsTheTranslationThePlanesLeaveOpen) {
   const fs::Mat3 I = fs::Mat3::Identity();
   const Vec3 off(4.0, 0.0, 0.0);  // the pose 4 mm off along x
   fs::Mat3 R = I;
