@@ -54,7 +54,7 @@ struct RecognizeParams {
   // whose normals' angle and face areas pass the rigidity and one-sided area conditions against one of the
   // part's arcs). Exact: the results are those of matching every reference. false = match every reference.
   bool arc_index = true;
-  std::int64_t max_states = 20000;  // state budget of one match
+  std::int64_t max_states = 10000;  // state budget of one match
   // Start each search only from one face per orbit of the reference's rotation symmetries
   // (face_orbit_representatives): a search started from another face of the orbit finds the same posed
   // solutions, and in a scene with two objects the model fits (a truncated dodecahedron beside an augmented

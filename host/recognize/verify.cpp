@@ -58,6 +58,15 @@ ModelGeometry::ModelGeometry(const Model& model)
     for (const ModelFace& mf : model.faces)
       for (const auto& loop : mf.loops)
         for (const Vec3& p : loop) convex_ = convex_ && f.n.dot(p) <= f.offset + 1e-6 * (1.0 + radius_);
+  if (convex_) {
+    for (const ModelFace& mf : model.faces)
+      for (const auto& loop : mf.loops) vertices_.insert(vertices_.end(), loop.begin(), loop.end());
+    auto before = [](const Vec3& a, const Vec3& b) {
+      return std::lexicographical_compare(a.data(), a.data() + 3, b.data(), b.data() + 3);
+    };
+    std::sort(vertices_.begin(), vertices_.end(), before);
+    vertices_.erase(std::unique(vertices_.begin(), vertices_.end()), vertices_.end());
+  }
   sample_surface();
   sample_volume();
 }
@@ -90,6 +99,24 @@ double ModelGeometry::depth_inside(const Vec3& p) const {
   return depth;
 }
 
+bool ModelGeometry::separated_from(const ModelGeometry& other, const Mat3& R, const Vec3& t,
+                                   double margin) const {
+  if (!convex_ || !other.convex_ || other.vertices_.empty()) return false;
+  for (const Face& f : faces_) {
+    // The plane in the other model's frame: n . (R x + t) = offset  <=>  (R^T n) . x = offset - n . t.
+    const Vec3 n = R.transpose() * f.n;
+    const double level = f.offset - f.n.dot(t) + margin;
+    bool all_out = true;
+    for (const Vec3& v : other.vertices_)
+      if (!(n.dot(v) > level)) {
+        all_out = false;
+        break;
+      }
+    if (all_out) return true;
+  }
+  return false;
+}
+
 Interpenetration interpenetration(const ModelGeometry& a, const Mat3& Ra, const Vec3& ta,
                                   const ModelGeometry& b, const Mat3& Rb, const Vec3& tb) {
   Interpenetration r;
@@ -101,6 +128,11 @@ Interpenetration interpenetration(const ModelGeometry& a, const Mat3& Ra, const 
   };
   const auto [Rab, tab] = to_frame(Ra, ta, Rb, tb);
   const auto [Rba, tba] = to_frame(Rb, tb, Ra, ta);
+  // A face plane of one with every vertex of the other beyond it: no sample of either lies inside the
+  // other, and both results stay 0. The margin is far above how far a mesh's samples may lie outside its
+  // own face planes (the convexity tolerance, 1e-6 of the radius), so the samples below would find nothing.
+  constexpr double kApartMm = 0.01;
+  if (b.separated_from(a, Rab, tab, kApartMm) || a.separated_from(b, Rba, tba, kApartMm)) return r;
   for (const Vec3& s : a.surface_samples()) r.depth_mm = std::max(r.depth_mm, b.depth_inside(Rab * s + tab));
   for (const Vec3& s : b.surface_samples()) r.depth_mm = std::max(r.depth_mm, a.depth_inside(Rba * s + tba));
   // The smaller solid's volume samples inside the other.

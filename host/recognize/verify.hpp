@@ -87,6 +87,10 @@ class ModelGeometry {
   double depth_inside(const Vec3& p) const;
   // Points filling a convex model's volume on a grid (model frame), empty for a non-convex model.
   const std::vector<Vec3>& volume_samples() const { return volume_; }
+  // Convex models: whether one of this model's face planes has every vertex of `other` (x = R x_other + t in
+  // this model's frame) more than `margin` mm on its outer side: a plane that separates the two solids.
+  // False for a non-convex model or one without vertices.
+  bool separated_from(const ModelGeometry& other, const Mat3& R, const Vec3& t, double margin) const;
 
  private:
   struct Face {
@@ -106,6 +110,7 @@ class ModelGeometry {
   void sample_surface();
   void sample_volume();
   std::vector<Vec3> surface_, volume_;
+  std::vector<Vec3> vertices_;  // distinct face-loop vertices (convex models)
   const Model* model_;
   std::vector<Face> faces_;
   std::vector<std::uint32_t> all_faces_;  // 0 .. faces - 1

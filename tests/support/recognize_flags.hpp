@@ -20,6 +20,8 @@ inline void add_recognize_flags(CLI::App& app, fs::host::rec::RecognizeParams& p
          "RecognizeParams::max_hypotheses: search solutions kept per round, all references (default: 4 "
          "per reference, 8192 to 65536)")
       ->check(at_least(1));
+  app.add_option("--max-states", p.max_states, "RecognizeParams::max_states: the state budget of one search")
+      ->check(at_least(1));
   app.add_flag(
       "--no-arc-index", [&p](std::int64_t) { p.arc_index = false; },
       "match every reference (RecognizeParams::arc_index off)");

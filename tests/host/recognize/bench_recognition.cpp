@@ -135,7 +135,6 @@ Args parse_args(CLI::App& app, int argc, char** argv) {
   app.add_option("--preset", preset, "matching preset (match::preset)");
   app.add_option("--min-level", p.min_level, "TH_minlevel")->check(positive);
   fs::test::add_recognize_flags(app, p);  // pool, matching scope, verification budget, rounds
-  app.add_option("--max-states", p.max_states, "state budget of one match")->check(positive);
   app.add_option("--area-ratio", p.match_area_ratio, "match_area_ratio (0 = off)")->check(non_negative);
   app.add_option("--area-cost", p.area_cost,
                  "weight of the area dissimilarity in the search cost (< 0 = the preset's)");

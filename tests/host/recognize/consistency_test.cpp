@@ -6,6 +6,8 @@
 #include <fstream>
 #include <initializer_list>
 #include <limits>
+#include <numbers>
+#include <random>
 #include <set>
 #include <string>
 #include <utility>
@@ -67,6 +69,94 @@ TEST(Interpenetration, TouchingCubesDoNotOverlapNestedOnesDo) {
   const auto far = interpenetration(g, I, Vec3::Zero(), g, I, Vec3(10 * side, 0, 0));
   EXPECT_EQ(far.volume_share, 0.0);
   EXPECT_EQ(far.depth_mm, 0.0);
+}
+
+TEST(Interpenetration, AFacePlaneSeparatesOnlyAcrossAGap) {
+  const auto& cube = model_named(shipped_library(), "cube");
+  const ModelGeometry g(cube);
+  const double side = std::cbrt(cube.volume);
+  const Mat3 I = Mat3::Identity();
+  // The other cube's vertices in this one's frame: x = I x_other + t.
+  EXPECT_TRUE(g.separated_from(g, I, Vec3(side + 0.5, 0, 0), 0.01));
+  EXPECT_FALSE(g.separated_from(g, I, Vec3(side + 0.005, 0, 0), 0.01));  // within the margin
+  EXPECT_FALSE(g.separated_from(g, I, Vec3(side, 0, 0), 0.01));          // touching
+  EXPECT_FALSE(g.separated_from(g, I, Vec3(0.75 * side, 0, 0), 0.01));
+  // Turned 45 degrees about z and moved along the diagonal: only the corner edge points at this cube, and it
+  // stays 1 mm clear of this cube's x face.
+  const Mat3 Rz = Eigen::AngleAxisd(0.25 * std::numbers::pi, Vec3::UnitZ()).toRotationMatrix();
+  const double reach = side / std::sqrt(2.0);
+  EXPECT_TRUE(g.separated_from(g, Rz, Vec3(0.5 * side + reach + 1.0, 0, 0), 0.01));
+  EXPECT_FALSE(g.separated_from(g, Rz, Vec3(0.5 * side + reach - 1.0, 0, 0), 0.01));
+}
+
+// The separating plane only skips the samples: over pairs of the shipped solids in random poses, apart,
+// touching and overlapping, interpenetration() gives what sampling both solids against each other gives.
+TEST(Interpenetration, TheSeparatingPlaneChangesNoResult) {
+  const auto& lib = shipped_library();
+  std::vector<ModelGeometry> geometry;
+  for (const auto& m : lib.models) geometry.emplace_back(m);
+  auto sampled = [](const ModelGeometry& a, const Mat3& Ra, const Vec3& ta, const ModelGeometry& b,
+                    const Mat3& Rb, const Vec3& tb) {
+    fs::host::rec::Interpenetration r;
+    const Mat3 Rab = Rb.transpose() * Ra, Rba = Ra.transpose() * Rb;
+    const Vec3 tab = Rb.transpose() * (ta - tb), tba = Ra.transpose() * (tb - ta);
+    for (const Vec3& s : a.surface_samples())
+      r.depth_mm = std::max(r.depth_mm, b.depth_inside(Rab * s + tab));
+    for (const Vec3& s : b.surface_samples())
+      r.depth_mm = std::max(r.depth_mm, a.depth_inside(Rba * s + tba));
+    const bool a_small = a.model().volume <= b.model().volume;
+    const ModelGeometry& small = a_small ? a : b;
+    const ModelGeometry& large = a_small ? b : a;
+    std::size_t in = 0;
+    for (const Vec3& s : small.volume_samples())
+      in += large.depth_inside((a_small ? Rab : Rba) * s + (a_small ? tab : tba)) > 0.0 ? 1 : 0;
+    if (!small.volume_samples().empty())
+      r.volume_share = static_cast<double>(in) / static_cast<double>(small.volume_samples().size());
+    return r;
+  };
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  auto rotation = [&] {
+    return Mat3(
+        Eigen::Quaterniond(
+            Eigen::Vector4d(unit(rng) - 0.5, unit(rng) - 0.5, unit(rng) - 0.5, unit(rng) - 0.5).normalized())
+            .toRotationMatrix());
+  };
+  int apart = 0, overlapping = 0, trials = 0;
+  for (int k = 0; k < 60; ++k) {
+    const ModelGeometry& a = geometry[static_cast<std::size_t>(rng() % geometry.size())];
+    const ModelGeometry& b = geometry[static_cast<std::size_t>(rng() % geometry.size())];
+    if (!a.convex() || !b.convex()) continue;
+    const Mat3 Ra = rotation(), Rb = rotation();
+    Vec3 dir(unit(rng) - 0.5, unit(rng) - 0.5, unit(rng) - 0.5);
+    dir.normalize();
+    const Vec3 ta = -Ra * a.center();
+    auto tb_at = [&](double d) { return Vec3(d * dir - Rb * b.center()); };
+    // Where along `dir` the sampled solids stop overlapping (convex: once apart, farther is apart too).
+    double lo = 0.0, hi = a.radius() + b.radius();
+    for (int it = 0; it < 40; ++it) {
+      const double mid = 0.5 * (lo + hi);
+      const auto m = sampled(a, Ra, ta, b, Rb, tb_at(mid));
+      (m.depth_mm > 0.0 || m.volume_share > 0.0 ? lo : hi) = mid;
+    }
+    // Around the contact (within and beyond the separating plane's 0.01 mm margin), and anywhere.
+    for (double delta : {-1.0, -0.1, -0.01, -0.003, 0.0, 0.003, 0.01, 0.02, 0.1, 1.0}) {
+      const double d = delta == 1.0 ? unit(rng) * (a.radius() + b.radius()) : hi + delta;
+      const Vec3 tb = tb_at(d);
+      const auto got = interpenetration(a, Ra, ta, b, Rb, tb);
+      const auto want = sampled(a, Ra, ta, b, Rb, tb);
+      ASSERT_EQ(got.depth_mm, want.depth_mm) << a.model().name << " / " << b.model().name << " at " << d;
+      ASSERT_EQ(got.volume_share, want.volume_share)
+          << a.model().name << " / " << b.model().name << " at " << d;
+      ++trials;
+      apart += b.separated_from(a, Rb.transpose() * Ra, Rb.transpose() * (ta - tb), 0.01) ? 1 : 0;
+      overlapping += want.depth_mm > 0.0 ? 1 : 0;
+    }
+  }
+  // Both kinds of pair occur, so both paths ran.
+  EXPECT_GT(trials, 300);
+  EXPECT_GT(apart, trials / 20);
+  EXPECT_GT(overlapping, trials / 10);
 }
 
 // A cube on a cube: it rests on the one below when a point of its resting face lies on that solid's surface
