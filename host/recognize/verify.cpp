@@ -182,8 +182,8 @@ void ModelGeometry::front_faces(const Vec3& origin, std::vector<std::uint32_t>& 
 }
 
 int ModelGeometry::cast(const Vec3& origin, const Vec3& dir, double& distance,
-                        std::span<const std::uint32_t> faces) const {
-  if (misses_bounding_sphere(origin, dir)) return -1;
+                        std::span<const std::uint32_t> faces, bool in_sphere) const {
+  if (!in_sphere && misses_bounding_sphere(origin, dir)) return -1;
   int best = -1;
   double best_s = std::numeric_limits<double>::infinity();
   for (const std::uint32_t i : faces) {
@@ -211,10 +211,10 @@ void ModelGeometry::clip_faces(const Vec3& origin, ClipFaces& out) const {
   out.pad();
 }
 
-int ModelGeometry::cast_convex(const Vec3& origin, const Vec3& dir, double& distance,
-                               const ClipFaces& faces) const {
+int ModelGeometry::cast_convex(const Vec3& origin, const Vec3& dir, double& distance, const ClipFaces& faces,
+                               bool in_sphere) const {
   distance = std::numeric_limits<double>::infinity();
-  if (misses_bounding_sphere(origin, dir)) return -1;
+  if (!in_sphere && misses_bounding_sphere(origin, dir)) return -1;
   return clip_convex(faces, dir.x(), dir.y(), dir.z(), distance);
 }
 
@@ -338,6 +338,10 @@ VerifyResult Verifier::evaluate(const SampleSet& samples, const ModelGeometry& g
   const Vec3 oc = cs - view;
   const double oc2 = oc.squaredNorm();
   const double r2 = g.radius() * g.radius() * 1.001 + 1e-6;
+  // Rays this far inside it pass the cast's own test (1.0001 r^2 in the model frame) whatever the two frames'
+  // rounding (about 1e-9 mm^2 here): they are marked, and the cast does not test them again.
+  const double r2_inside = g.radius() * g.radius() * 0.999;
+  constexpr std::uint32_t kInside = 1u << 31;  // sample indices stay far below
   const auto& rays = samples.rays();
   candidates_.clear();
   for (const SampleSet::Block& b : samples.blocks()) {
@@ -347,7 +351,8 @@ VerifyResult Verifier::evaluate(const SampleSet& samples, const ModelGeometry& g
       const SampleSet::Ray& ray = rays[k];
       if (ray.range <= 1e-9) continue;
       const double along = oc.dot(ray.dir);
-      if (oc2 - along * along <= r2) candidates_.push_back(k);
+      const double off2 = oc2 - along * along;  // squared distance of the sphere's centre from the ray's line
+      if (off2 <= r2) candidates_.push_back(off2 <= r2_inside ? k | kInside : k);
     }
   }
   // With a floor, every kCheckEvery samples: the confidence if every sample left were an inlier must still
@@ -360,11 +365,13 @@ VerifyResult Verifier::evaluate(const SampleSet& samples, const ModelGeometry& g
       const double most = static_cast<double>(r.inliers) + static_cast<double>(n - i);
       if (most < (floor - 1e-12) * (most + r.violations + w * r.occluded)) return VerifyResult{};
     }
-    const std::uint32_t k = candidates_[i];
+    const std::uint32_t k = candidates_[i] & ~kInside;
+    const bool inside = (candidates_[i] & kInside) != 0;
     const double range = rays[k].range;
     const Vec3 d = Rt * rays[k].dir;  // model frame; the point lies at origin_m + range d
     double s = 0.0;
-    const int face = g.convex() ? g.cast_convex(origin_m, d, s, clip_) : g.cast(origin_m, d, s, front_);
+    const int face =
+        g.convex() ? g.cast_convex(origin_m, d, s, clip_, inside) : g.cast(origin_m, d, s, front_, inside);
     if (face < 0) continue;
     ++r.hits;
     if (range > s + tol) {

@@ -55,13 +55,17 @@ class ModelGeometry {
   int cast(const Vec3& origin, const Vec3& dir, double& distance) const;
   // The same for rays from one origin, over the faces front_faces(origin) listed (those whose plane has the
   // origin on its outer side: no other face can be hit from the front).
-  int cast(const Vec3& origin, const Vec3& dir, double& distance, std::span<const std::uint32_t> faces) const;
+  // in_sphere: the caller has found the ray well inside the bounding sphere (its own test, with a margin far
+  // above the rounding), and the cast's test is skipped.
+  int cast(const Vec3& origin, const Vec3& dir, double& distance, std::span<const std::uint32_t> faces,
+           bool in_sphere = false) const;
   void front_faces(const Vec3& origin, std::vector<std::uint32_t>& out) const;
   // Convex models (closed: convex() is false for an open one): the same hit as cast() without a polygon test,
   // by clipping the ray against every face's half-space (the ray enters through the face of the latest entry,
   // and hits when no face lets it out before; convex_clip.hpp, four faces at a time). faces:
   // clip_faces(origin).
-  int cast_convex(const Vec3& origin, const Vec3& dir, double& distance, const ClipFaces& faces) const;
+  int cast_convex(const Vec3& origin, const Vec3& dir, double& distance, const ClipFaces& faces,
+                  bool in_sphere = false) const;
   void clip_faces(const Vec3& origin, ClipFaces& out) const;
   const Model& model() const { return *model_; }
   double radius() const { return radius_; }

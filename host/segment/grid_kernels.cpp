@@ -64,6 +64,26 @@ void normals_row_fast(const float* __restrict X, const float* __restrict Y, cons
   }
 }
 
+void interior_area_row(const float* __restrict X, const float* __restrict Y, const float* __restrict Z,
+                       const std::int32_t* __restrict LB, int c0, int c1, std::ptrdiff_t W,
+                       float* __restrict AR, float* __restrict LU, float* __restrict LV) {
+  for (int c = c0; c < c1; ++c) {
+    const std::ptrdiff_t i = c;
+    const std::int32_t l = LB[i];
+    const std::int32_t other = (LB[i - 1] ^ l) | (LB[i + 1] ^ l) | (LB[i - W] ^ l) | (LB[i + W] ^ l);
+    const bool inside = (other | (l >> 31)) == 0;  // l >> 31: -1 for a negative label
+    const float ux = 0.5f * (X[i + 1] - X[i - 1]), uy = 0.5f * (Y[i + 1] - Y[i - 1]),
+                uz = 0.5f * (Z[i + 1] - Z[i - 1]);
+    const float vx = 0.5f * (X[i + W] - X[i - W]), vy = 0.5f * (Y[i + W] - Y[i - W]),
+                vz = 0.5f * (Z[i + W] - Z[i - W]);
+    const float cx = uy * vz - uz * vy, cy = uz * vx - ux * vz, cz = ux * vy - uy * vx;
+    const float a = std::sqrt(cx * cx + cy * cy + cz * cz);
+    AR[i] = inside ? a : -1.f;
+    LU[i] = ux * ux + uy * uy + uz * uz;
+    LV[i] = vx * vx + vy * vy + vz * vz;
+  }
+}
+
 void cont_seeds_row_fast(const float* __restrict X, const float* __restrict Y, const float* __restrict Z,
                          const float* __restrict J2, float floor2_x, float floor2_y,
                          const float* __restrict NX, const float* __restrict NY, const float* __restrict NZ,

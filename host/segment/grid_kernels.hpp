@@ -53,4 +53,12 @@ void cont_seeds_row_fast(const float* __restrict X, const float* __restrict Y, c
                          int c0, int c1, std::ptrdiff_t W, Viewpoint vp, float jmax2, float cos2,
                          float cos_seed, std::uint8_t* __restrict CT);
 
+// Region finalization (host/segment/regions.cpp): for the cells [c0, c1) of an inner row (row stride W;
+// 1 <= c0, c1 <= W - 1), |du|^2 and |dv|^2 of the central differences in LU and LV, and in AR the area
+// |du x dv| where the cell's label LB is >= 0 and equal to its 4 neighbours' (-1 elsewhere). X, Y, Z, LB
+// point at the row's first cell, AR, LU, LV at a row of their own.
+void interior_area_row(const float* __restrict X, const float* __restrict Y, const float* __restrict Z,
+                       const std::int32_t* __restrict LB, int c0, int c1, std::ptrdiff_t W,
+                       float* __restrict AR, float* __restrict LU, float* __restrict LV);
+
 }  // namespace fs::host::seg::kernels

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "host/segment/grid_kernels.hpp"
 #include "host/segment/segmenter_impl.hpp"
 
 namespace fs::host::seg {
@@ -131,7 +132,20 @@ void Segmenter::finalize_regions(const OrganizedCloud& cloud, Segmentation& out)
     if (run_label >= 0) acc_[std::size_t(run_label)].merge(run);
     run = Acc{};
   };
+  const bool inner_rows = h >= 3 && w >= 3;
+  if (inner_rows)
+    for (auto* v : {&row_area_, &row_lu_, &row_lv_})
+      if (v->size() < w) v->resize(w);  // never after reserve() (an inner row is at most n / 3 wide)
+  float* RA = row_area_.data();
   for (std::size_t row = 0, i = 0; row < h; ++row) {
+    // Cells inside a region (its label on all 4 sides): central differences on both axes, a row at a time
+    // (vectorized); the others below, one by one.
+    const bool inner = inner_rows && row > 0 && row + 1 < h;
+    if (inner) {
+      RA[0] = RA[w - 1] = -1.f;
+      kernels::interior_area_row(X + i, Y + i, Z + i, LB + i, 1, int(w) - 1, std::ptrdiff_t(w), RA,
+                                 row_lu_.data(), row_lv_.data());
+    }
     for (std::size_t col = 0; col < w; ++col, ++i) {
       const std::int32_t l = LB[i];
       out.labels[i] = l < 0 ? kNil : l;
@@ -140,20 +154,12 @@ void Segmenter::finalize_regions(const OrganizedCloud& cloud, Segmentation& out)
         run_label = l;
       }
       if (l < 0) continue;
-      const bool hl = col > 0, hr = col + 1 < w, hu = row > 0, hd = row + 1 < h;
-      float a = 0.f;
-      if (hl && hr && hu && hd && LB[i - 1] == l && LB[i + 1] == l && LB[i - w] == l && LB[i + w] == l) {
-        // inside the region: central differences on both axes
-        const float ux = 0.5f * (X[i + 1] - X[i - 1]), uy = 0.5f * (Y[i + 1] - Y[i - 1]),
-                    uz = 0.5f * (Z[i + 1] - Z[i - 1]);
-        const float vx = 0.5f * (X[i + w] - X[i - w]), vy = 0.5f * (Y[i + w] - Y[i - w]),
-                    vz = 0.5f * (Z[i + w] - Z[i - w]);
-        const float cx = uy * vz - uz * vy, cy = uz * vx - ux * vz, cz = ux * vy - uy * vx;
-        a = std::sqrt(cx * cx + cy * cy + cz * cz);
-        lenu_[i] = ux * ux + uy * uy + uz * uz;
-        lenv_[i] = vx * vx + vy * vy + vz * vz;
+      float a = inner ? RA[col] : -1.f;
+      if (a >= 0.f) {
+        lenu_[i] = row_lu_[col];
+        lenv_[i] = row_lv_[col];
       } else {
-        a = border_cell_area(i, l, hl, hr, hu, hd);
+        a = border_cell_area(i, l, col > 0, col + 1 < w, row > 0, row + 1 < h);
       }
       area_[i] = a;
       const double x = double(X[i]) - ox, y = double(Y[i]) - oy, z = double(Z[i]) - oz;

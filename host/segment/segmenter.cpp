@@ -41,6 +41,8 @@ void Segmenter::reserve(std::size_t n) {
   queue_.resize(n);
   pend_cell_.resize(n);
   pend_label_.resize(n);
+  // finalize_regions' rows: only grids of 3 rows or more have an inner row, at most n / 3 cells wide
+  for (auto* v : {&row_area_, &row_lu_, &row_lv_}) v->resize(n / 3 + 1);
   edge_cell_.resize(2 * n + 8);
   edge_border_.resize(2 * n + 8);
   bins_.resize(n + 1024);

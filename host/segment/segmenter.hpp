@@ -100,6 +100,8 @@ class Segmenter {
   std::vector<float> px_, py_, pz_, nx_, ny_, nz_;
   std::vector<std::uint8_t> cont_;  // depth-continuity bits toward the 4 grid neighbours
   std::vector<float> area_, lenu_, lenv_, jump2_, dist_;
+  // finalize_regions: one row's cell areas inside regions (-1: a border cell) and their tangents' lengths^2
+  std::vector<float> row_area_, row_lu_, row_lv_;
   std::vector<std::uint8_t> state_;
   std::vector<std::int32_t> lab_;
   std::vector<std::uint32_t> queue_;
