@@ -132,10 +132,8 @@ void Segmenter::finalize_regions(const OrganizedCloud& cloud, Segmentation& out)
     if (run_label >= 0) acc_[std::size_t(run_label)].merge(run);
     run = Acc{};
   };
+  // The row buffers hold an inner row: reserve() sized them n / 3 + 1 (a grid with one has 3 rows or more).
   const bool inner_rows = h >= 3 && w >= 3;
-  if (inner_rows)
-    for (auto* v : {&row_area_, &row_lu_, &row_lv_})
-      if (v->size() < w) v->resize(w);  // never after reserve() (an inner row is at most n / 3 wide)
   float* RA = row_area_.data();
   for (std::size_t row = 0, i = 0; row < h; ++row) {
     // Cells inside a region (its label on all 4 sides): central differences on both axes, a row at a time
