@@ -55,7 +55,7 @@ class FleetTest(fs.FleetCase):
         w1.proc.wait()
         # The redelivery of w1's message (SCANS holds one per scan id: test_same_scan_twice_stored_once). Its
         # count should be 2, but nats-server may report 1 for a message whose consumer died after acking
-        # progress (nats-io/nats-server#5346, seen once in CI), so the count is only carried to the result.
+        # progress (nats-io/nats-server#5346), so the count is only carried to the result.
         delivery = int(w2.wait_line(re.escape(f"recognizing {scan_id} (delivery ") + r"(\d+)\)").group(1))
         w2.wait_line(re.escape(f"result {scan_id}: 4 object(s)"))
         results = self.results()
