@@ -12,12 +12,15 @@
 // warm recognize().
 // --profile K: for K scenes per library, every reference matched alone against the scene graph (the first
 // round's parameters): where matching time goes (references with and without a solution, pruning counts).
+// --verbose explains every miss (the truth against the report, whether the view's edge cuts the object, scene
+// regions that join coplanar faces, the true model searched alone); --dump-misses DIR writes those scenes'
+// clouds; --lookalikes counts, per object, the other models that fit its view as well as its own (slow).
 //
 //   bench_library_scale [--scenes N] [--libraries poly120,cubes7,cubes8,poly120+cubes8] [--steps 500]
 //                       [--categories single,separated,occluded,empty] [--cubes-fslib cubes8.fslib]
 //                       [--max-volume 8] [--cube-volume 7] [--min-faces 3] [--min-face-cells 40] [--seed S]
 //                       [--noise 0.05] [--alloc-every 4] [--profile 0] [--solutions 32] [--work DIR]
-//                       [--verbose]
+//                       [--verbose] [--dump-misses DIR] [--lookalikes]
 #include <malloc.h>
 #include <time.h>
 #include <unistd.h>
@@ -38,11 +41,13 @@
 
 #include "common/alloc_counter/alloc_counter.hpp"
 #include "common/error.hpp"
+#include "host/io/cloud_writers.hpp"
 #include "host/library/library.hpp"
 #include "host/library/mesh_files.hpp"
 #include "host/library/polycubes.hpp"
 #include "host/match/inexact.hpp"
 #include "host/match/node_set.hpp"
+#include "host/recognize/hypotheses.hpp"
 #include "host/recognize/pose.hpp"
 #include "host/recognize/recognizer.hpp"
 #include "host/recognize/verify.hpp"
@@ -93,11 +98,11 @@ struct Args {
   std::vector<std::string> libraries{"poly120", "cubes7", "cubes8", "poly120+cubes8"};
   std::vector<SceneCategory> categories{SceneCategory::single, SceneCategory::separated,
                                         SceneCategory::occluded, SceneCategory::empty};
-  std::string cubes_fslib, work;
+  std::string cubes_fslib, work, dump_misses;
   int max_volume = 8, cube_volume = 7, min_faces = 3;
   std::size_t min_face_cells = 40;
   int alloc_every = 4, profile = 0;
-  bool verbose = false;
+  bool verbose = false, lookalikes = false;
   fs::host::rec::RecognizeParams params = [] {
     fs::host::rec::RecognizeParams p;
     p.threads = 1;
@@ -195,6 +200,10 @@ struct Stats {
       scenes_with_fp = 0;
   int truth_hypothesis = 0, truth_verified = 0;  // objects whose true model is among the hypotheses there
   std::vector<double> cpu, match, verify, seg, states, allocs;
+  std::vector<int> lookalikes;  // --lookalikes: per object, the other models that fit its view as well
+  // Objects the view's edge cuts, and how many of them are top-1 / ambiguous-correct; reports of a wrong
+  // model that name no alternative (a robot would act on them as certain).
+  int edge_objects = 0, edge_top1 = 0, edge_ambiguous_ok = 0, wrong_unambiguous = 0;
 };
 
 struct Profile {
@@ -234,6 +243,97 @@ void profile_references(const fs::host::rec::Recognizer& rec, const Library& lib
   }
 }
 
+// The verification's fine sample set of a scene's cloud.
+fs::host::rec::SampleSet fine_samples(const BenchScene& sc, const fs::host::rec::VerifyParams& vp) {
+  namespace rec = fs::host::rec;
+  rec::SampleSet samples;
+  samples.build(sc.cloud,
+                rec::sample_steps(rec::grid_spacing_mm(sc.cloud), vp.sample_step, vp.sample_spacing_mm));
+  return samples;
+}
+
+// --lookalikes: how many other models fit the view of true object o as well as its own model does. Every
+// hypothesis of the last recognize() (all references' search solutions, in their poses) is checked on the
+// fine samples without refinement, as the truth in its true pose; a model fits as well when one of its
+// hypotheses rests on the table (its lowest point within 1 mm of it, as the true object's) and has at least
+// the truth's inliers and at most its violations, within 2 sample points. The count is a lower bound: models
+// the search gave no hypothesis there are not seen.
+int count_lookalikes(const BenchScene& sc, const fs::bench::TrueObject& o, int truth, const Library& lib,
+                     const fs::host::rec::Recognizer& recognizer) {
+  namespace rec = fs::host::rec;
+  const rec::VerifyParams vp;
+  const rec::SampleSet samples = fine_samples(sc, vp);
+  rec::Verifier verifier(vp);
+  fs::Mat3 R = o.R;
+  fs::Vec3 t = o.t;
+  const rec::VerifyResult vt =
+      verifier.verify(samples, rec::ModelGeometry(lib.models[static_cast<std::size_t>(truth)]), R, t, false);
+  constexpr int slack = 2;
+  std::unordered_map<int, std::unique_ptr<rec::ModelGeometry>> geometry;
+  std::unordered_map<int, bool> fits;
+  for (const rec::Hypothesis* h : recognizer.all_hypotheses()) {
+    if (h->model == truth || fits[h->model]) continue;
+    const auto& model = lib.models[static_cast<std::size_t>(h->model)];
+    // A placement that floats or sinks into the table is no look-alike: the true object rests on it.
+    if (std::abs(rec::lowest_point(model, h->R, h->t, sc.table, nullptr)) > 1.0) continue;
+    auto& g = geometry[h->model];
+    if (!g) g = std::make_unique<rec::ModelGeometry>(model);
+    R = h->R;
+    t = h->t;
+    const rec::VerifyResult v = verifier.verify(samples, *g, R, t, false);
+    fits[h->model] = v.inliers >= vt.inliers - slack && v.violations <= vt.violations + slack;
+  }
+  int n = 0;
+  for (const auto& [m, f] : fits) n += f ? 1 : 0;
+  return n;
+}
+
+// Cells on the grid's border that lie on true object o (above the table, within its bounding sphere): the
+// view's edge cuts it.
+int cells_on_the_edge(const BenchScene& sc, const fs::bench::TrueObject& o, const fs::host::Model& tm) {
+  const fs::Vec3 centre = o.R * tm.center + o.t;
+  int edge = 0;
+  auto count = [&](std::uint32_t r, std::uint32_t c) {
+    const fs::Vec3 p = sc.cloud.at(r, c).cast<double>();
+    if (std::isfinite(p.x()) && sc.table.signed_distance(p) > 1.0 &&
+        (p - centre).norm() < tm.bounding_radius + 1.0)
+      ++edge;
+  };
+  if (sc.cloud.width < 2 || sc.cloud.height < 2) return 0;
+  for (std::uint32_t c = 0; c < sc.cloud.width; ++c) count(0, c), count(sc.cloud.height - 1, c);
+  for (std::uint32_t r = 1; r + 1 < sc.cloud.height; ++r) count(r, 0), count(r, sc.cloud.width - 1);
+  return edge;
+}
+
+// Scene regions that hold points of several of the true model's faces, 100 cells or more of each: coplanar
+// faces the view joins into one region (the matcher pairs a scene face with one model face).
+void print_merged_faces(const BenchScene& sc, const fs::bench::TrueObject& o, const fs::host::Model& tm,
+                        const fs::host::seg::Segmentation& seg) {
+  constexpr int kMinCells = 100;
+  std::map<std::int32_t, std::map<std::size_t, int>> per_region;
+  for (std::size_t cell = 0; cell < seg.labels.size() && cell < sc.cloud.points.size(); ++cell) {
+    const std::int32_t r = seg.labels[cell];
+    if (r < 0) continue;
+    const fs::Vec3 p = o.R.transpose() * (sc.cloud.points[cell].cast<double>() - o.t);
+    for (std::size_t f = 0; f < tm.faces.size(); ++f) {
+      const auto& mf = tm.faces[f];
+      if (std::abs(mf.normal.dot(p) - mf.offset) < 0.5 && fs::bench::inside_face(mf, p)) {
+        ++per_region[r][f];
+        break;
+      }
+    }
+  }
+  for (const auto& [r, faces] : per_region) {
+    int big = 0;
+    for (const auto& [f, n] : faces) big += n >= kMinCells ? 1 : 0;
+    if (big < 2) continue;
+    std::printf("    scene region %d joins %d of the true model's faces:", r + 1, big);
+    for (const auto& [f, n] : faces)
+      if (n >= kMinCells) std::printf(" %zu (%d cells)", f, n);
+    std::printf("\n");
+  }
+}
+
 // A miss explained (--verbose): the verification of the true model in its true pose against that of the
 // object reported there, on the same samples (no refinement): more inliers or fewer violations for the truth
 // mean the search or the selection lost it, equal counts that the view cannot tell them apart. Then the true
@@ -244,9 +344,7 @@ void why_missed(const BenchScene& sc, const fs::bench::TrueObject& o, const fs::
                 const fs::host::rec::Recognizer& recognizer) {
   namespace rec = fs::host::rec;
   const rec::VerifyParams vp;
-  rec::SampleSet samples;
-  samples.build(sc.cloud,
-                rec::sample_steps(rec::grid_spacing_mm(sc.cloud), vp.sample_step, vp.sample_spacing_mm));
+  const rec::SampleSet samples = fine_samples(sc, vp);
   rec::Verifier verifier(vp);
   auto line = [&](const char* what, const fs::host::Model& m, fs::Mat3 R, fs::Vec3 t) {
     const rec::ModelGeometry g(m);
@@ -255,6 +353,9 @@ void why_missed(const BenchScene& sc, const fs::bench::TrueObject& o, const fs::
                 v.inliers, v.violations, v.occluded, v.confidence);
   };
   line("truth", tm, o.R, o.t);
+  const int edge = cells_on_the_edge(sc, o, tm);
+  if (edge > 0) std::printf("    the view's edge cuts the object (%d border cells on it)\n", edge);
+  print_merged_faces(sc, o, tm, recognizer.segmentation());
   if (reported)
     line("reported", lib.models[static_cast<std::size_t>(reported->model)], reported->R, reported->t);
   const fs::host::match::MatchParams mp = rec::match_params(recognizer.params());
@@ -285,9 +386,11 @@ void why_missed(const BenchScene& sc, const fs::bench::TrueObject& o, const fs::
       r.solutions.size(), placeable, truth_rank, truth_placeable_rank);
 }
 
-void evaluate(const BenchScene& sc, const std::vector<fs::host::rec::Hypothesis>& found, const Library& lib,
+// True when some true object was not reported as its model (top-1) or some report is no hit.
+bool evaluate(const BenchScene& sc, const std::vector<fs::host::rec::Hypothesis>& found, const Library& lib,
               const std::unordered_map<std::string, int>& index, Stats& s, bool verbose,
-              const fs::host::rec::Recognizer* recognizer = nullptr) {
+              const fs::host::rec::Recognizer* recognizer = nullptr, bool lookalikes = false) {
+  bool missed = false;
   std::vector<bool> used(found.size(), false);
   for (const auto& o : sc.objects) {
     if (o.model.empty()) continue;
@@ -295,6 +398,11 @@ void evaluate(const BenchScene& sc, const std::vector<fs::host::rec::Hypothesis>
     const auto& tm = lib.models[static_cast<std::size_t>(truth)];
     const fs::Vec3 centre = o.R * tm.center + o.t;
     ++s.objects;
+    int n_alike = -1;
+    if (lookalikes && recognizer) {
+      n_alike = count_lookalikes(sc, o, truth, lib, *recognizer);
+      s.lookalikes.push_back(n_alike);
+    }
     int nearest = -1, hit = -1;
     double nearest_d = 20.0, hit_d = 10.0;
     for (std::size_t j = 0; j < found.size(); ++j) {
@@ -304,6 +412,7 @@ void evaluate(const BenchScene& sc, const std::vector<fs::host::rec::Hypothesis>
       if (!used[j] && found[j].model == truth && d < hit_d) hit_d = d, hit = static_cast<int>(j);
     }
     if (hit >= 0) used[static_cast<std::size_t>(hit)] = true, ++s.found;
+    const int top1_before = s.top1, ambiguous_ok_before = s.ambiguous_ok;
     std::string got = "nothing";
     if (nearest >= 0) {
       const auto& h = found[static_cast<std::size_t>(nearest)];
@@ -314,14 +423,25 @@ void evaluate(const BenchScene& sc, const std::vector<fs::host::rec::Hypothesis>
       } else {
         for (const auto& alt : h.listed_alternatives())
           if (alt.model == truth) ++s.ambiguous_ok, got += " (true model listed as an alternative)";
+        s.wrong_unambiguous += h.ambiguous() ? 0 : 1;
+        got += h.ambiguous() ? " [ambiguous, " + std::to_string(h.alternatives) + " alternatives"
+                             : " [unambiguous";
+        got += ", confidence " + std::to_string(h.confidence()).substr(0, 5) + "]";
       }
     }
+    if (cells_on_the_edge(sc, o, tm) > 0) {
+      ++s.edge_objects;
+      s.edge_top1 += s.top1 - top1_before;
+      s.edge_ambiguous_ok += s.ambiguous_ok - ambiguous_ok_before;
+    }
+    missed = missed || nearest < 0 || found[static_cast<std::size_t>(nearest)].model != truth;
     if (verbose && (nearest < 0 || found[static_cast<std::size_t>(nearest)].model != truth)) {
       std::printf("  seed %llu %s: %s -> %s\n", static_cast<unsigned long long>(sc.seed),
                   fs::sim::to_string(sc.category), o.model.c_str(), got.c_str());
       if (recognizer)
         why_missed(sc, o, tm, nearest >= 0 ? &found[static_cast<std::size_t>(nearest)] : nullptr, lib,
                    *recognizer);
+      if (n_alike >= 0) std::printf("    %d other models fit this view as well as the truth\n", n_alike);
     }
   }
   int extra = 0;
@@ -340,6 +460,7 @@ void evaluate(const BenchScene& sc, const std::vector<fs::host::rec::Hypothesis>
   }
   s.extra += extra;
   s.scenes_with_fp += extra > 0 ? 1 : 0;
+  return missed || extra > 0;
 }
 
 // Recall before acceptance: a hypothesis of the true model near its true place (centre < 10 mm) among all
@@ -489,7 +610,14 @@ LibraryRun run_library(const Args& a, const LibrarySpec& spec, const std::vector
           "objects\n",
           static_cast<unsigned long long>(sc.seed), fs::sim::to_string(sc.category), cpu, r.stats.match_ms,
           r.stats.verify_ms, static_cast<long long>(r.stats.states), r.stats.rounds, found.size());
-    evaluate(sc, found, lib, index, s, a.verbose, rec.get());
+    if (evaluate(sc, found, lib, index, s, a.verbose, rec.get(), a.lookalikes) && !a.dump_misses.empty()) {
+      stdfs::create_directories(a.dump_misses);
+      const std::string path = (stdfs::path(a.dump_misses) / (spec.name + "-seed" + std::to_string(sc.seed) +
+                                                              "-" + fs::sim::to_string(sc.category) + ".pcd"))
+                                   .string();
+      fs::host::write_cloud(path, sc.cloud);
+      if (a.verbose) std::printf("    scene written to %s\n", path.c_str());
+    }
     truth_among_hypotheses(sc, *rec, lib, index, s, a.verbose);
     // Every K-th scene of each category (its first included).
     if (a.alloc_every > 0 && (s.scenes - 1) % a.alloc_every == 0) {
@@ -532,6 +660,45 @@ void report(const Args& a, const std::vector<LibraryRun>& runs) {
           quantile(s.cpu, 0.9), quantile(s.match, 0.5), quantile(s.match, 0.9), quantile(s.verify, 0.5),
           quantile(s.verify, 0.9), quantile(s.seg, 0.5), quantile(s.states, 0.5), quantile(s.allocs, 0.5),
           quantile(s.allocs, 1.0));
+  std::printf(
+      "\n| library, scenes | objects the view's edge cuts | their top-1 (ambiguous-correct) | the others' "
+      "top-1 "
+      "(ambiguous-correct) | wrong reports that name no alternative |\n");
+  std::printf("|---|---|---|---|---|\n");
+  for (const auto& r : runs)
+    for (const auto& [cat, s] : r.stats)
+      std::printf("| %s %s | %d | %.1f %% (%.1f %%) | %.1f %% (%.1f %%) | %d |\n", r.name.c_str(),
+                  fs::sim::to_string(cat), s.edge_objects, pct(s.edge_top1, s.edge_objects),
+                  pct(s.edge_ambiguous_ok, s.edge_objects),
+                  pct(s.top1 - s.edge_top1, s.objects - s.edge_objects),
+                  pct(s.ambiguous_ok - s.edge_ambiguous_ok, s.objects - s.edge_objects), s.wrong_unambiguous);
+  if (a.lookalikes) {
+    // An ideal recognizer that lists the object and Hypothesis::kMaxAlternatives alternatives, each of the
+    // 1 + N equally fitting models equally likely to be the truth, is right with probability
+    // min(1, (1 + kMaxAlternatives) / (1 + N)); top-1 alone with 1 / (1 + N).
+    std::printf(
+        "\n| library, scenes | objects | other models fit the view as well: none / 1-4 / 5-19 / 20 or more | "
+        "median | best achievable top-1 | best achievable ambiguous-correct (%d alternatives) |\n",
+        fs::host::rec::Hypothesis::kMaxAlternatives);
+    std::printf("|---|---|---|---|---|---|\n");
+    for (const auto& r : runs)
+      for (const auto& [cat, s] : r.stats) {
+        if (s.lookalikes.empty()) continue;
+        int bins[4] = {0, 0, 0, 0};
+        double top1 = 0.0, amb = 0.0;
+        std::vector<double> n;
+        for (int k : s.lookalikes) {
+          ++bins[k == 0 ? 0 : k < 5 ? 1 : k < 20 ? 2 : 3];
+          top1 += 1.0 / (1.0 + k);
+          amb += std::min(1.0, (1.0 + fs::host::rec::Hypothesis::kMaxAlternatives) / (1.0 + k));
+          n.push_back(k);
+        }
+        const int objects = static_cast<int>(s.lookalikes.size());
+        std::printf("| %s %s | %d | %d / %d / %d / %d | %.0f | %.1f %% | %.1f %% |\n", r.name.c_str(),
+                    fs::sim::to_string(cat), objects, bins[0], bins[1], bins[2], bins[3], quantile(n, 0.5),
+                    100.0 * top1 / objects, 100.0 * amb / objects);
+      }
+  }
   std::printf(
       "(stage columns: the scan's CPU time split by the stages' wall-time shares; top-1 and found count "
       "objects, "
@@ -598,6 +765,11 @@ Args parse_args(CLI::App& app, int argc, char** argv) {
       "RecognizeParams::area_cost (default 0.01): area dissimilarity in the search cost, < 0 = none");
   fs::test::add_recognize_flags(app, a.params);  // pool, matching scope, verification budget, rounds
   app.add_flag("--verbose", a.verbose, "one line per scene and per miss");
+  app.add_flag(
+      "--lookalikes", a.lookalikes,
+      "count, per object, the other models whose hypotheses fit its view as well as the truth (slow)");
+  app.add_option("--dump-misses", a.dump_misses,
+                 "write the cloud of every scene with a miss (not top-1) to DIR/LIBRARY-seedN-CATEGORY.pcd");
   app.parse(argc, argv);
   if (!categories.empty()) {
     a.categories.clear();
