@@ -13,8 +13,9 @@
 // --profile K: for K scenes per library, every reference matched alone against the scene graph (the first
 // round's parameters): where matching time goes (references with and without a solution, pruning counts).
 // --verbose explains every miss (the truth against the report, whether the view's edge cuts the object, scene
-// regions that join coplanar faces, the true model searched alone); --dump-misses DIR writes those scenes'
-// clouds; --lookalikes counts, per object, the other models that fit its view as well as its own (slow).
+// regions that join several of its faces, the true model searched alone; library_scale_misses.hpp);
+// --dump-misses DIR writes the clouds of the scenes with a miss or a false positive; --lookalikes counts, per
+// object, the other models that fit its view as well as its own (slow).
 //
 //   bench_library_scale [--scenes N] [--libraries poly120,cubes7,cubes8,poly120+cubes8] [--steps 500]
 //                       [--categories single,separated,occluded,empty] [--cubes-fslib cubes8.fslib]
@@ -53,6 +54,7 @@
 #include "host/recognize/verify.hpp"
 #include "hw-sim/scene/polycube_catalog.hpp"
 #include "hw-sim/scene/random_scene.hpp"
+#include "library_scale_misses.hpp"
 #include "library_scale_scenes.hpp"
 #include "support/recognize_flags.hpp"
 #include "support/test_paths.hpp"
@@ -201,8 +203,8 @@ struct Stats {
   int truth_hypothesis = 0, truth_verified = 0;  // objects whose true model is among the hypotheses there
   std::vector<double> cpu, match, verify, seg, states, allocs;
   std::vector<int> lookalikes;  // --lookalikes: per object, the other models that fit its view as well
-  // Objects the view's edge cuts, and how many of them are top-1 / ambiguous-correct; reports of a wrong
-  // model that name no alternative (a robot would act on them as certain).
+  // Objects the view's edge cuts, and how many of them are top-1 / ambiguous-correct; misses whose nearest
+  // report names a wrong model and no alternative (a robot would act on it as certain).
   int edge_objects = 0, edge_top1 = 0, edge_ambiguous_ok = 0, wrong_unambiguous = 0;
 };
 
@@ -241,149 +243,6 @@ void profile_references(const fs::host::rec::Recognizer& rec, const Library& lib
       for (std::size_t c = 0; c < out.removed.size(); ++c) out.removed[c] += r.stats.removed[c];
     }
   }
-}
-
-// The verification's fine sample set of a scene's cloud.
-fs::host::rec::SampleSet fine_samples(const BenchScene& sc, const fs::host::rec::VerifyParams& vp) {
-  namespace rec = fs::host::rec;
-  rec::SampleSet samples;
-  samples.build(sc.cloud,
-                rec::sample_steps(rec::grid_spacing_mm(sc.cloud), vp.sample_step, vp.sample_spacing_mm));
-  return samples;
-}
-
-// --lookalikes: how many other models fit the view of true object o as well as its own model does. Every
-// hypothesis of the last recognize() (all references' search solutions, in their poses) is checked on the
-// fine samples without refinement, as the truth in its true pose; a model fits as well when one of its
-// hypotheses rests on the table (its lowest point within 1 mm of it, as the true object's) and has at least
-// the truth's inliers and at most its violations, within 2 sample points. The count is a lower bound: models
-// the search gave no hypothesis there are not seen.
-int count_lookalikes(const BenchScene& sc, const fs::bench::TrueObject& o, int truth, const Library& lib,
-                     const fs::host::rec::Recognizer& recognizer) {
-  namespace rec = fs::host::rec;
-  const rec::VerifyParams vp;
-  const rec::SampleSet samples = fine_samples(sc, vp);
-  rec::Verifier verifier(vp);
-  fs::Mat3 R = o.R;
-  fs::Vec3 t = o.t;
-  const rec::VerifyResult vt =
-      verifier.verify(samples, rec::ModelGeometry(lib.models[static_cast<std::size_t>(truth)]), R, t, false);
-  constexpr int slack = 2;
-  std::unordered_map<int, std::unique_ptr<rec::ModelGeometry>> geometry;
-  std::unordered_map<int, bool> fits;
-  for (const rec::Hypothesis* h : recognizer.all_hypotheses()) {
-    if (h->model == truth || fits[h->model]) continue;
-    const auto& model = lib.models[static_cast<std::size_t>(h->model)];
-    // A placement that floats or sinks into the table is no look-alike: the true object rests on it.
-    if (std::abs(rec::lowest_point(model, h->R, h->t, sc.table, nullptr)) > 1.0) continue;
-    auto& g = geometry[h->model];
-    if (!g) g = std::make_unique<rec::ModelGeometry>(model);
-    R = h->R;
-    t = h->t;
-    const rec::VerifyResult v = verifier.verify(samples, *g, R, t, false);
-    fits[h->model] = v.inliers >= vt.inliers - slack && v.violations <= vt.violations + slack;
-  }
-  int n = 0;
-  for (const auto& [m, f] : fits) n += f ? 1 : 0;
-  return n;
-}
-
-// Cells on the grid's border that lie on true object o (above the table, within its bounding sphere): the
-// view's edge cuts it.
-int cells_on_the_edge(const BenchScene& sc, const fs::bench::TrueObject& o, const fs::host::Model& tm) {
-  const fs::Vec3 centre = o.R * tm.center + o.t;
-  int edge = 0;
-  auto count = [&](std::uint32_t r, std::uint32_t c) {
-    const fs::Vec3 p = sc.cloud.at(r, c).cast<double>();
-    if (std::isfinite(p.x()) && sc.table.signed_distance(p) > 1.0 &&
-        (p - centre).norm() < tm.bounding_radius + 1.0)
-      ++edge;
-  };
-  if (sc.cloud.width < 2 || sc.cloud.height < 2) return 0;
-  for (std::uint32_t c = 0; c < sc.cloud.width; ++c) count(0, c), count(sc.cloud.height - 1, c);
-  for (std::uint32_t r = 1; r + 1 < sc.cloud.height; ++r) count(r, 0), count(r, sc.cloud.width - 1);
-  return edge;
-}
-
-// Scene regions that hold points of several of the true model's faces, 100 cells or more of each: coplanar
-// faces the view joins into one region (the matcher pairs a scene face with one model face).
-void print_merged_faces(const BenchScene& sc, const fs::bench::TrueObject& o, const fs::host::Model& tm,
-                        const fs::host::seg::Segmentation& seg) {
-  constexpr int kMinCells = 100;
-  std::map<std::int32_t, std::map<std::size_t, int>> per_region;
-  for (std::size_t cell = 0; cell < seg.labels.size() && cell < sc.cloud.points.size(); ++cell) {
-    const std::int32_t r = seg.labels[cell];
-    if (r < 0) continue;
-    const fs::Vec3 p = o.R.transpose() * (sc.cloud.points[cell].cast<double>() - o.t);
-    for (std::size_t f = 0; f < tm.faces.size(); ++f) {
-      const auto& mf = tm.faces[f];
-      if (std::abs(mf.normal.dot(p) - mf.offset) < 0.5 && fs::bench::inside_face(mf, p)) {
-        ++per_region[r][f];
-        break;
-      }
-    }
-  }
-  for (const auto& [r, faces] : per_region) {
-    int big = 0;
-    for (const auto& [f, n] : faces) big += n >= kMinCells ? 1 : 0;
-    if (big < 2) continue;
-    std::printf("    scene region %d joins %d of the true model's faces:", r + 1, big);
-    for (const auto& [f, n] : faces)
-      if (n >= kMinCells) std::printf(" %zu (%d cells)", f, n);
-    std::printf("\n");
-  }
-}
-
-// A miss explained (--verbose): the verification of the true model in its true pose against that of the
-// object reported there, on the same samples (no refinement): more inliers or fewer violations for the truth
-// mean the search or the selection lost it, equal counts that the view cannot tell them apart. Then the true
-// model searched alone (the first round's matching parameters, 64 solutions kept): at which rank its true
-// placement comes, among all solutions and among those that pass the placement check.
-void why_missed(const BenchScene& sc, const fs::bench::TrueObject& o, const fs::host::Model& tm,
-                const fs::host::rec::Hypothesis* reported, const Library& lib,
-                const fs::host::rec::Recognizer& recognizer) {
-  namespace rec = fs::host::rec;
-  const rec::VerifyParams vp;
-  const rec::SampleSet samples = fine_samples(sc, vp);
-  rec::Verifier verifier(vp);
-  auto line = [&](const char* what, const fs::host::Model& m, fs::Mat3 R, fs::Vec3 t) {
-    const rec::ModelGeometry g(m);
-    const rec::VerifyResult v = verifier.verify(samples, g, R, t, false);
-    std::printf("    %s %s: inliers %d, violations %d, occluded %d, confidence %.3f\n", what, m.name.c_str(),
-                v.inliers, v.violations, v.occluded, v.confidence);
-  };
-  line("truth", tm, o.R, o.t);
-  const int edge = cells_on_the_edge(sc, o, tm);
-  if (edge > 0) std::printf("    the view's edge cuts the object (%d border cells on it)\n", edge);
-  print_merged_faces(sc, o, tm, recognizer.segmentation());
-  if (reported)
-    line("reported", lib.models[static_cast<std::size_t>(reported->model)], reported->R, reported->t);
-  const fs::host::match::MatchParams mp = rec::match_params(recognizer.params());
-  fs::host::match::InexactMatcher matcher(fs::host::match::MatcherLimits{200000, 64});
-  const fs::host::Pfrg& sg = recognizer.scene_graph();
-  const auto& r = matcher.match(sg, tm.graph, mp);
-  int placeable = 0, truth_rank = 0, truth_placeable_rank = 0;
-  std::vector<rec::PlanePair> pairs;
-  for (const auto& sol : r.solutions) {
-    pairs.clear();
-    for (const auto& nm : sol.matches)
-      if (const auto* n = sg.find(nm.scene); n && n->has_plane) pairs.push_back(rec::plane_pair(*n, nm.ref));
-    const bool ok = rec::consistent_placement(tm, sol.rotation, pairs, recognizer.params().placement);
-    placeable += ok ? 1 : 0;
-    // The true correspondence: the true rotation, and in the true pose every matched scene face on its plane
-    // and its model face.
-    bool truth = rec::rotation_angle_deg(sol.rotation, o.R) < 2.0;
-    for (const auto& pp : pairs) {
-      const auto& f = tm.faces[static_cast<std::size_t>(pp.model_face)];
-      truth = truth && std::abs(pp.scene_normal.dot(o.t) - (pp.scene_offset - f.offset)) < 3.0 &&
-              rec::outside_face_mm(f, o.R.transpose() * (pp.scene_centroid - o.t)) < 5.0;
-    }
-    if (truth && truth_rank == 0) truth_rank = sol.rank, truth_placeable_rank = ok ? placeable : -1;
-  }
-  std::printf(
-      "    the true model searched alone: %zu solutions (%d placeable), the true placement at rank %d "
-      "(%d among the placeable; 0 = none, -1 = not placeable)\n",
-      r.solutions.size(), placeable, truth_rank, truth_placeable_rank);
 }
 
 // True when some true object was not reported as its model (top-1) or some report is no hit.
@@ -661,9 +520,8 @@ void report(const Args& a, const std::vector<LibraryRun>& runs) {
           quantile(s.verify, 0.9), quantile(s.seg, 0.5), quantile(s.states, 0.5), quantile(s.allocs, 0.5),
           quantile(s.allocs, 1.0));
   std::printf(
-      "\n| library, scenes | objects the view's edge cuts | their top-1 (ambiguous-correct) | the others' "
-      "top-1 "
-      "(ambiguous-correct) | wrong reports that name no alternative |\n");
+      "\n| library, scenes | objects the view's edge cuts | their top-1 (ambiguous-correct) | "
+      "the others' top-1 (ambiguous-correct) | misses whose nearest report names no alternative |\n");
   std::printf("|---|---|---|---|---|\n");
   for (const auto& r : runs)
     for (const auto& [cat, s] : r.stats)
@@ -673,12 +531,12 @@ void report(const Args& a, const std::vector<LibraryRun>& runs) {
                   pct(s.top1 - s.edge_top1, s.objects - s.edge_objects),
                   pct(s.ambiguous_ok - s.edge_ambiguous_ok, s.objects - s.edge_objects), s.wrong_unambiguous);
   if (a.lookalikes) {
-    // An ideal recognizer that lists the object and Hypothesis::kMaxAlternatives alternatives, each of the
-    // 1 + N equally fitting models equally likely to be the truth, is right with probability
+    // A reference, not a limit: a recognizer that chose at random among the 1 + N equally fitting models and
+    // listed Hypothesis::kMaxAlternatives alternatives would be right with probability
     // min(1, (1 + kMaxAlternatives) / (1 + N)); top-1 alone with 1 / (1 + N).
     std::printf(
         "\n| library, scenes | objects | other models fit the view as well: none / 1-4 / 5-19 / 20 or more | "
-        "median | best achievable top-1 | best achievable ambiguous-correct (%d alternatives) |\n",
+        "median | top-1 of a uniform choice among them | ... with %d alternatives listed |\n",
         fs::host::rec::Hypothesis::kMaxAlternatives);
     std::printf("|---|---|---|---|---|---|\n");
     for (const auto& r : runs)
@@ -769,7 +627,8 @@ Args parse_args(CLI::App& app, int argc, char** argv) {
       "--lookalikes", a.lookalikes,
       "count, per object, the other models whose hypotheses fit its view as well as the truth (slow)");
   app.add_option("--dump-misses", a.dump_misses,
-                 "write the cloud of every scene with a miss (not top-1) to DIR/LIBRARY-seedN-CATEGORY.pcd");
+                 "write the cloud of every scene with a miss (not top-1) or a report that is no hit to "
+                 "DIR/LIBRARY-seedN-CATEGORY.pcd");
   app.parse(argc, argv);
   if (!categories.empty()) {
     a.categories.clear();
