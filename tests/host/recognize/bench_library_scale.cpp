@@ -288,18 +288,20 @@ bool evaluate(const BenchScene& sc, const std::vector<fs::host::rec::Hypothesis>
         got += ", confidence " + std::to_string(h.confidence()).substr(0, 5) + "]";
       }
     }
-    if (cells_on_the_edge(sc, o, tm) > 0) {
+    const int edge_cells = cells_on_the_edge(sc, o, tm);
+    if (edge_cells > 0) {
       ++s.edge_objects;
       s.edge_top1 += s.top1 - top1_before;
       s.edge_ambiguous_ok += s.ambiguous_ok - ambiguous_ok_before;
     }
-    missed = missed || nearest < 0 || found[static_cast<std::size_t>(nearest)].model != truth;
-    if (verbose && (nearest < 0 || found[static_cast<std::size_t>(nearest)].model != truth)) {
+    const bool miss = nearest < 0 || found[static_cast<std::size_t>(nearest)].model != truth;
+    missed = missed || miss;
+    if (verbose && miss) {
       std::printf("  seed %llu %s: %s -> %s\n", static_cast<unsigned long long>(sc.seed),
                   fs::sim::to_string(sc.category), o.model.c_str(), got.c_str());
       if (recognizer)
         why_missed(sc, o, tm, nearest >= 0 ? &found[static_cast<std::size_t>(nearest)] : nullptr, lib,
-                   *recognizer);
+                   *recognizer, edge_cells);
       if (n_alike >= 0) std::printf("    %d other models fit this view as well as the truth\n", n_alike);
     }
   }

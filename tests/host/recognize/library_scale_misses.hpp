@@ -2,12 +2,14 @@
 // bench_library_scale's account of a scan: why a true object was missed (--verbose), whether the view's edge
 // cuts it, which scene regions join several of its faces, and how many other models fit its view as well
 // (--lookalikes).
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <map>
 #include <memory>
 #include <unordered_map>
+#include <vector>
 
 #include "host/library/library.hpp"
 #include "host/match/inexact.hpp"
@@ -40,28 +42,28 @@ inline int count_lookalikes(const BenchScene& sc, const TrueObject& o, int truth
   const rec::VerifyParams vp;
   const rec::SampleSet samples = fine_samples(sc, vp);
   rec::Verifier verifier(vp);
+  const host::Model& tm = lib.models[static_cast<std::size_t>(truth)];
   Mat3 R = o.R;
   Vec3 t = o.t;
-  const rec::VerifyResult vt =
-      verifier.verify(samples, rec::ModelGeometry(lib.models[static_cast<std::size_t>(truth)]), R, t, false);
+  const rec::VerifyResult vt = verifier.verify(samples, rec::ModelGeometry(tm), R, t, false);
   constexpr int slack = 2;
+  const Vec3 centre = o.R * tm.center + o.t;
+  // The other true objects' centres: a hypothesis nearer one of them stands for that object.
+  std::vector<Vec3> others;
+  for (const TrueObject& other : sc.objects) {
+    if (other.model.empty() || &other == &o) continue;
+    for (const host::Model& m : lib.models)
+      if (m.name == other.model) others.push_back(other.R * m.center + other.t);
+  }
   std::unordered_map<int, std::unique_ptr<rec::ModelGeometry>> geometry;
   std::unordered_map<int, bool> fits;
-  const host::Model& tm = lib.models[static_cast<std::size_t>(truth)];
-  const Vec3 centre = o.R * tm.center + o.t;
   for (const rec::Hypothesis* h : recognizer.all_hypotheses()) {
     if (h->model == truth || fits[h->model]) continue;
     const auto& model = lib.models[static_cast<std::size_t>(h->model)];
-    // A hypothesis nearer another true object's centre stands for that object.
     const Vec3 c = h->R * model.center + h->t;
-    bool nearer_another = false;
-    for (const TrueObject& other : sc.objects) {
-      if (other.model.empty() || &other == &o) continue;
-      for (const host::Model& m : lib.models)
-        if (m.name == other.model)
-          nearer_another = nearer_another || (other.R * m.center + other.t - c).norm() < (centre - c).norm();
-    }
-    if (nearer_another) continue;
+    if (std::any_of(others.begin(), others.end(),
+                    [&](const Vec3& x) { return (x - c).norm() < (centre - c).norm(); }))
+      continue;
     // A placement that floats or sinks into the table is no look-alike: the true object rests on it.
     if (std::abs(rec::lowest_point(model, h->R, h->t, sc.table, nullptr)) > 1.0) continue;
     auto& g = geometry[h->model];
@@ -141,10 +143,11 @@ inline void print_merged_faces(const BenchScene& sc, const TrueObject& o, const 
 // object reported there, on the same samples (no refinement): more inliers or fewer violations for the truth
 // mean the search or the selection lost it, equal counts that the view cannot tell them apart. Then the true
 // model searched alone (the first round's matching parameters, 64 solutions kept): at which rank its true
-// placement comes, among all solutions and among those that pass the placement check.
+// placement comes, among all solutions and among those that pass the placement check. edge_cells:
+// cells_on_the_edge of the object.
 inline void why_missed(const BenchScene& sc, const TrueObject& o, const host::Model& tm,
                        const host::rec::Hypothesis* reported, const host::Library& lib,
-                       const host::rec::Recognizer& recognizer) {
+                       const host::rec::Recognizer& recognizer, int edge_cells) {
   namespace rec = host::rec;
   const rec::VerifyParams vp;
   const rec::SampleSet samples = fine_samples(sc, vp);
@@ -156,8 +159,8 @@ inline void why_missed(const BenchScene& sc, const TrueObject& o, const host::Mo
                 v.inliers, v.violations, v.occluded, v.confidence);
   };
   line("truth", tm, o.R, o.t);
-  const int edge = cells_on_the_edge(sc, o, tm);
-  if (edge > 0) std::printf("    the view's edge cuts the object (%d border cells on it)\n", edge);
+  if (edge_cells > 0)
+    std::printf("    the view's edge cuts the object (%d border cells on it)\n", edge_cells);
   print_merged_faces(sc, o, tm, recognizer.segmentation());
   if (reported)
     line("reported", lib.models[static_cast<std::size_t>(reported->model)], reported->R, reported->t);
