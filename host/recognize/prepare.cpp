@@ -4,6 +4,7 @@
 
 #include "host/recognize/recognizer_impl.hpp"
 #include "host/recognize/scene_prep.hpp"
+#include "host/segment/row_thinning.hpp"
 
 namespace fs::host::rec {
 
@@ -46,8 +47,25 @@ bool Recognizer::Impl::prepare_scene(Recognizer& rz, const OrganizedCloud& cloud
                                      Recognition& out) {
   const RecognizeParams& params = rz.params_;
   auto t0 = Clock::now();
-  rz.segmenter_.segment(cloud, rz.seg_);
+  std::uint32_t row_step = 1;
+  if (params.segment_row_step == 2 && cloud.organized) {
+    const Eigen::Vector2d grid = grid_spacing_mm(cloud);
+    row_step = seg::row_step_for(grid.x(), grid.y());
+  }
+  if (row_step > 1) {
+    seg::thin_rows(cloud, row_step, rz.thin_cloud_);
+    rz.thin_segmenter_.segment(rz.thin_cloud_, rz.thin_seg_);
+    // A face that few rows reach (turned toward the sweep's direction) loses half of them: every row then.
+    if (seg::rows_sparse_somewhere(rz.thin_seg_))
+      row_step = 1;
+    else
+      seg::spread_rows(cloud, row_step, rz.thin_seg_, rz.seg_);
+  }
+  if (row_step == 1) {
+    rz.segmenter_.segment(cloud, rz.seg_);
+  }
   out.stats.segment_ms = ms_since(t0);
+  out.stats.segment_row_step = static_cast<int>(row_step);
   t0 = Clock::now();
   rz.pfrg_builder_.build(rz.seg_, rz.scene_);
   out.stats.regions = static_cast<int>(rz.seg_.regions.size());

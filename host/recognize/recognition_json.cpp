@@ -71,6 +71,7 @@ nlohmann::json to_json(const Recognition& r, const Library& library) {
   }
   const RecognizeStats& s = r.stats;
   nlohmann::json stats = {{"segment_ms", s.segment_ms},
+                          {"segment_row_step", s.segment_row_step},
                           {"pfrg_ms", s.pfrg_ms},
                           {"match_ms", s.match_ms},
                           {"verify_ms", s.verify_ms},

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 
+#include "common/error.hpp"
 #include "host/recognize/recognizer_impl.hpp"
 
 namespace fs::host::rec {
@@ -99,8 +100,21 @@ Recognizer::Recognizer(const Library& library, const RecognizeParams& params, st
     : library_(library),
       params_(params),
       segmenter_(params.segment, seg::SegmentLimits{max_cells, Impl::kMaxRegions, 32768}),
+      // Sized only when used (the same parameters: halved cell counts made strips of one row known regions).
+      thin_segmenter_(params.segment,
+                      seg::SegmentLimits{params.segment_row_step == 2 ? max_cells / 2 + 4096 : 1,
+                                         params.segment_row_step == 2 ? Impl::kMaxRegions : 1,
+                                         params.segment_row_step == 2 ? 32768u : 1u}),
       pfrg_builder_(Impl::kMaxRegions, 32768) {
+  if (params.segment_row_step != 1 && params.segment_row_step != 2)
+    throw Error("recognize: segment_row_step is " + std::to_string(params.segment_row_step) +
+                ", expected 1 (every row) or 2 (every other row)");
   segmenter_.prepare(seg_);
+  if (params.segment_row_step == 2) {
+    thin_segmenter_.prepare(thin_seg_);
+    thin_cloud_.reserve(max_cells / 2 + 4096);
+    seg_.labels.reserve(max_cells);
+  }
   pfrg_builder_.prepare(scene_);
   impl_ = std::make_unique<Impl>(library, params_, params.threads);
   impl_->cell_owner.assign(max_cells, -1);

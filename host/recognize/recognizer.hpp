@@ -33,6 +33,11 @@ namespace fs::host::rec {
 struct RecognizeParams {
   match::MatchParams match = match::preset("t9.3");
   seg::SegmentParams segment = seg::SegmentParams::laser();
+  // Rows segmented (row_thinning.hpp): 1 = every row; 2 = every other row when the grid's columns lie at
+  // least 1.5 times farther apart than its rows (a sweep at fine steps) and no face is reached by only a few
+  // rows (else every row). Verification and the reports keep every point either way. 2 changes the outcome
+  // of some scenario tests (docs/performance.md, "Every other row for the segmentation"): opt-in.
+  int segment_row_step = 1;
   VerifyParams verify;
   int solutions_per_model = 32;  // best solutions of each reference kept as hypotheses (ranked by prescore)
   // Search solutions kept per round over all references: when more come (a scene that nearly every reference
@@ -293,6 +298,7 @@ struct Hypothesis {
 
 struct RecognizeStats {
   double segment_ms = 0, pfrg_ms = 0, match_ms = 0, verify_ms = 0, total_ms = 0;
+  int segment_row_step = 1;  // rows segmented: every row (1) or every other (2; RecognizeParams)
   int regions = 0, known_regions = 0, scene_nodes = 0, scene_arcs = 0;
   int components = 0;  // connected parts of the scene graph searched (>= min_level faces)
   // A connected part of more faces than the matcher takes is searched in overlapping windows (counted here,
@@ -349,6 +355,9 @@ class Recognizer {
   const Library& library_;
   RecognizeParams params_;
   seg::Segmenter segmenter_;
+  seg::Segmenter thin_segmenter_;  // every other row (RecognizeParams::segment_row_step)
+  OrganizedCloud thin_cloud_;
+  seg::Segmentation thin_seg_;
   seg::ScenePfrgBuilder pfrg_builder_;
   seg::Segmentation seg_;
   Pfrg scene_;

@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "common/alloc_counter/alloc_counter.hpp"
+#include "common/error.hpp"
 #include "host/library/mesh_files.hpp"
 #include "host/recognize/pose.hpp"
 #include "host/recognize/recognizer.hpp"
@@ -47,12 +48,13 @@ SceneRun scan(const std::string& name, std::uint32_t steps = 300, double noise_m
 }
 
 // Every scene object named in `required` (all when empty) is found with the right model and pose; with
-// exact = true nothing else is reported.
-void expect_scene_recognized(const std::string& name, const std::vector<std::string>& required = {},
-                             bool exact = true) {
-  SceneRun s = scan(name);
+// exact = true nothing else is reported. Returns the rows segmented (RecognizeStats::segment_row_step).
+int expect_scene_recognized(const std::string& name, const std::vector<std::string>& required = {},
+                            bool exact = true, int segment_row_step = 1, std::uint32_t steps = 300) {
+  SceneRun s = scan(name, steps);
   fs::host::rec::RecognizeParams params;
   params.threads = 2;
+  params.segment_row_step = segment_row_step;
   Recognizer rec(library(), params, s.cloud.points.size());
   const fs::Plane table = s.scene.calibration.table;
   const auto& r = rec.recognize(s.cloud, &table);
@@ -100,6 +102,9 @@ void expect_scene_recognized(const std::string& name, const std::vector<std::str
                     << " t " << h->t.transpose() << "\n";
     std::cerr << fs::host::rec::to_json(r, library()).dump() << "\n";
   }
+  // Every point keeps a label whichever rows were segmented.
+  EXPECT_EQ(rec.segmentation().labels.size(), s.cloud.points.size());
+  return r.stats.segment_row_step;
 }
 
 TEST(RecognizeScenes, Cube) { expect_scene_recognized("cube"); }
@@ -112,6 +117,47 @@ TEST(RecognizeScenes, CubePyramidSeparate) { expect_scene_recognized("cube-pyram
 TEST(RecognizeScenes, CubeOccludesPyramid) { expect_scene_recognized("cube-occludes-pyramid"); }
 TEST(RecognizeScenes, DefaultDemoScene) { expect_scene_recognized("default"); }
 // With one round (the thesis' single pass) the touching two-face cube is missed.
+// Every other row segmented (RecognizeParams::segment_row_step = 2, opt-in): the same objects in the same
+// poses. The default scene's box turns a side toward the sweep's direction, which few rows reach (one every
+// few mm): it keeps every row.
+TEST(RecognizeScenes, EveryOtherRowSegmentedFindsTheSameObjects) {
+  int thinned = 0;
+  for (const char* name : {"cube", "pyramid", "cube-pyramid-separate", "cube-occludes-pyramid"})
+    for (std::uint32_t steps : {300u, 500u}) {
+      SCOPED_TRACE(std::string(name) + " at " + std::to_string(steps) + " steps");
+      const int step = expect_scene_recognized(name, {}, true, 2, steps);
+      EXPECT_TRUE(step == 1 || step == 2);
+      thinned += step == 2 ? 1 : 0;
+    }
+  EXPECT_GE(thinned, 4) << "scenes segmented on every other row";
+  EXPECT_EQ(expect_scene_recognized("default", {}, true, 2), 1);
+  fs::host::rec::RecognizeParams params;
+  params.segment_row_step = 3;
+  EXPECT_THROW(Recognizer(library(), params, 1000), fs::Error);
+}
+
+TEST(RecognizeScenes, WarmRecognizeOnEveryOtherRowAllocatesNothing) {
+  SceneRun s = scan("cube-pyramid-separate", 500);
+  fs::host::rec::RecognizeParams params;
+  params.threads = 2;
+  params.segment_row_step = 2;
+  Recognizer rec(library(), params, s.cloud.points.size());
+  const fs::Plane table = s.scene.calibration.table;
+  ASSERT_EQ(rec.recognize(s.cloud, &table).objects.size(), 2u);
+  fs::AllocCounter counter;
+  const auto& r = rec.recognize(s.cloud, &table);
+  EXPECT_EQ(counter.process_allocations(), 0u);
+  EXPECT_EQ(r.objects.size(), 2u);
+  EXPECT_EQ(r.stats.segment_row_step, 2);
+  // ... nor when a face few rows reach sends the segmentation back to every row.
+  SceneRun d = scan("default", 500);
+  ASSERT_EQ(rec.recognize(d.cloud, &table).objects.size(), 4u);
+  counter.restart();
+  const auto& rd = rec.recognize(d.cloud, &table);
+  EXPECT_EQ(counter.process_allocations(), 0u);
+  EXPECT_EQ(rd.stats.segment_row_step, 1);
+}
+
 TEST(RecognizeScenes, OneRoundMissesTheTouchingTwoFaceCube) {
   SceneRun s = scan("cube-occludes-pyramid");
   fs::host::rec::RecognizeParams params;
