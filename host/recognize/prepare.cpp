@@ -48,14 +48,16 @@ bool Recognizer::Impl::prepare_scene(Recognizer& rz, const OrganizedCloud& cloud
   const RecognizeParams& params = rz.params_;
   auto t0 = Clock::now();
   std::uint32_t row_step = 1;
-  if (params.segment_row_step == 2 && cloud.organized) {
+  // (A cloud whose points do not fill its grid goes to the segmenter, which says so.)
+  if (params.segment_row_step == 2 && cloud.organized &&
+      cloud.points.size() == std::size_t{cloud.width} * cloud.height) {
     const Eigen::Vector2d grid = grid_spacing_mm(cloud);
     row_step = seg::row_step_for(grid.x(), grid.y());
   }
   if (row_step > 1) {
     seg::thin_rows(cloud, row_step, rz.thin_cloud_);
     rz.thin_segmenter_.segment(rz.thin_cloud_, rz.thin_seg_);
-    // A face that few rows reach (turned toward the sweep's direction) loses half of them: every row then.
+    // A face that few rows reach (turned along the stripe) loses half of them: every row then.
     if (seg::rows_sparse_somewhere(rz.thin_seg_))
       row_step = 1;
     else

@@ -100,7 +100,8 @@ Recognizer::Recognizer(const Library& library, const RecognizeParams& params, st
     : library_(library),
       params_(params),
       segmenter_(params.segment, seg::SegmentLimits{max_cells, Impl::kMaxRegions, 32768}),
-      // Sized only when used (the same parameters: halved cell counts made strips of one row known regions).
+      // Sized only when used. The same parameters: a known region needs min_region_cells on every other row
+      // too (with half as many, strips of one row, points on a line, would count as faces).
       thin_segmenter_(params.segment,
                       seg::SegmentLimits{params.segment_row_step == 2 ? max_cells / 2 + 4096 : 1,
                                          params.segment_row_step == 2 ? Impl::kMaxRegions : 1,
@@ -112,8 +113,7 @@ Recognizer::Recognizer(const Library& library, const RecognizeParams& params, st
   segmenter_.prepare(seg_);
   if (params.segment_row_step == 2) {
     thin_segmenter_.prepare(thin_seg_);
-    thin_cloud_.reserve(max_cells / 2 + 4096);
-    seg_.labels.reserve(max_cells);
+    thin_cloud_.points.reserve(max_cells / 2 + 4096);  // grids up to 8,192 columns wide
   }
   pfrg_builder_.prepare(scene_);
   impl_ = std::make_unique<Impl>(library, params_, params.threads);

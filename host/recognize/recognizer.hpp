@@ -33,10 +33,11 @@ namespace fs::host::rec {
 struct RecognizeParams {
   match::MatchParams match = match::preset("t9.3");
   seg::SegmentParams segment = seg::SegmentParams::laser();
-  // Rows segmented (row_thinning.hpp): 1 = every row; 2 = every other row when the grid's columns lie at
-  // least 1.5 times farther apart than its rows (a sweep at fine steps) and no face is reached by only a few
-  // rows (else every row). Verification and the reports keep every point either way. 2 changes the outcome
-  // of some scenario tests (docs/performance.md, "Every other row for the segmentation"): opt-in.
+  // Rows segmented (row_thinning.hpp): 1 = every row; 2 = every other row when the grid's columns (sweep
+  // steps) lie at least 1.5 times farther apart than its rows (image rows along the stripe) and no face is
+  // reached by only a few rows (else every row). Verification and the reports keep every point either way.
+  // 2 changes the outcome of some scenario tests (docs/performance.md, "Every other row for the
+  // segmentation"): opt-in.
   int segment_row_step = 1;
   VerifyParams verify;
   int solutions_per_model = 32;  // best solutions of each reference kept as hypotheses (ranked by prescore)

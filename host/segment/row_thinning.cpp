@@ -40,12 +40,9 @@ void thin_rows(const OrganizedCloud& in, std::uint32_t k, OrganizedCloud& out) {
 
 namespace {
 
-// Distance of p to region r's plane; infinity when r has no plane fit (not known).
-double plane_distance(const Segmentation& s, std::int32_t r, const Eigen::Vector3f& p) {
-  const Region& g = s.regions[static_cast<std::size_t>(r)];
-  if (!g.known) return std::numeric_limits<double>::infinity();
-  return std::abs(g.plane.signed_distance(p.cast<double>()));
-}
+// A point lies on a region's face when within this many times the segmentation's point-to-plane tolerance
+// (Segmentation::dist_mm) of its plane.
+constexpr double kOnPlane = 2.0;
 
 }  // namespace
 
@@ -62,6 +59,8 @@ void spread_rows(const OrganizedCloud& full, std::uint32_t k, const Segmentation
   out.borders.assign(thin.borders.begin(), thin.borders.end());
   out.labels.resize(static_cast<std::size_t>(w) * h);
   const std::uint32_t thin_rows_n = thin.height;
+  const double tol = kOnPlane * thin.dist_mm;
+  constexpr double kInf = std::numeric_limits<double>::infinity();
   auto thin_label = [&](std::uint32_t tr, std::uint32_t c) {
     return tr < thin_rows_n ? thin.labels[std::size_t{tr} * w + c] : kNil;
   };
@@ -88,8 +87,19 @@ void spread_rows(const OrganizedCloud& full, std::uint32_t k, const Segmentation
         row[c] = b;
         continue;
       }
-      const double da = plane_distance(thin, a, p), db = plane_distance(thin, b, p);
-      row[c] = da < db ? a : db < da ? b : (upper_nearer ? a : b);
+      // Two labels: a face whose plane holds the point (the nearer plane of two); neither, what fits no plane
+      // (an unknown region) of the two, else the nearer row's.
+      const Region& ga = thin.regions[static_cast<std::size_t>(a)];
+      const Region& gb = thin.regions[static_cast<std::size_t>(b)];
+      const Vec3 q = p.cast<double>();
+      const double da = ga.known ? std::abs(ga.plane.signed_distance(q)) : kInf;
+      const double db = gb.known ? std::abs(gb.plane.signed_distance(q)) : kInf;
+      if (da <= tol || db <= tol)
+        row[c] = da < db ? a : db < da ? b : (upper_nearer ? a : b);
+      else if (ga.known != gb.known)
+        row[c] = ga.known ? b : a;
+      else
+        row[c] = upper_nearer ? a : b;
     }
   }
   // Cell counts and pixel centres on the full grid.

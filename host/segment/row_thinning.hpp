@@ -14,9 +14,10 @@ namespace fs::host::seg {
 // (mean distances): 2 when the columns lie at least min_ratio times farther apart than the rows, else 1.
 std::uint32_t row_step_for(double column_mm, double row_mm, double min_ratio = 1.5);
 
-// Whether `thin` holds a face that few rows reach (a face turned toward the sweep's direction): a known
-// region of at least min_area_mm2 whose area per cell exceeds max_cell_ratio times the grid's median cell
-// (spacing x by spacing y). Such a face needs every row.
+// Whether `thin` holds a face that few rows reach (a face turned along the stripe, seen by few image rows):
+// a known region of at least min_area_mm2 whose area per cell exceeds max_cell_ratio times the grid's median
+// cell (spacing x by spacing y). Such a face needs every row. A face that few columns (sweep steps) reach
+// counts too, although it would not need them: the test errs toward every row.
 bool rows_sparse_somewhere(const Segmentation& thin, double max_cell_ratio = 15.0,
                            double min_area_mm2 = 100.0);
 

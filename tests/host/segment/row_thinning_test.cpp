@@ -66,6 +66,7 @@ TEST(RowThinning, SpreadRowsLabelsEveryRowByTheNearerPlane) {
   thin.width = cols;
   thin.height = thin_cloud.height;
   thin.spacing_mm = {1.0, 1.0};
+  thin.dist_mm = 0.3;
   thin.regions = {horizontal_region(0, 10.0, true), horizontal_region(1, 20.0, true)};
   thin.labels.resize(std::size_t{thin.height} * cols);
   for (std::uint32_t r = 0; r < thin.height; ++r)
@@ -101,21 +102,30 @@ TEST(RowThinning, SpreadRowsLabelsEveryRowByTheNearerPlane) {
   EXPECT_DOUBLE_EQ(out.regions[0].area, 100.0) << "areas are in mm and stay";
 }
 
-TEST(RowThinning, ACellBetweenTwoRegionsGoesToTheOneWithAPlane) {
+// Row 1 of three at z = 15 between a kept row of region 0 and one of region 1 (point-to-plane tolerance 0.3
+// mm: a plane within 0.6 mm holds the point).
+TEST(RowThinning, ACellBetweenTwoRegionsGoesToAFaceWhosePlaneHoldsIt) {
   const std::uint32_t rows = 3, cols = 2;
   OrganizedCloud full = grid(rows, cols, [](std::uint32_t) { return 15.f; });
   Segmentation thin;
   thin.width = cols;
   thin.height = 2;
-  thin.regions = {horizontal_region(0, 10.0, false), horizontal_region(1, 30.0, true)};
+  thin.dist_mm = 0.3;
   thin.labels = {0, 0, 1, 1};
   Segmentation out;
-  spread_rows(full, 2, thin, out);
-  EXPECT_EQ(out.labels[1 * cols + 0], 1);
-  thin.regions[1].known = false;
-  spread_rows(full, 2, thin, out);
-  EXPECT_EQ(out.labels[1 * cols + 0], 0)
-      << "without a plane either way: the nearer row (the upper one on a tie)";
+  auto middle = [&](double z0, bool known0, double z1, bool known1) {
+    thin.regions = {horizontal_region(0, z0, known0), horizontal_region(1, z1, known1)};
+    spread_rows(full, 2, thin, out);
+    EXPECT_EQ(out.labels[1 * cols + 0], out.labels[1 * cols + 1]);
+    return out.labels[1 * cols + 0];
+  };
+  EXPECT_EQ(middle(10.0, false, 15.5, true), 1) << "the face whose plane holds the point";
+  EXPECT_EQ(middle(15.4, true, 15.2, true), 1) << "of two such faces, the nearer plane";
+  EXPECT_EQ(middle(10.0, false, 30.0, true), 0) << "a face far from the point: the unknown region";
+  EXPECT_EQ(middle(10.0, true, 30.0, false), 1) << "... either way round";
+  EXPECT_EQ(middle(10.0, true, 16.0, true), 0)
+      << "two faces far from it: the nearer row (the upper on a tie)";
+  EXPECT_EQ(middle(10.0, false, 16.0, false), 0) << "two unknown regions: the same";
 }
 
 TEST(RowThinning, AFaceFewRowsReachNeedsEveryRow) {
