@@ -1,8 +1,10 @@
 #pragma once
-// Segmentation of every k-th row, carried back onto every row. A laser sweep at fine steps gives rows that
-// lie closer together than its columns (500 steps: 0.32 mm against 0.59 mm); segmenting every other row of
-// such a grid finds the same faces in half the time, and every point keeps a label for what follows
-// (verification, object colours, face outlines).
+// Segmentation of every k-th row, carried back onto every row. In a laser scan's grid a column is a sweep
+// step and a row an image row along the stripe: unless the sweep is fine, the camera samples the stripe more
+// densely than the sweep steps (rows about 0.32 mm apart on the bench scanner; columns 0.59 mm at 500
+// steps, 1.2 mm at 250). Such a grid segmented on every other row gives the segmentation in about two thirds
+// of the time (bench_recognition --segment-row-step 2, docs/performance.md), and every point keeps a label
+// for what follows (verification, object colours, face outlines).
 #include <cstdint>
 
 #include "host/io/organized_cloud.hpp"
@@ -25,11 +27,14 @@ bool rows_sparse_somewhere(const Segmentation& thin, double max_cell_ratio = 15.
 // scanner copied.
 void thin_rows(const OrganizedCloud& in, std::uint32_t k, OrganizedCloud& out);
 
-// `thin`, the segmentation of thin_rows(full, k), onto every row of `full` in `out` (reused). A kept row
-// keeps its labels. A cell between two kept rows takes their label when they agree; when they differ, the
-// label of the region whose plane lies nearer its point (a region without a plane fit, the nearer row's);
-// without a point, none (kNil). Regions and borders are thin's: areas and lengths are in mm and stay; region
-// cell counts and pixel centres are counted on the full grid.
+// `thin`, the segmentation of thin_rows(full, k), onto every row of `full` in `out` (reused; thin.width ==
+// full.width, thin.height == ceil(full.height / k)). A kept row keeps its labels. A cell between two kept
+// rows takes their label when they agree. When they differ, a face (known region) whose plane lies within
+// twice the segmentation's point-to-plane tolerance of the cell's point takes it (the nearer plane of two);
+// when neither does, an unknown region among the two, else the nearer row's label. A cell without a point
+// gets none (kNil). Regions and borders are thin's: areas and lengths are in mm and stay, while a border's
+// edge counts are the thinned grid's (half as many along a column). Region cell counts and pixel centres are
+// counted on the full grid.
 void spread_rows(const OrganizedCloud& full, std::uint32_t k, const Segmentation& thin, Segmentation& out);
 
 }  // namespace fs::host::seg

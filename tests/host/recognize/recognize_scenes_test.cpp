@@ -115,9 +115,10 @@ TEST(RecognizeScenes, CubePyramidSeparate) { expect_scene_recognized("cube-pyram
 // cube's two faces: both come from the later rounds.
 TEST(RecognizeScenes, CubeOccludesPyramid) { expect_scene_recognized("cube-occludes-pyramid"); }
 TEST(RecognizeScenes, DefaultDemoScene) { expect_scene_recognized("default"); }
+
 // Every other row segmented (RecognizeParams::segment_row_step = 2, opt-in): the same objects in the same
-// poses. The default scene's box turns a side toward the sweep's direction, which few rows reach (one every
-// few mm): it keeps every row.
+// poses. The default scene's box turns a side along the stripe, which few image rows reach (one every few
+// mm): it keeps every row.
 TEST(RecognizeScenes, EveryOtherRowSegmentedFindsTheSameObjects) {
   int thinned = 0;
   for (const char* name : {"cube", "pyramid", "cube-pyramid-separate", "cube-occludes-pyramid"})
