@@ -102,10 +102,9 @@ Recognizer::Recognizer(const Library& library, const RecognizeParams& params, st
       segmenter_(params.segment, seg::SegmentLimits{max_cells, Impl::kMaxRegions, 32768}),
       // Sized only when used. The same parameters: a known region needs min_region_cells on every other row
       // too (with half as many, strips of one row, points on a line, would count as faces).
-      thin_segmenter_(params.segment,
-                      seg::SegmentLimits{params.segment_row_step == 2 ? max_cells / 2 + 4096 : 1,
-                                         params.segment_row_step == 2 ? Impl::kMaxRegions : 1,
-                                         params.segment_row_step == 2 ? 32768u : 1u}),
+      thin_segmenter_(params.segment, params.segment_row_step == 2
+                                          ? seg::SegmentLimits{max_cells / 2 + 4096, Impl::kMaxRegions, 32768}
+                                          : seg::SegmentLimits{1, 1, 1}),
       pfrg_builder_(Impl::kMaxRegions, 32768) {
   if (params.segment_row_step != 1 && params.segment_row_step != 2)
     throw Error("recognize: segment_row_step is " + std::to_string(params.segment_row_step) +

@@ -38,6 +38,7 @@
 #include "host/recognize/pose.hpp"
 #include "host/recognize/recognizer.hpp"
 #include "host/recognize/verify.hpp"
+#include "host/segment/row_thinning.hpp"
 #include "hw-sim/scene/ground_truth_grid.hpp"
 #include "hw-sim/scene/random_scene.hpp"
 #include "support/quantile.hpp"
@@ -212,7 +213,7 @@ int run(const Args& args) {
 
   std::map<SceneCategory, CategoryStats> stats;
   std::map<std::string, int> missed_models;
-  fs::host::OrganizedCloud cloud;
+  fs::host::OrganizedCloud cloud, thinned;  // thinned: --row-step
   for (int i = 0; i < args.scenes; ++i) {
     if (args.only >= 0 && i != args.only) continue;
     const SceneCategory cat = args.categories[static_cast<std::size_t>(i) % args.categories.size()];
@@ -222,13 +223,8 @@ int run(const Args& args) {
         .export_to(cloud, false);
     const fs::Plane table = rs.scene.calibration.table;
     if (args.row_step > 1) {
-      // Every k-th row, in place (row r comes from row r * k >= r).
-      const std::uint32_t k = args.row_step, rows = (cloud.height + k - 1) / k;
-      for (std::uint32_t r = 1; r < rows; ++r)
-        std::copy_n(cloud.points.begin() + static_cast<std::ptrdiff_t>(cloud.index(r * k, 0)), cloud.width,
-                    cloud.points.begin() + static_cast<std::ptrdiff_t>(cloud.index(r, 0)));
-      cloud.points.resize(static_cast<std::size_t>(rows) * cloud.width);
-      cloud.height = rows;
+      fs::host::seg::thin_rows(cloud, args.row_step, thinned);
+      std::swap(cloud, thinned);
     }
 
     const auto w0 = std::chrono::steady_clock::now();
