@@ -194,9 +194,29 @@ NatsConnection::~NatsConnection() {
   if (js_ != nullptr) jsCtx_Destroy(js_);
   if (nc_ != nullptr) {
     natsConnection_FlushTimeout(nc_, 1000);
-    natsConnection_Close(nc_);
-    natsConnection_Destroy(nc_);
+    natsConnection_Close(nc_);  // joins the read loop
   }
+  for (natsSubscription* sub : kept_) natsSubscription_Destroy(sub);
+  if (nc_ != nullptr) natsConnection_Destroy(nc_);
+}
+
+void NatsConnection::end_subscription(natsSubscription* sub) {
+  if (sub == nullptr) return;
+  natsSubscription_Unsubscribe(sub);
+  // Flushed only while connected: a flush made while the client reconnects waits for its whole timeout.
+  constexpr std::int64_t kFlushMs = 2000;
+  if (natsConnection_Status(nc_) == NATS_CONN_STATUS_CONNECTED &&
+      natsConnection_FlushTimeout(nc_, kFlushMs) == NATS_OK) {
+    natsSubscription_Destroy(sub);
+    return;
+  }
+  std::lock_guard lock(kept_mu_);
+  kept_.push_back(sub);
+}
+
+std::size_t NatsConnection::kept_subscriptions() const {
+  std::lock_guard lock(kept_mu_);
+  return kept_.size();
 }
 
 std::int64_t NatsConnection::max_payload() const { return natsConnection_GetMaxPayload(nc_); }

@@ -3,7 +3,9 @@
 // TLS (tls://) on every non-loopback connection; plain nats:// to a non-loopback host is refused unless
 // `insecure` (--insecure) is set. The connection reconnects by itself (forever, every 250 ms); JetStream
 // calls made meanwhile fail with a timeout and the callers retry.
+#include <cstddef>
 #include <cstdint>
+#include <mutex>
 #include <span>
 #include <string>
 #include <utility>
@@ -80,10 +82,23 @@ class NatsConnection {
   bool connected() const;
   std::string connected_url() const;
 
+  // Unsubscribes and destroys `sub` (a subscription of this connection) without racing the client's read
+  // loop. Debian's nats.c 3.4.1 takes an arriving message's subscription from its table, lets go of the
+  // table's lock, then locks the subscription: one destroyed in between is used after it was freed, a crash
+  // (nats.c#637, fixed upstream after 3.5 by nats.c#638; the `NatsSubscriptionEnd` tests provoke it). After
+  // the unsubscribe a flush round trip shows the read loop past every message that arrived before it (it
+  // reads them in order); when that fails (the connection is down), the subscription is kept until the
+  // connection closes, when the read loop has ended. Safe from any thread.
+  void end_subscription(natsSubscription* sub);
+  // Subscriptions ended while the connection was down, kept until it closes.
+  std::size_t kept_subscriptions() const;
+
  private:
   NatsOptions options_;
   natsConnection* nc_ = nullptr;
   jsCtx* js_ = nullptr;
+  mutable std::mutex kept_mu_;
+  std::vector<natsSubscription*> kept_;
 };
 
 }  // namespace fs::host::fleet

@@ -8,7 +8,8 @@
 
 namespace fs::host::fleet {
 
-ResultsReader::ResultsReader(NatsConnection& connection, Source source, const std::string& scanner_id) {
+ResultsReader::ResultsReader(NatsConnection& connection, Source source, const std::string& scanner_id)
+    : connection_(connection) {
   const bool dead = source == Source::Dead;
   const char* stream = dead ? kDeadStream : kResultsStream;
   if (!scanner_id.empty()) check_scanner_id(scanner_id);
@@ -30,12 +31,7 @@ ResultsReader::ResultsReader(NatsConnection& connection, Source source, const st
   if (st != NATS_OK) throw_nats(st, fmt::format("read {} ({})", stream, subject), err);
 }
 
-ResultsReader::~ResultsReader() {
-  if (sub_ != nullptr) {
-    natsSubscription_Unsubscribe(sub_);
-    natsSubscription_Destroy(sub_);
-  }
-}
+ResultsReader::~ResultsReader() { connection_.end_subscription(sub_); }
 
 std::optional<FleetResult> ResultsReader::next(std::int64_t timeout_ms) {
   natsMsg* m = nullptr;

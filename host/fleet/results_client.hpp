@@ -34,6 +34,7 @@ class ResultsReader {
   std::uint64_t stored_at_start() const { return stored_at_start_; }
 
  private:
+  NatsConnection& connection_;
   natsSubscription* sub_ = nullptr;
   std::uint64_t stored_at_start_ = 0;
 };

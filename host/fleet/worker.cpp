@@ -97,12 +97,7 @@ Worker::Worker(NatsConnection& connection, const Library& library, WorkerOptions
   if (st != NATS_OK) throw_nats(st, "subscribe to " + advisory);
 }
 
-Worker::~Worker() {
-  if (advisory_sub_ != nullptr) {
-    natsSubscription_Unsubscribe(advisory_sub_);
-    natsSubscription_Destroy(advisory_sub_);
-  }
-}
+Worker::~Worker() { connection_.end_subscription(advisory_sub_); }
 
 void Worker::say(const std::string& line) {
   if (!options_.log) return;
@@ -140,6 +135,8 @@ void Worker::run(const std::atomic<bool>& stop) {
   }
   ticker_stop = true;
   ticker.join();
+  // Destroyed, not ended: an unsubscribe would delete a consumer the library made, and the pull subscriptions
+  // get messages only for a fetch (none is waiting now).
   for (natsSubscription* sub : pull_subs_) natsSubscription_Destroy(sub);
   pull_subs_.clear();
   {
@@ -285,10 +282,7 @@ void Worker::take(std::unique_ptr<Job> job) {
     sub = nullptr;
   }
   lock.unlock();
-  if (sub != nullptr) {  // the scan was released meanwhile
-    natsSubscription_Unsubscribe(sub);
-    natsSubscription_Destroy(sub);
-  }
+  if (sub != nullptr) connection_.end_subscription(sub);  // the scan was released meanwhile
 }
 
 void Worker::ready(Job* job) {
@@ -402,10 +396,7 @@ void Worker::release(std::unique_ptr<Job> job) {
     std::erase(held_, job.get());
     sub = std::exchange(job->parts_sub, nullptr);
   }
-  if (sub != nullptr) {
-    natsSubscription_Unsubscribe(sub);
-    natsSubscription_Destroy(sub);
-  }
+  connection_.end_subscription(sub);
   natsMsg_Destroy(job->msg);
   job.reset();
   room_cv_.notify_all();
