@@ -197,7 +197,8 @@ class ScanHandler {
     const std::uint64_t cells = std::uint64_t(w.steps) * w.rows;
     std::uint64_t freed = 0;
     if (recognizer_ && recognizer_cells_ > cells) {
-      freed += ScanLimits::recognizer_bytes(recognizer_cells_, options_.limits.threads);
+      freed += ScanLimits::recognizer_bytes(recognizer_cells_, options_.limits.threads,
+                                            options_.limits.segment_row_step);
       recognizer_.reset();
       recognizer_cells_ = 0;
     }
@@ -429,6 +430,7 @@ struct ServeOptions {
   int max_scans = 0;
   std::int64_t reconnect_grace_ms = StreamServerOptions{}.reconnect_grace_ms;
   std::string memory_budget;  // empty = the default budget (2 GiB)
+  int segment_row_step = 1;   // RecognizeParams::segment_row_step
   int max_clients = StreamServerOptions{}.max_clients;
   bool keep_scans = false;
   std::string test_pause_file;  // hidden test hook, see ScanHandler::set_pause_file
@@ -511,7 +513,8 @@ void run_serve(const ServeOptions& o) {
   prepare_out_dir(o.out_dir);
   rec::RecognizeParams params;
   params.match = match::read_params(o.params);
-  const ScanLimits limits = memory_budget_limits(o.memory_budget, params.threads);
+  params.segment_row_step = o.segment_row_step;
+  const ScanLimits limits = memory_budget_limits(o.memory_budget, params.threads, params.segment_row_step);
   const bool gateway_mode = !o.nats.url.empty();
   if (gateway_mode && !o.library.empty())
     throw Error(
@@ -889,6 +892,7 @@ void add_live_commands(CLI::App& app) {
       ->capture_default_str()
       ->check(CLI::Range(std::int64_t{0}, std::int64_t{3'600'000}));
   add_memory_budget_option(serve, so->memory_budget);
+  add_segment_row_step_option(serve, so->segment_row_step);
   serve
       ->add_option("--max-clients", so->max_clients,
                    "Connections open at once (the scanner, a re-dial, probes); more are refused")

@@ -44,6 +44,7 @@ struct RecognizeOptions {
   long long max_solutions = -1;
   double scale = 0.0;
   std::string memory_budget;  // --memory-budget (empty = default)
+  int segment_row_step = 1;   // --segment-row-step
   int threads = 0;
   bool quiet = false;
   SubmitCli fleet;  // --nats: the fleet recognizes (fleet_submit.hpp)
@@ -52,9 +53,9 @@ struct RecognizeOptions {
 // recognize --nats: the batch goes to the fleet (as `facetscan submit --wait`): workers recognize with their
 // library; the local options that shape recognition or its files do not apply.
 void run_recognize_on_fleet(const RecognizeOptions& o, const CLI::App& cmd) {
-  for (const char* local :
-       {"--library", "--json", "--report", "--params", "--segment", "--min-confidence", "--scale",
-        "--threads", "--memory-budget", "--max-solutions", "--summary-csv", "--summary-json"})
+  for (const char* local : {"--library", "--json", "--report", "--params", "--segment", "--min-confidence",
+                            "--scale", "--threads", "--memory-budget", "--segment-row-step",
+                            "--max-solutions", "--summary-csv", "--summary-json"})
     if (cmd.count(local) > 0)
       throw Error(
           fmt::format("recognize --nats: {} is not used (the fleet's workers recognize with their own "
@@ -107,6 +108,7 @@ void run_recognize(const RecognizeOptions& o) {
   rec::RecognizeParams params;
   params.match = match::read_params(o.params);
   params.threads = o.threads;
+  params.segment_row_step = o.segment_row_step;
   if (o.min_confidence >= 0) params.min_confidence = o.min_confidence;
   if (o.max_solutions >= 0) params.max_solutions = o.max_solutions;
 
@@ -116,7 +118,7 @@ void run_recognize(const RecognizeOptions& o) {
   OrganizedCloud cloud;
   LoadOptions lo;
   lo.scale = o.scale;
-  lo.limits = memory_budget_limits(o.memory_budget, o.threads);
+  lo.limits = memory_budget_limits(o.memory_budget, o.threads, o.segment_row_step);
   // A directory is a batch even when it holds one input (its summary tables are written as for more).
   bool any_directory = false;
   for (const auto& in : o.inputs) any_directory = any_directory || stdfs::is_directory(in);
@@ -269,6 +271,7 @@ void add_recognize_commands(CLI::App& app) {
   rc->add_option("--scale", o->scale, "PCD/PLY: millimetres per file unit (default: auto)");
   rc->add_option("--threads", o->threads, "Matching threads (0 = all cores)");
   add_memory_budget_option(rc, o->memory_budget);
+  add_segment_row_step_option(rc, o->segment_row_step);
   rc->add_option(
         "--max-solutions", o->max_solutions,
         "Stop each search after N solutions (TH_solutions; default 1, 0 = the match parameters' own)")

@@ -37,8 +37,10 @@ const char* to_string(ScanStatus s);
 //   Triangulator      H x (W + 1) x kRayBytes (ray table) + S x kPlaneBytes + H x kRowScratchBytes + scratch
 //   OrganizedCloud    C x kCloudBytesPerCell
 //   Recognizer        C x (kRecognizerBytesPerCell + (T - 1) x kRecognizerBytesPerCellPerThread)
+//                     (+ C x kRowThinningBytesPerCell with RecognizeParams::segment_row_step 2)
 //   fixed             kFixedBytes + (T - 1) x kFixedBytesPerThread (recognizer tables and workers)
-// The recognizer's terms are what it reserves (an upper bound: a real scan touches about half).
+// The recognizer's terms are what it reserves (an upper bound: a real scan touches about a third; test
+// RecognizerMemory.* keeps them above what it requests).
 // A ScanBegin is refused (before anything is allocated) when its scan with one point per cell does not fit;
 // the stripe points it may store are what is left of the budget (point_capacity). The library and the
 // program itself are outside the budget.
@@ -54,8 +56,10 @@ struct ScanLimits {
   static constexpr std::uint64_t kRowScratchBytes = 6;    // per camera row: triangulation scratch
   static constexpr std::uint64_t kStripeScratchBytes = 4 * msg::kMaxStripePoints;  // smoothing scratch
   static constexpr std::uint64_t kCloudBytesPerCell = 12;                          // Eigen::Vector3f per cell
-  static constexpr std::uint64_t kRecognizerBytesPerCell = 288;                    // measured: 287 (1 thread)
-  static constexpr std::uint64_t kRecognizerBytesPerCellPerThread = 10;  // measured: 9 per extra thread
+  static constexpr std::uint64_t kRecognizerBytesPerCell = 412;          // measured: 410.5 (1 thread)
+  static constexpr std::uint64_t kRecognizerBytesPerCellPerThread = 15;  // measured: 15 per extra thread
+  // RecognizeParams::segment_row_step 2 adds the thinned cloud and its segmenter.
+  static constexpr std::uint64_t kRowThinningBytesPerCell = 52;          // measured: 49.5
   static constexpr std::uint64_t kFixedBytes = std::uint64_t(32) << 20;  // measured: 29.1 MiB (1 thread)
   static constexpr std::uint64_t kFixedBytesPerThread = std::uint64_t(13) << 20;  // measured: 12.3 MiB
 
@@ -68,20 +72,24 @@ struct ScanLimits {
     return rows * (cols + 1) * kRayBytes + steps * kPlaneBytes + rows * kRowScratchBytes +
            kStripeScratchBytes;
   }
-  static constexpr std::uint64_t recognizer_bytes_per_cell(std::uint32_t threads) {
-    return kRecognizerBytesPerCell + (clamp_threads(threads) - 1) * kRecognizerBytesPerCellPerThread;
+  static constexpr std::uint64_t recognizer_bytes_per_cell(std::uint32_t threads,
+                                                           std::uint32_t segment_row_step = 1) {
+    return kRecognizerBytesPerCell + (clamp_threads(threads) - 1) * kRecognizerBytesPerCellPerThread +
+           (segment_row_step > 1 ? kRowThinningBytesPerCell : 0);
   }
-  static constexpr std::uint64_t recognizer_bytes(std::uint64_t cells, std::uint32_t threads = 1) {
-    return cells * recognizer_bytes_per_cell(threads);  // without the fixed part
+  static constexpr std::uint64_t recognizer_bytes(std::uint64_t cells, std::uint32_t threads = 1,
+                                                  std::uint32_t segment_row_step = 1) {
+    return cells * recognizer_bytes_per_cell(threads, segment_row_step);  // without the fixed part
   }
   static constexpr std::uint64_t fixed_bytes(std::uint32_t threads) {
     return kFixedBytes + (clamp_threads(threads) - 1) * kFixedBytesPerThread;
   }
   // The whole model: a scan of `steps` x camera `rows` x `cols` with `points` stored stripe points.
   static constexpr std::uint64_t scan_bytes(std::uint64_t steps, std::uint64_t rows, std::uint64_t cols,
-                                            std::uint64_t points, std::uint32_t threads) {
+                                            std::uint64_t points, std::uint32_t threads,
+                                            std::uint32_t segment_row_step = 1) {
     return fixed_bytes(threads) + scan_storage_bytes(steps, points) + triangulator_bytes(steps, rows, cols) +
-           steps * rows * (kCloudBytesPerCell + recognizer_bytes_per_cell(threads));
+           steps * rows * (kCloudBytesPerCell + recognizer_bytes_per_cell(threads, segment_row_step));
   }
   static constexpr std::uint64_t clamp_threads(std::uint32_t threads) {
     return threads < 1 ? 1 : threads > kMaxThreads ? kMaxThreads : threads;
@@ -91,6 +99,7 @@ struct ScanLimits {
 
   std::uint64_t budget_bytes = kDefaultBudgetBytes;  // the budget the limits below come from
   std::uint32_t threads = resolve_threads(0);        // recognizer threads the budget accounts for
+  std::uint32_t segment_row_step = 1;                // the recognizer's RecognizeParams::segment_row_step
   // Per-field caps (each alone; the whole scan must also fit: check()).
   std::uint32_t max_steps = kMaxSteps;                         // ScanBegin.step_count
   std::uint32_t max_camera_side = kMaxCameraSide;              // camera width and height
@@ -101,11 +110,12 @@ struct ScanLimits {
   // The limits of a budget in bytes (0 = the default) for a recognizer of `threads` threads (0 = hardware
   // concurrency, as RecognizeParams::threads). ScanLimits{} == for_budget(kDefaultBudgetBytes, 0). Throws
   // fs::Error when the budget is not above the fixed part.
-  static ScanLimits for_budget(std::uint64_t budget_bytes, int threads = 0);
+  // segment_row_step: the recognizer's RecognizeParams::segment_row_step (2 adds kRowThinningBytesPerCell).
+  static ScanLimits for_budget(std::uint64_t budget_bytes, int threads = 0, int segment_row_step = 1);
   // The model for these limits' thread count.
   std::uint64_t bytes(std::uint64_t steps, std::uint64_t rows, std::uint64_t cols,
                       std::uint64_t points) const {
-    return scan_bytes(steps, rows, cols, points, threads);
+    return scan_bytes(steps, rows, cols, points, threads, segment_row_step);
   }
   // Throws fs::Error naming the scan, the field, the memory needed and the budget when the ScanBegin's scan
   // (steps x camera, one stripe point per cell) does not fit. Allocates nothing unless it throws.
@@ -121,10 +131,11 @@ struct ScanLimits {
   static constexpr std::uint64_t available(std::uint64_t budget, std::uint32_t threads) {
     return budget > fixed_bytes(threads) ? budget - fixed_bytes(threads) : 0;
   }
-  static constexpr std::uint64_t cells_for(std::uint64_t budget, std::uint32_t threads) {
+  static constexpr std::uint64_t cells_for(std::uint64_t budget, std::uint32_t threads,
+                                           std::uint32_t segment_row_step = 1) {
     // with one stripe point per cell
     return available(budget, threads) /
-           (kCloudBytesPerCell + recognizer_bytes_per_cell(threads) + kPointBytes);
+           (kCloudBytesPerCell + recognizer_bytes_per_cell(threads, segment_row_step) + kPointBytes);
   }
 };
 

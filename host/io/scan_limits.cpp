@@ -27,7 +27,7 @@ std::uint32_t ScanLimits::resolve_threads(int threads) {
   return static_cast<std::uint32_t>(clamp_threads(std::thread::hardware_concurrency()));
 }
 
-ScanLimits ScanLimits::for_budget(std::uint64_t budget, int threads) {
+ScanLimits ScanLimits::for_budget(std::uint64_t budget, int threads, int segment_row_step) {
   if (budget == 0) budget = kDefaultBudgetBytes;
   const std::uint32_t t = resolve_threads(threads);
   if (budget <= fixed_bytes(t))
@@ -37,9 +37,10 @@ ScanLimits ScanLimits::for_budget(std::uint64_t budget, int threads) {
   ScanLimits l;
   l.budget_bytes = budget;
   l.threads = t;
+  l.segment_row_step = segment_row_step > 1 ? 2 : 1;
   l.max_steps = kMaxSteps;
   l.max_camera_side = kMaxCameraSide;
-  l.max_cells = cells_for(budget, t);
+  l.max_cells = cells_for(budget, t, l.segment_row_step);
   l.max_ray_table_entries = available(budget, t) / kRayBytes;
   l.max_total_points = available(budget, t) / kPointBytes;
   return l;

@@ -284,6 +284,19 @@ TEST(EndToEndOffline, RecognizesTheRecordedScan) {
       run(facetscan() + " recognize " + scan.string() + " -l " + library() + " --max-solutions -1");
   EXPECT_NE(bad.code, 0);
   EXPECT_NE(bad.out.find("--max-solutions"), std::string::npos) << bad.out;
+  // --segment-row-step 2: every other row segmented (the sweep's 500 columns lie farther apart than the
+  // image rows), the same pyramid; by default every row; 3 is refused naming the option.
+  EXPECT_EQ(j["stats"]["segment_row_step"], 1);
+  const CmdResult thin = run(facetscan() + " recognize " + scan.string() + " -l " + library() +
+                             " --segment-row-step 2 -q --json " + (d / "thin.json").string());
+  ASSERT_EQ(thin.code, 0) << thin.out;
+  const nlohmann::json jt = read_json(d / "thin.json");
+  expect_pyramid(jt);
+  EXPECT_EQ(jt["stats"]["segment_row_step"], 2);
+  const CmdResult bad_step =
+      run(facetscan() + " recognize " + scan.string() + " -l " + library() + " --segment-row-step 3");
+  EXPECT_NE(bad_step.code, 0);
+  EXPECT_NE(bad_step.out.find("--segment-row-step"), std::string::npos) << bad_step.out;
 }
 
 // A scan exported as an organized point cloud (millimetres) is recognized like the scan itself.

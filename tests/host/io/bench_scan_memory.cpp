@@ -6,7 +6,8 @@
 //
 // Prints, per piece, the bytes measured and the model's estimate: Scan storage, Triangulator (ray table +
 // planes), OrganizedCloud, and the Recognizer for N cells (1 thread and all cores), then the Recognizer's
-// bytes per cell (slope between two sizes) and its fixed part.
+// bytes per cell (slope between two sizes) and its fixed part, and per cell with every other row segmented
+// (RecognizeParams::segment_row_step 2).
 #include <malloc.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -43,7 +44,8 @@ double mib(std::uint64_t b) { return double(b) / (1024.0 * 1024.0); }
 
 // Measured in a forked child (a fresh heap state for each size: the parent's freed blocks and arenas do not
 // blur the count).
-std::uint64_t recognizer_bytes(const fs::host::Library& lib, int threads, std::size_t cells) {
+std::uint64_t recognizer_bytes(const fs::host::Library& lib, int threads, std::size_t cells,
+                               int row_step = 1) {
   int fd[2];
   if (::pipe(fd) != 0) return 0;
   const pid_t pid = ::fork();
@@ -51,6 +53,7 @@ std::uint64_t recognizer_bytes(const fs::host::Library& lib, int threads, std::s
     ::close(fd[0]);
     fs::host::rec::RecognizeParams params;
     params.threads = threads;
+    params.segment_row_step = row_step;
     const std::uint64_t before = heap_bytes();
     auto r = std::make_unique<fs::host::rec::Recognizer>(lib, params, cells);
     const std::uint64_t bytes = heap_bytes() - before;
@@ -122,6 +125,13 @@ int main(int argc, char** argv) {
         per_cell, fixed / (1024.0 * 1024.0), threads,
         static_cast<unsigned long long>(ScanLimits::recognizer_bytes_per_cell(t)),
         mib(ScanLimits::fixed_bytes(t)));
+  }
+  {
+    const std::size_t n1 = 1u << 20, n2 = 1u << 22;
+    const std::uint64_t b1 = recognizer_bytes(lib, 1, n1, 2), b2 = recognizer_bytes(lib, 1, n2, 2);
+    std::printf(
+        "  Recognizer, every other row segmented (segment_row_step 2): %.1f bytes per cell (1 thread)\n",
+        double(b2 - b1) / double(n2 - n1));
   }
   // Resident memory a real recognize() touches: a flat-target scan of 500 and 2000 steps (1024 rows),
   // triangulated, then a Recognizer (1 thread) constructed for its cells and run on it.

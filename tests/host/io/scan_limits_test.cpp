@@ -107,11 +107,11 @@ TEST(ScanLimits, DefaultsComeFromTheDefaultBudgetAndAcceptTheNormalScan) {
   EXPECT_EQ(d.max_ray_table_entries, b.max_ray_table_entries);
   EXPECT_EQ(d.max_total_points, b.max_total_points);
   EXPECT_EQ(ScanLimits::for_budget(0).max_cells, d.max_cells);  // 0 = the default budget
-  // The normal hw-sim scan (500 steps x 1024 rows x 1280 columns) uses well under a quarter of the budget,
-  // even with 16 recognizer threads.
+  // The normal hw-sim scan (500 steps x 1024 rows x 1280 columns) uses under a third of the budget, even with
+  // 16 recognizer threads (about 570 MiB).
   const auto normal = ScannerCalibration::bench_default(500);
   const ScanLimits sixteen = ScanLimits::for_budget(0, 16);
-  EXPECT_LT(sixteen.bytes(500, 1024, 1280, 500 * 1024), sixteen.budget_bytes / 4);
+  EXPECT_LT(sixteen.bytes(500, 1024, 1280, 500 * 1024), sixteen.budget_bytes / 3);
   msg::ScanBegin begin;
   begin.calibration = normal;
   EXPECT_NO_THROW(d.check(begin));
@@ -123,6 +123,13 @@ TEST(ScanLimits, DefaultsComeFromTheDefaultBudgetAndAcceptTheNormalScan) {
             ScanLimits::for_budget(0, 1).bytes(500, 1024, 1280, 0));
   EXPECT_LT(ScanLimits::for_budget(512 * MiB, 1).max_cells, ScanLimits::for_budget(2 * GiB, 1).max_cells);
   EXPECT_THROW(ScanLimits::for_budget(ScanLimits::fixed_bytes(1), 1), Error);
+  // Every other row segmented (--segment-row-step 2) costs the thinned cloud and segmenter per cell.
+  const ScanLimits thin = ScanLimits::for_budget(2 * GiB, 1, 2), every = ScanLimits::for_budget(2 * GiB, 1);
+  EXPECT_EQ(thin.segment_row_step, 2u);
+  EXPECT_EQ(every.segment_row_step, 1u);
+  EXPECT_EQ(thin.bytes(500, 1024, 1280, 0) - every.bytes(500, 1024, 1280, 0),
+            500u * 1024u * ScanLimits::kRowThinningBytesPerCell);
+  EXPECT_LT(thin.max_cells, every.max_cells);
 }
 
 TEST(ScanLimits, HugeScanBeginIsRefusedBeforeAllocating) {
