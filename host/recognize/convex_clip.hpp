@@ -10,8 +10,12 @@
 
 namespace fs::host::rec {
 
-// Each half of ClipFaces is padded to a multiple of this.
+// The faces a variant clips at a time: four (SSE2 pairs, AVX2, NEON) or, with AVX-512, eight.
 inline constexpr std::size_t kClipLanes = 4;
+inline constexpr std::size_t kClipMaxLanes = 8;
+
+// The lanes of the variant clip_convex picks on this CPU: each half of ClipFaces is padded to a multiple.
+std::size_t clip_lanes();
 
 // One origin's faces as padded columns (structure of arrays). Front padding repeats the first front face (the
 // same entry, the same index); back padding has a zero normal, which lets no ray out. No allocation once
@@ -23,7 +27,7 @@ class ClipFaces {
   // Face `index` with unit normal n and height h = n . origin - offset (positive: the origin is outside its
   // plane, a front face). Faces are added in index order; pad() after the last.
   void add(double nx, double ny, double nz, double h, int index);
-  void pad();
+  void pad(std::size_t lanes = clip_lanes());
 
   struct Columns {
     std::vector<double> nx, ny, nz, h;
@@ -45,11 +49,15 @@ class ClipFaces {
 // entry by a product and divided only when the two lie within 1e-12 of each other.
 int clip_convex(const ClipFaces& faces, double dx, double dy, double dz, double& distance);
 
-// The variants clip_convex picks from (the same results; tests run each the CPU has).
+// The variants clip_convex picks from (the same results; tests run each the CPU has). The four-lane ones
+// take columns padded to a multiple of 4, clip_convex_avx512 a multiple of 8; clip_convex falls back to four
+// lanes for columns padded to 4 only.
 int clip_convex_portable(const ClipFaces& faces, double dx, double dy, double dz, double& distance);
 bool clip_convex_has_avx2();
+bool clip_convex_has_avx512();
 #if defined(__x86_64__)
 int clip_convex_avx2(const ClipFaces& faces, double dx, double dy, double dz, double& distance);
+int clip_convex_avx512(const ClipFaces& faces, double dx, double dy, double dz, double& distance);
 #endif
 
 }  // namespace fs::host::rec

@@ -144,12 +144,12 @@ int clip_face_by_face(const FaceColumns& f, std::size_t faces, const Vec3& dir, 
 
 }  // namespace
 
-TEST(ConvexClip, FourFacesAtATimeEqualTheFaceByFaceLoopBitForBit) {
+TEST(ConvexClip, FourOrEightFacesAtATimeEqualTheFaceByFaceLoopBitForBit) {
   const auto& lib = fs::test::polyhedra_catalog().library;
   std::mt19937_64 rng(11);
   std::normal_distribution<double> normal(0.0, 1.0);
   std::uniform_int_distribution<int> pick(0, 5);
-  int compared = 0, hits = 0, grazing = 0, vertex = 0;
+  int compared = 0, hits = 0, grazing = 0, vertex = 0, compared_avx512 = 0;
   std::vector<double> nx, ny, nz, h;
   fs::host::rec::ClipFaces clip;
   for (const fs::host::Model& model : lib.models) {
@@ -179,7 +179,7 @@ TEST(ConvexClip, FourFacesAtATimeEqualTheFaceByFaceLoopBitForBit) {
       const FaceColumns f{nx.data(), ny.data(), nz.data(), h.data()};
       clip.clear();
       for (std::size_t i = 0; i < n; ++i) clip.add(nx[i], ny[i], nz[i], h[i], static_cast<int>(i));
-      clip.pad();
+      clip.pad(fs::host::rec::kClipLanes);  // four lanes first; eight (a multiple of four) for AVX-512 below
       double s_ref = 0.0, s_clip = 0.0;
       const int f_ref = clip_face_by_face(f, n, dir, s_ref);
       const int f_clip = fs::host::rec::clip_convex_portable(clip, dir.x(), dir.y(), dir.z(), s_clip);
@@ -197,12 +197,25 @@ TEST(ConvexClip, FourFacesAtATimeEqualTheFaceByFaceLoopBitForBit) {
           ASSERT_EQ(s_avx, s_ref) << model.name << " ray " << k;
         }
       }
+      if (fs::host::rec::clip_convex_has_avx512()) {
+        clip.pad(fs::host::rec::kClipMaxLanes);
+        double s_avx = 0.0;
+        ASSERT_EQ(fs::host::rec::clip_convex_avx512(clip, dir.x(), dir.y(), dir.z(), s_avx), f_ref)
+            << model.name << " ray " << k << " kind " << kind;
+        if (f_ref >= 0) {
+          ASSERT_EQ(s_avx, s_ref) << model.name << " ray " << k;
+        }
+        ++compared_avx512;
+      }
 #endif
       ++compared;
     }
   }
   EXPECT_GT(hits, compared / 4);
   EXPECT_LT(hits, compared * 3 / 4);
+  if (fs::host::rec::clip_convex_has_avx512()) {
+    EXPECT_EQ(compared_avx512, compared);
+  }
   EXPECT_GT(grazing, compared / 10);
   EXPECT_GT(vertex, compared / 10);
 }
@@ -222,7 +235,7 @@ TEST(ConvexClip, EqualEntriesGiveTheFirstFaceAndARayOnAFacePlaneIsNoMiss) {
       h[i] = Vec3(nx[i], ny[i], nz[i]).dot(origin) - 10.0;
       clip.add(nx[i], ny[i], nz[i], h[i], i);
     }
-    clip.pad();
+    clip.pad(fs::host::rec::kClipLanes);
     double s_ref = 0.0;
     const int f_ref = clip_face_by_face(FaceColumns{nx, ny, nz, h}, 6, dir, s_ref);
     const int f_clip = fs::host::rec::clip_convex_portable(clip, dir.x(), dir.y(), dir.z(), s);
@@ -231,6 +244,12 @@ TEST(ConvexClip, EqualEntriesGiveTheFirstFaceAndARayOnAFacePlaneIsNoMiss) {
     if (fs::host::rec::clip_convex_has_avx2()) {
       double s_avx = 0.0;
       EXPECT_EQ(fs::host::rec::clip_convex_avx2(clip, dir.x(), dir.y(), dir.z(), s_avx), f_clip);
+      EXPECT_EQ(s_avx, s);
+    }
+    if (fs::host::rec::clip_convex_has_avx512()) {
+      clip.pad(fs::host::rec::kClipMaxLanes);
+      double s_avx = 0.0;
+      EXPECT_EQ(fs::host::rec::clip_convex_avx512(clip, dir.x(), dir.y(), dir.z(), s_avx), f_clip);
       EXPECT_EQ(s_avx, s);
     }
 #endif
