@@ -10,9 +10,11 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cstdlib>
 #include <cstring>
 #include <fstream>
 #include <iterator>
+#include <sstream>
 #include <thread>
 
 #include "common/error.hpp"
@@ -79,6 +81,15 @@ std::string ChildProcess::log_tail(std::size_t max_bytes) const {
   std::ifstream f(log_, std::ios::binary);
   std::string text((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
   return text.size() > max_bytes ? text.substr(text.size() - max_bytes) : text;
+}
+
+std::filesystem::path find_program(const std::string& name) {
+  const char* path = std::getenv("PATH");
+  std::stringstream ss(path != nullptr ? path : "/usr/bin:/usr/sbin");
+  for (std::string dir; std::getline(ss, dir, ':');)
+    if (!dir.empty() && ::access((std::filesystem::path(dir) / name).c_str(), X_OK) == 0)
+      return std::filesystem::path(dir) / name;
+  return {};
 }
 
 int free_local_port() {

@@ -38,6 +38,8 @@ class ChildProcess {
   std::filesystem::path log_;
 };
 
+// The executable `name` in a folder of $PATH (/usr/bin:/usr/sbin when unset); empty when there is none.
+std::filesystem::path find_program(const std::string& name);
 // A TCP port on 127.0.0.1 that was free a moment ago (bound to port 0, then closed).
 int free_local_port();
 // True when something accepts TCP connections on 127.0.0.1:port.

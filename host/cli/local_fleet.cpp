@@ -1,11 +1,8 @@
 #include "host/cli/local_fleet.hpp"
 
-#include <unistd.h>
-
 #include <cctype>
 #include <chrono>
 #include <csignal>
-#include <cstdlib>
 #include <fstream>
 #include <iterator>
 #include <sstream>
@@ -25,15 +22,6 @@ stdfs::path find_dir(const char* built, const char* installed, const char* what)
   for (const stdfs::path& p : {stdfs::path(built), stdfs::path(installed)})
     if (stdfs::is_directory(p)) return p;
   throw Error(fmt::format("cannot find {} (looked in {} and {})", what, built, installed));
-}
-
-stdfs::path find_program(const std::string& name) {
-  const char* path = std::getenv("PATH");
-  std::stringstream ss(path != nullptr ? path : "/usr/bin:/usr/sbin");
-  for (std::string dir; std::getline(ss, dir, ':');)
-    if (!dir.empty() && ::access((stdfs::path(dir) / name).c_str(), X_OK) == 0)
-      return stdfs::path(dir) / name;
-  return {};
 }
 
 std::string read_text(const stdfs::path& p) {

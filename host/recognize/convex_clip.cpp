@@ -12,8 +12,8 @@ namespace fs::host::rec {
 
 namespace {
 
-// GCC vector extensions: AVX-512 registers (eight lanes) in clip_convex_avx512, AVX2 registers in
-// clip_convex_avx2, SSE2 pairs in the portable variant on x86, NEON on arm.
+// GCC vector extensions (four lanes): AVX2 registers in clip_convex_avx2, SSE2 pairs in the portable variant
+// on x86, NEON on arm. clip_convex_avx512 is written in intrinsics.
 using V4 = double __attribute__((vector_size(32)));
 using M4 = std::int64_t __attribute__((vector_size(32)));
 
@@ -67,22 +67,20 @@ __attribute__((always_inline)) inline bool leaves_before(const ClipFaces::Column
 // instruction set).
 __attribute__((always_inline)) inline int clip(const ClipFaces& faces, double dx, double dy, double dz,
                                                double& distance) {
-  using V = V4;
-  using M = M4;
   constexpr std::size_t N = kClipLanes;
   distance = kInf;
   const ClipFaces::Columns& fr = faces.front();
   const std::size_t nf = fr.h.size();
   if (nf == 0) return -1;  // the origin inside every face plane
   // Entries: every front face must be entered (a ray parallel to one, or leaving it, stays outside it).
-  V enter = V{} + 0.0;
-  M face = M{} - 1;  // per lane: the face of its largest entry (the first of equal ones)
-  M not_entered = M{};
+  V4 enter = V4{} + 0.0;
+  M4 face = M4{} - 1;  // per lane: the face of its largest entry (the first of equal ones)
+  M4 not_entered = M4{};
   for (std::size_t i = 0; i < nf; i += N) {
-    const V den = load(fr.nx.data() + i) * dx + load(fr.ny.data() + i) * dy + load(fr.nz.data() + i) * dz;
+    const V4 den = load(fr.nx.data() + i) * dx + load(fr.ny.data() + i) * dy + load(fr.nz.data() + i) * dz;
     not_entered |= ~(den < -kGrazing);
-    const V s = -load(fr.h.data() + i) / den;
-    const M later = s > enter;
+    const V4 s = -load(fr.h.data() + i) / den;
+    const M4 later = s > enter;
     enter = later ? s : enter;
     face = later ? load_index(faces.front_index().data() + i) : face;
   }
@@ -97,14 +95,14 @@ __attribute__((always_inline)) inline int clip(const ClipFaces& faces, double dx
   // Exits: a back face the ray leaves (den > 0) at -h / den before e is a miss.
   const ClipFaces::Columns& bk = faces.back();
   const std::size_t nb = bk.h.size();
-  const V ev = V{} + e;
-  M before = M{}, unsure = M{};
+  const V4 ev = V4{} + e;
+  M4 before = M4{}, unsure = M4{};
   for (std::size_t i = 0; i < nb; i += N) {
-    const V den = load(bk.nx.data() + i) * dx + load(bk.ny.data() + i) * dy + load(bk.nz.data() + i) * dz;
-    const V y = -load(bk.h.data() + i);
-    const V p = ev * den;
-    const M leaves = den > kGrazing;
-    const M early = p > y * (1.0 + kSure);
+    const V4 den = load(bk.nx.data() + i) * dx + load(bk.ny.data() + i) * dy + load(bk.nz.data() + i) * dz;
+    const V4 y = -load(bk.h.data() + i);
+    const V4 p = ev * den;
+    const M4 leaves = den > kGrazing;
+    const M4 early = p > y * (1.0 + kSure);
     before |= leaves & early;
     unsure |= leaves & ~early & ~(p < y * (1.0 - kSure));
   }
@@ -114,7 +112,11 @@ __attribute__((always_inline)) inline int clip(const ClipFaces& faces, double dx
   return static_cast<int>(best);
 }
 
+}  // namespace
+
 #if defined(__x86_64__)
+namespace {
+
 // -v, by its sign bit (as the four-lane kernel's negation).
 __attribute__((target("avx512f"), always_inline)) inline __m512d neg8(__m512d v) {
   const __m512i sign = _mm512_set1_epi64(std::numeric_limits<std::int64_t>::min());
@@ -130,10 +132,12 @@ __attribute__((target("avx512f"), always_inline)) inline __m512d dot8(const Clip
                        _mm512_mul_pd(_mm512_loadu_pd(c.nz.data() + i), vz));
 }
 
+}  // namespace
+
 // The same kernel, eight faces at a time, in AVX-512 intrinsics (GCC's generic vectors of eight lanes turn
 // the mask operations into scalar code). The same operations in the same order: the same results.
-__attribute__((target("avx512f"), always_inline)) inline int clip8(const ClipFaces& faces, double dx,
-                                                                   double dy, double dz, double& distance) {
+__attribute__((target("avx512f"))) int clip_convex_avx512(const ClipFaces& faces, double dx, double dy,
+                                                          double dz, double& distance) {
   constexpr std::size_t N = kClipMaxLanes;
   distance = kInf;
   const ClipFaces::Columns& fr = faces.front();
@@ -181,8 +185,6 @@ __attribute__((target("avx512f"), always_inline)) inline int clip8(const ClipFac
   return static_cast<int>(best);
 }
 #endif
-
-}  // namespace
 
 void ClipFaces::reserve(std::size_t n) {
   const std::size_t padded = n + kClipMaxLanes;
@@ -238,11 +240,6 @@ int clip_convex_portable(const ClipFaces& faces, double dx, double dy, double dz
 __attribute__((target("avx2"))) int clip_convex_avx2(const ClipFaces& faces, double dx, double dy, double dz,
                                                      double& distance) {
   return clip(faces, dx, dy, dz, distance);
-}
-
-__attribute__((target("avx512f"))) int clip_convex_avx512(const ClipFaces& faces, double dx, double dy,
-                                                          double dz, double& distance) {
-  return clip8(faces, dx, dy, dz, distance);
 }
 
 namespace {

@@ -23,19 +23,6 @@ using fs::host::cli::ChildProcess;
 using fs::host::fleet::NatsConnection;
 using fs::host::fleet::NatsOptions;
 
-std::string find_program(const std::string& name) {
-  const char* path = std::getenv("PATH");
-  std::string dirs = std::string(path ? path : "") + ":/usr/sbin:/usr/bin";
-  std::size_t start = 0;
-  while (start <= dirs.size()) {
-    const std::size_t end = std::min(dirs.find(':', start), dirs.size());
-    const stdfs::path p = stdfs::path(dirs.substr(start, end - start)) / name;
-    if (end > start && stdfs::exists(p)) return p.string();
-    start = end + 1;
-  }
-  return {};
-}
-
 // A bare nats-server (no auth, no JetStream) on 127.0.0.1 and a free port, for one test.
 class Server {
  public:
@@ -64,7 +51,7 @@ class Server {
 };
 
 std::string server_program() {
-  const std::string p = find_program("nats-server");
+  const std::string p = fs::host::cli::find_program("nats-server").string();
   if (p.empty() && std::getenv("CI") != nullptr && std::string(std::getenv("CI")) == "true")
     ADD_FAILURE() << "nats-server missing under CI=true (toolchain/setup installs it)";
   return p;
