@@ -8,6 +8,7 @@
 //   bench_recognition [--scenes N] [--seed S] [--categories single,separated,occluded,empty,cluttered]
 //                     [--steps 500] [--noise 0.05] [--row-step 1] [--threads 1] [--alloc-every 1] [--verbose]
 //                     [--candidates] [--only I] [--scene-stats] [--dump-graph]
+//                     [--rig bench|oblique] [--as-cloud] [--dropout 0.01] [--sizes 40,80]
 // and tuning options that each set one RecognizeParams field: matching (--preset, --min-level, --max-states,
 // --area-ratio, --area-cost, --omega, --max-solutions, --no-rigidity-pairs), acceptance (--replace-better,
 // --support-radius, --min-confidence, --hidden-*, --occluded-alternatives), verification and segmentation
@@ -17,15 +18,25 @@
 // --alloc-every K: the allocation count is taken in every K-th round of the categories (all categories).
 //
 // Scenes are spread round-robin over the categories; scene i uses seed S + i.
+//
+// Another scanner's clouds: `--rig oblique` renders with hw-sim/scene/oblique_rig.hpp's geometry (camera in
+// front and tilted, laser from behind; objects placed in x [-100, 100], y [-85, 85]), `--as-cloud` recognizes
+// each scan as a point cloud of unknown origin (no calibration, the table found by the recognizer, as a
+// PCD / PLY file is), `--dropout P` loses each measured point with probability P, `--sizes MIN,MAX` draws the
+// polyhedra's largest extents. E.g. clouds like ../shared/data/independent-scans/:
+//   bench_recognition --rig oblique --steps 240 --as-cloud --noise 0.08 --dropout 0.01 --sizes 55,85
 #include <time.h>
 
 #include <CLI/CLI.hpp>
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <limits>
 #include <map>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -40,6 +51,7 @@
 #include "host/recognize/verify.hpp"
 #include "host/segment/row_thinning.hpp"
 #include "hw-sim/scene/ground_truth_grid.hpp"
+#include "hw-sim/scene/oblique_rig.hpp"
 #include "hw-sim/scene/random_scene.hpp"
 #include "support/quantile.hpp"
 #include "support/recognize_flags.hpp"
@@ -57,6 +69,9 @@ double cpu_ms() {
 
 using fs::test::quantile;
 
+// A face counts as seen when the scan measures it in this many grid cells or more (before any dropout).
+constexpr std::size_t kSeenFaceCells = 30;
+
 struct CategoryStats {
   int scenes = 0, objects = 0, found = 0, identity_ok = 0, reported = 0, extra = 0, scenes_with_fp = 0;
   int truth_is_alternative = 0;  // confusions whose reported object lists the true model as an alternative
@@ -67,8 +82,9 @@ struct CategoryStats {
   // Issue #20's scoring: a missed object counts as found when an otherwise unmatched report within 10 mm is
   // ambiguous with its true model among the candidates (that report is then no false positive).
   int found_as_candidate = 0;
-  int stacked = 0, stacked_found = 0;     // objects resting on another one (cluttered)
-  int interpenetrating_pairs = 0;         // accepted pairs whose solids interpenetrate (must stay 0)
+  int stacked = 0, stacked_found = 0;  // objects resting on another one (cluttered)
+  int seen3 = 0, seen3_found = 0;      // objects with 3 faces or more measured in kSeenFaceCells cells each
+  int interpenetrating_pairs = 0;      // accepted pairs whose solids interpenetrate (must stay 0)
   std::map<std::string, int> confusions;  // "true -> reported" for identity errors; "*" = true model listed
   std::vector<double> rot_err, trans_err, cpu, wall, allocs, seg_ms, match_ms, verify_ms;
   int thinned = 0;  // scans segmented on every other row (RecognizeParams::segment_row_step)
@@ -87,8 +103,12 @@ struct Args {
   bool verbose = false;
   bool candidates = false;
   int only = -1;
-  bool scene_stats = false;  // one line per scene: graph parts, faces, search states, matching time
-  bool dump_graph = false;   // with --candidates: the scene PFRG JSON (for facetscan match)
+  bool scene_stats = false;   // one line per scene: graph parts, faces, search states, matching time
+  bool dump_graph = false;    // with --candidates: the scene PFRG JSON (for facetscan match)
+  std::string rig = "bench";  // "bench" (ScannerCalibration::bench_default) or "oblique" (oblique_rig)
+  bool as_cloud = false;      // recognize without the calibration and the table plane
+  double dropout = 0.0;       // share of measured points lost
+  std::vector<double> sizes{40.0, 80.0};  // the polyhedra's largest extent, mm (CatalogOptions)
   // The recognizer's parameters: its defaults (one thread), with the tuning options below written into them.
   fs::host::rec::RecognizeParams params = [] {
     fs::host::rec::RecognizeParams p;
@@ -140,6 +160,16 @@ Args parse_args(CLI::App& app, int argc, char** argv) {
                "one line per scene: graph parts, faces, search states, CPU and stage times");
   app.add_flag("--dump-graph", a.dump_graph, "the scene PFRG JSON (implies --candidates)");
   // Tuning: each writes one RecognizeParams field; left out, the recognizer's default stays.
+  app.add_option("--rig", a.rig, "scanner geometry: bench (the default rig) or oblique (oblique_rig.hpp)")
+      ->check(CLI::IsMember({"bench", "oblique"}));
+  app.add_flag(
+      "--as-cloud", a.as_cloud,
+      "recognize each scan as a cloud of unknown origin: no calibration, the table found, not given");
+  app.add_option("--dropout", a.dropout, "share of measured points lost (NaN)")->check(CLI::Range(0.0, 0.9));
+  app.add_option("--sizes", a.sizes, "MIN,MAX: the polyhedra's largest extent, mm")
+      ->delimiter(',')
+      ->expected(2)
+      ->check(CLI::Range(1.0, 1000.0));
   app.add_option("--preset", preset, "matching preset (match::preset)");
   app.add_option("--min-level", p.min_level, "TH_minlevel")->check(positive);
   fs::test::add_recognize_flags(app, p);  // pool, matching scope, verification budget, rounds
@@ -190,6 +220,7 @@ Args parse_args(CLI::App& app, int argc, char** argv) {
     a.categories.clear();
     for (const std::string& c : categories) a.categories.push_back(fs::sim::parse_scene_category(c));
   }
+  if (a.sizes[0] > a.sizes[1]) throw CLI::ValidationError("--sizes", "MIN must not exceed MAX");
   if (!preset.empty()) p.match = fs::host::match::preset(preset);  // p.match holds none of the options above
   a.candidates = a.candidates || a.dump_graph;
   a.verbose = a.verbose || a.candidates;
@@ -200,15 +231,17 @@ int run(const Args& args) {
   const auto t0 = std::chrono::steady_clock::now();
   const auto catalog = fs::sim::make_catalog(
       fs::sim::read_catalog_meshes(fs::test::shared_data() / "polyhedra/polyhedra-viewer/off"),
-      {.seed = args.seed});
+      {.min_size_mm = args.sizes[0], .max_size_mm = args.sizes[1], .seed = args.seed});
   fs::host::Library library;
   for (const auto& e : catalog) library.add(fs::host::build_model(e.mesh));
   std::printf("library: %zu models built in %.1f s\n", library.models.size(),
               std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
 
   const fs::host::rec::RecognizeParams& params = args.params;
+  const bool oblique = args.rig == "oblique";
   const std::size_t cells =
-      static_cast<std::size_t>(args.steps) * fs::ScannerCalibration::bench_default().camera.height;
+      static_cast<std::size_t>(args.steps) *
+      (oblique ? fs::sim::oblique_rig(args.steps) : fs::ScannerCalibration::bench_default()).camera.height;
   fs::host::rec::Recognizer recognizer(library, params, cells);
 
   std::map<SceneCategory, CategoryStats> stats;
@@ -218,10 +251,31 @@ int run(const Args& args) {
     if (args.only >= 0 && i != args.only) continue;
     const SceneCategory cat = args.categories[static_cast<std::size_t>(i) % args.categories.size()];
     const std::uint64_t seed = args.seed + static_cast<std::uint64_t>(i);
-    const auto rs = fs::sim::make_random_scene(catalog, {.category = cat, .steps = args.steps}, seed);
-    fs::sim::make_ground_truth_grid(rs.scene, {.depth_noise_mm = args.noise, .seed = seed})
-        .export_to(cloud, false);
-    const fs::Plane table = rs.scene.calibration.table;
+    fs::sim::RandomSceneOptions scene_options{.category = cat, .steps = args.steps};
+    if (oblique)
+      scene_options.x_min = -100, scene_options.x_max = 100, scene_options.y_min = -85,
+      scene_options.y_max = 85;
+    auto rs = fs::sim::make_random_scene(catalog, scene_options, seed);
+    if (oblique) rs.scene.calibration = fs::sim::oblique_rig(args.steps);
+    const fs::sim::GroundTruthGrid grid =
+        fs::sim::make_ground_truth_grid(rs.scene, {.depth_noise_mm = args.noise, .seed = seed});
+    grid.export_to(cloud, false);
+    // Measured cells per scene object (index oi + 1) and face.
+    std::vector<std::vector<std::size_t>> face_cells(rs.scene.objects.size() + 1);
+    for (std::size_t oi = 0; oi < rs.scene.objects.size(); ++oi)
+      face_cells[oi + 1].assign(rs.scene.objects[oi].mesh.faces.size(), 0);
+    for (const auto& c : grid.cells())
+      if (c.object > 0) ++face_cells[static_cast<std::size_t>(c.object)][static_cast<std::size_t>(c.face)];
+    if (args.dropout > 0) {
+      std::mt19937_64 rng(seed * 0x9E3779B97F4A7C15ull + 17);
+      std::bernoulli_distribution lost(args.dropout);
+      const float nan = std::numeric_limits<float>::quiet_NaN();
+      for (auto& q : cloud.points)
+        if (!std::isnan(q.z()) && lost(rng)) q = Eigen::Vector3f(nan, nan, nan);
+    }
+    if (args.as_cloud) cloud.scanner.reset();
+    const fs::Plane table_plane = rs.scene.calibration.table;
+    const fs::Plane* table = args.as_cloud ? nullptr : &table_plane;
     if (args.row_step > 1) {
       fs::host::seg::thin_rows(cloud, args.row_step, thinned);
       std::swap(cloud, thinned);
@@ -229,7 +283,7 @@ int run(const Args& args) {
 
     const auto w0 = std::chrono::steady_clock::now();
     const double c0 = cpu_ms();
-    const auto& r = recognizer.recognize(cloud, &table);
+    const auto& r = recognizer.recognize(cloud, table);
     const double cpu = cpu_ms() - c0;
     const double wall =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - w0).count();
@@ -314,7 +368,7 @@ int run(const Args& args) {
     s.wall.push_back(wall);
     if (args.alloc_every > 0 && (i / static_cast<int>(args.categories.size())) % args.alloc_every == 0) {
       fs::AllocCounter counter;
-      recognizer.recognize(cloud, &table);
+      recognizer.recognize(cloud, table);
       s.allocs.push_back(static_cast<double>(counter.process_allocations()));
     }
 
@@ -343,11 +397,19 @@ int run(const Args& args) {
         ++s.identity_ok;
       const bool stacked = rs.support[oi] >= 0;
       s.stacked += stacked ? 1 : 0;
+      int faces_seen = 0;
+      std::size_t object_cells = 0;
+      for (const std::size_t n : face_cells[oi + 1]) {
+        faces_seen += n >= kSeenFaceCells ? 1 : 0;
+        object_cells += n;
+      }
+      s.seen3 += faces_seen >= 3 ? 1 : 0;
       if (hit >= 0) {
         used[static_cast<std::size_t>(hit)] = true;
         truth_of[static_cast<std::size_t>(hit)] = static_cast<int>(oi);
         ++s.found;
         s.stacked_found += stacked ? 1 : 0;
+        s.seen3_found += faces_seen >= 3 ? 1 : 0;
         const auto& h = found_objects[static_cast<std::size_t>(hit)];
         s.rot_err.push_back(fs::host::rec::rotation_angle_deg_sym(obj.rotation, h.R, truth));
         s.trans_err.push_back(hit_d);
@@ -375,11 +437,12 @@ int run(const Args& args) {
         }
         if (args.verbose)
           std::printf(
-              "MISS seed %llu %s: %s (face %d on %s, %d faces) -> nearest %s; note: %s\n",
+              "MISS seed %llu %s: %s (face %d on %s, %d faces, %d seen, %zu points) -> nearest %s; note: "
+              "%s\n",
               static_cast<unsigned long long>(seed), fs::sim::to_string(cat), truth.name.c_str(),
               rs.resting_face[oi],
               stacked ? rs.scene.objects[static_cast<std::size_t>(rs.support[oi])].name.c_str() : "table",
-              static_cast<int>(truth.faces.size()), got.c_str(), note.c_str());
+              static_cast<int>(truth.faces.size()), faces_seen, object_cells, got.c_str(), note.c_str());
       }
     }
     // A physically possible answer: no two reported solids interpenetrate.
@@ -461,10 +524,13 @@ int run(const Args& args) {
     std::fflush(stdout);
   }
 
-  std::printf("\n%d scenes, %u steps, depth noise %.2f mm, threads %d, seed %llu, %.0f s total\n\n",
-              args.scenes, args.steps, args.noise, args.params.threads,
-              static_cast<unsigned long long>(args.seed),
-              std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+  std::printf(
+      "\n%d scenes, %s rig, %u steps, depth noise %.2f mm, dropout %.3f, sizes %.0f-%.0f mm%s, threads %d, "
+      "seed %llu, %.0f s total\n\n",
+      args.scenes, args.rig.c_str(), args.steps, args.noise, args.dropout, args.sizes[0], args.sizes[1],
+      args.as_cloud ? ", as clouds (no calibration, table found)" : "", args.params.threads,
+      static_cast<unsigned long long>(args.seed),
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
   std::printf(
       "| category | scenes | objects | found (model + centre < 10 mm) | top-1 identity "
       "| rot err median / p90 (deg) | centre err median / p90 (mm) | reported "
@@ -490,6 +556,11 @@ int run(const Args& args) {
           fs::sim::to_string(cat), s.found - s.stacked_found, s.objects - s.stacked,
           pct(s.found - s.stacked_found, s.objects - s.stacked), s.stacked_found, s.stacked,
           pct(s.stacked_found, s.stacked));
+  std::printf("\nobjects seen with 3 faces or more (%zu measured cells each), found (model + centre):\n",
+              kSeenFaceCells);
+  for (const auto& [cat, s] : stats)
+    std::printf("  %-10s %d of %d (%.1f %%); of the %d others %d\n", fs::sim::to_string(cat), s.seen3_found,
+                s.seen3, pct(s.seen3_found, s.seen3), s.objects - s.seen3, s.found - s.seen3_found);
   std::printf(
       "\nambiguous: reported objects that list alternatives; correct: the true model is the reported one or "
       "listed\n");

@@ -7,6 +7,7 @@
 #include <cmath>
 
 #include "hw-sim/scene/ground_truth_grid.hpp"
+#include "hw-sim/scene/oblique_rig.hpp"
 #include "hw-sim/scene/ray_cast.hpp"
 #include "hw-sim/scene/stripe_tracer.hpp"
 #include "support/test_paths.hpp"
@@ -215,6 +216,55 @@ TEST(GroundTruthGrid, CellsAreLitSeenAndOnTheirPlane) {
   for (std::int32_t o = 1; o <= static_cast<std::int32_t>(s.objects.size()); ++o)
     EXPECT_GT(g.count_object(o), 100u);
   EXPECT_GT(g.count_object(0), g.valid_count() / 2);
+}
+
+// The oblique rig (camera in front, tilted; laser from behind): a step's stripe is a line of constant y on
+// the table, the sweep runs from y = -110 to 110 mm, the image rows run along x, and the scene's cells are
+// lit, seen and on their planes as with the bench rig.
+TEST(ObliqueRig, SweepsTheTableAlongYWithImageRowsAlongX) {
+  fs::sim::Scene s;
+  s.source = "empty table";
+  s.calibration = fs::sim::oblique_rig(240);
+  const auto g = fs::sim::make_ground_truth_grid(s);
+  ASSERT_EQ(g.steps(), 240u);
+  ASSERT_EQ(g.rows(), 320u);
+  double x_min = 1e9, x_max = -1e9;
+  for (std::uint32_t k = 0; k < g.steps(); ++k) {
+    double y_min = 1e9, y_max = -1e9, prev_x = -1e9;
+    for (std::uint32_t r = 0; r < g.rows(); ++r) {
+      const auto& c = g.at(k, r);
+      if (!c.valid()) continue;
+      y_min = std::min(y_min, c.true_point.y()), y_max = std::max(y_max, c.true_point.y());
+      ASSERT_GT(c.true_point.x(), prev_x) << "step " << k << " row " << r;  // rows along +x
+      prev_x = c.true_point.x();
+      x_min = std::min(x_min, prev_x), x_max = std::max(x_max, prev_x);
+    }
+    ASSERT_LT(y_max - y_min, 1e-6) << "step " << k;
+    if (k == 0) {
+      EXPECT_NEAR(y_min, -110.0, 1e-6);
+    }
+    if (k + 1 == g.steps()) {
+      EXPECT_NEAR(y_min, 110.0, 1e-6);
+    }
+  }
+  EXPECT_LT(x_min, -130.0);
+  EXPECT_GT(x_max, 130.0);
+  EXPECT_EQ(g.valid_count(), static_cast<std::size_t>(g.steps()) * g.rows());  // the whole table is seen
+}
+
+TEST(ObliqueRig, CellsAreLitSeenAndOnTheirPlane) {
+  auto s = scene_file("default");
+  s.calibration = fs::sim::oblique_rig(60);
+  const auto g = fs::sim::make_ground_truth_grid(s);
+  check_grid_consistent(s, g);
+  for (std::int32_t o = 1; o <= static_cast<std::int32_t>(s.objects.size()); ++o)
+    EXPECT_GT(g.count_object(o), 50u) << s.objects[static_cast<std::size_t>(o - 1)].name;
+  // Camera and laser on opposite sides: no measured face turns away from either of them.
+  for (const auto& c : g.cells()) {
+    if (c.object <= 0) continue;
+    EXPECT_GT(c.normal.dot(s.calibration.camera.center() - c.true_point), 0.0);
+    EXPECT_GT(c.normal.dot(s.calibration.laser.axis_point - c.true_point), 0.0);
+  }
 }
 
 // Completeness: scan image rows with camera rays; wherever the seen surface crosses the laser plane between
