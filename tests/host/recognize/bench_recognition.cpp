@@ -342,6 +342,24 @@ int run(const Args& args) {
         }
         std::printf("\n");
       }
+      // Each true object's model verified in its true pose on the fine samples, without refinement (compare
+      // with the candidates' in / viol / occ: the samples are the same).
+      {
+        const fs::host::rec::VerifyParams vp = params.verify;
+        fs::host::rec::SampleSet samples;
+        samples.build(cloud, fs::host::rec::sample_steps(fs::host::rec::grid_spacing_mm(cloud),
+                                                         vp.sample_step, vp.sample_spacing_mm));
+        fs::host::rec::Verifier verifier(vp);
+        for (std::size_t oi = 0; oi < rs.scene.objects.size(); ++oi) {
+          if (rs.catalog_index[oi] < 0) continue;
+          const auto& tm = library.models[static_cast<std::size_t>(rs.catalog_index[oi])];
+          fs::Mat3 R = rs.scene.objects[oi].rotation;
+          fs::Vec3 t = rs.scene.objects[oi].translation;
+          const auto v = verifier.verify(samples, fs::host::rec::ModelGeometry(tm), R, t, false);
+          std::printf("  truth-pose %s: in %d viol %d occ %d conf %.3f\n", tm.name.c_str(), v.inliers,
+                      v.violations, v.occluded, v.confidence);
+        }
+      }
       for (const auto* h : recognizer.all_hypotheses())
         for (std::size_t oi = 0; oi < rs.scene.objects.size(); ++oi)
           if (h->model == rs.catalog_index[oi]) {
