@@ -12,9 +12,11 @@
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
+#include <limits>
 #include <span>
 #include <vector>
 
+#include "hw-sim/scene/prng.hpp"
 #include "hw-sim/scene/scene.hpp"
 #include "hw-sim/scene/stripe_truth.hpp"
 
@@ -85,5 +87,19 @@ class GroundTruthGrid {
 GroundTruthGrid make_ground_truth_grid(const Scene& scene, const GroundTruthOptions& options = {});
 GroundTruthGrid make_ground_truth_grid(const std::filesystem::path& scene_file,
                                        const GroundTruthOptions& options = {});
+
+// Loses each measured point of an organized cloud (duck-typed: fs::host::OrganizedCloud) with probability
+// `share`, as a real scanner's dropouts (speckle, glints, dark spots): the point becomes NaN, its label -1.
+// Deterministic per seed.
+template <typename Cloud>
+void drop_points(Cloud& cloud, double share, std::uint64_t seed) {
+  Prng rng(seed);
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  for (std::size_t i = 0; i < cloud.points.size(); ++i) {
+    if (std::isnan(cloud.points[i].z()) || rng.uniform() >= share) continue;
+    cloud.points[i].setConstant(nan);
+    if (i < cloud.labels.size()) cloud.labels[i] = -1;
+  }
+}
 
 }  // namespace fs::sim

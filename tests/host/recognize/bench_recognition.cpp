@@ -34,9 +34,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <limits>
 #include <map>
-#include <random>
 #include <string>
 #include <vector>
 
@@ -266,13 +264,7 @@ int run(const Args& args) {
       face_cells[oi + 1].assign(rs.scene.objects[oi].mesh.faces.size(), 0);
     for (const auto& c : grid.cells())
       if (c.object > 0) ++face_cells[static_cast<std::size_t>(c.object)][static_cast<std::size_t>(c.face)];
-    if (args.dropout > 0) {
-      std::mt19937_64 rng(seed * 0x9E3779B97F4A7C15ull + 17);
-      std::bernoulli_distribution lost(args.dropout);
-      const float nan = std::numeric_limits<float>::quiet_NaN();
-      for (auto& q : cloud.points)
-        if (!std::isnan(q.z()) && lost(rng)) q = Eigen::Vector3f(nan, nan, nan);
-    }
+    if (args.dropout > 0) fs::sim::drop_points(cloud, args.dropout, seed);
     if (args.as_cloud) cloud.scanner.reset();
     const fs::Plane table_plane = rs.scene.calibration.table;
     const fs::Plane* table = args.as_cloud ? nullptr : &table_plane;

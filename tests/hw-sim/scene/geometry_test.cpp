@@ -2,6 +2,7 @@
 // casts.
 #include <gtest/gtest.h>
 
+#include <limits>
 #include <optional>
 
 #include <cmath>
@@ -216,6 +217,40 @@ TEST(GroundTruthGrid, CellsAreLitSeenAndOnTheirPlane) {
   for (std::int32_t o = 1; o <= static_cast<std::int32_t>(s.objects.size()); ++o)
     EXPECT_GT(g.count_object(o), 100u);
   EXPECT_GT(g.count_object(0), g.valid_count() / 2);
+}
+
+// drop_points loses about the share asked of the measured points (NaN, label -1), the same ones for one seed,
+// and leaves the unmeasured cells alone.
+TEST(GroundTruthGrid, DropPointsLosesTheShareAskedTheSameForOneSeed) {
+  struct Cloud {
+    std::vector<Eigen::Vector3f> points;
+    std::vector<std::int32_t> labels;
+  };
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  Cloud a;
+  for (int i = 0; i < 100000; ++i) {
+    a.points.emplace_back(i % 10 == 0 ? Eigen::Vector3f(nan, nan, nan) : Eigen::Vector3f(1.0f, 2.0f, 3.0f));
+    a.labels.push_back(i % 10 == 0 ? -1 : 7);
+  }
+  Cloud b = a, c = a;
+  fs::sim::drop_points(a, 0.05, 11);
+  fs::sim::drop_points(b, 0.05, 11);
+  fs::sim::drop_points(c, 0.05, 12);
+  std::size_t lost = 0, differ = 0;
+  for (std::size_t i = 0; i < a.points.size(); ++i) {
+    const bool measured = i % 10 != 0;
+    const bool gone = std::isnan(a.points[i].z());
+    ASSERT_EQ(gone, std::isnan(b.points[i].z()));
+    ASSERT_EQ(a.labels[i], gone ? -1 : 7);
+    if (!measured) {
+      ASSERT_TRUE(gone);
+      continue;
+    }
+    lost += gone ? 1 : 0;
+    differ += gone != std::isnan(c.points[i].z()) ? 1 : 0;
+  }
+  EXPECT_NEAR(static_cast<double>(lost) / 90000.0, 0.05, 0.005);
+  EXPECT_GT(differ, 1000u);  // another seed, other points
 }
 
 // The oblique rig (camera in front, tilted; laser from behind): a step's stripe is a line of constant y on
