@@ -9,9 +9,6 @@ namespace fs::host::rec {
 
 namespace {
 
-// Rays that must end in front of the space under a floating solid (look_below) for it to count as held up.
-constexpr int kMinHiddenRays = 3;
-
 const PfrgNode* scene_node(const HypothesisContext& c, int id) {
   if (id < 0 || static_cast<std::size_t>(id) >= c.scene_index.size()) return nullptr;
   const int i = c.scene_index[static_cast<std::size_t>(id)];
@@ -449,7 +446,7 @@ double support_factor(const Model& model, const Mat3& R, const Vec3& t, const Pl
       const Vec3 c = R * model.center + t;
       const Vec3 column = c - (table.signed_distance(c) - low) * table.n;
       const SpaceBelow below = look_below(column, table, p.viewpoint, points, p.tol_mm);
-      if (below.seen_through == 0 && below.hidden >= kMinHiddenRays) return 1.0;
+      if (below.seen_through == 0 && below.hidden >= p.min_hidden_rays) return 1.0;
     }
   }
   return p.unsupported;

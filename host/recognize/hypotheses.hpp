@@ -144,15 +144,16 @@ class MeasuredPoints {
 // lowest point. Returns 1 when the model's lowest point in pose (R, t) lies within tol_mm of the table plane
 // (normal toward the sensor), or above it with a measured point within radius_mm of that point and more than
 // 1 mm lower, or (look_below) above it with the column under its centre of mass hidden from the sensor, from
-// the lowest point's height down (at least 3 rays of look_below end in front of it, none beyond: what holds a
-// solid at rest is under its centre of mass); else `unsupported` (also when it sinks into the table).
-// *lowest receives the lowest point's height.
+// the lowest point's height down (at least min_hidden_rays rays of look_below end in front of it, none
+// beyond: what holds a solid at rest is under its centre of mass); else `unsupported` (also when it sinks
+// into the table). *lowest receives the lowest point's height.
 struct SupportParams {
   double tol_mm = 3.0;
   double radius_mm = 6.0;
   double unsupported = 0.5;
   bool look_below = false;
   Vec3 viewpoint = Vec3::Zero();  // the sensor, for look_below
+  int min_hidden_rays = 0;        // RecognizeParams::hidden_below_min_rays
 };
 double support_factor(const Model& model, const Mat3& R, const Vec3& t, const Plane& table,
                       const MeasuredPoints& points, const SupportParams& p, double* lowest = nullptr);

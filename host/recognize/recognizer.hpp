@@ -131,6 +131,11 @@ struct RecognizeParams {
   bool support_hidden_below = true;
   int hidden_below_min_faces = 3;
   double hidden_below_min_fit = 0.9;
+  // Rays of measured points that must end in front of that column (none beyond it). 0: no ray need pass it,
+  // as when the laser cannot reach what holds the solid up (a scanner whose camera and laser face the objects
+  // from opposite sides lights nothing under a stacked solid, and measures no point there;
+  // docs/performance.md, "another scanner's geometry").
+  int hidden_below_min_rays = 0;
   // Acceptance.
   double min_confidence = 0.6;
   // A hypothesis below min_confidence only because of measured points in front of it (occluded rays) is

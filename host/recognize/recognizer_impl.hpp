@@ -206,6 +206,7 @@ struct Recognizer::Impl {
   bool support_hidden_below = true;
   int hidden_below_min_faces = 3;
   double hidden_below_min_fit = 0.9;
+  int hidden_below_min_rays = 0;
 
   void support_test(const Model& model, Hypothesis& h) const;
   // The support test's parameters for hypothesis h fitting `fit` (look_below only when it is seen clearly).

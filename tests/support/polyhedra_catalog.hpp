@@ -1,10 +1,11 @@
 #pragma once
 // The 120 polyhedra of ../shared/data as the recognition tests and benchmarks place them (make_catalog, seed
-// 1 unless named: bench_recognition --seed S sizes them with S) and their library (one model per catalog
-// entry, same order), built once per process and seed.
+// 1 unless named: bench_recognition --seed S sizes them with S, --sizes draws the sizes) and their library
+// (one model per catalog entry, same order), built once per process and seed.
 #include <cstdint>
 #include <map>
 #include <mutex>
+#include <tuple>
 #include <vector>
 
 #include "host/library/library.hpp"
@@ -19,17 +20,21 @@ struct PolyhedraCatalog {
   host::Library library;
 };
 
-inline const PolyhedraCatalog& polyhedra_catalog(std::uint64_t seed = 1) {
+// sizes: the largest extent of each solid, drawn from [min_size_mm, max_size_mm] (bench_recognition --sizes).
+inline const PolyhedraCatalog& polyhedra_catalog(std::uint64_t seed = 1, double min_size_mm = 40.0,
+                                                 double max_size_mm = 80.0) {
   static std::mutex m;
-  static std::map<std::uint64_t, PolyhedraCatalog> built;  // map nodes stay put: references stay valid
+  // map nodes stay put: references stay valid
+  static std::map<std::tuple<std::uint64_t, double, double>, PolyhedraCatalog> built;
   const std::lock_guard<std::mutex> lock(m);
-  auto it = built.find(seed);
+  const auto key = std::make_tuple(seed, min_size_mm, max_size_mm);
+  auto it = built.find(key);
   if (it == built.end()) {
     PolyhedraCatalog x;
     x.catalog = sim::make_catalog(sim::read_catalog_meshes(shared_data() / "polyhedra/polyhedra-viewer/off"),
-                                  {.seed = seed});
+                                  {.min_size_mm = min_size_mm, .max_size_mm = max_size_mm, .seed = seed});
     for (const auto& e : x.catalog) x.library.add(host::build_model(e.mesh));
-    it = built.emplace(seed, std::move(x)).first;
+    it = built.emplace(key, std::move(x)).first;
   }
   return it->second;
 }

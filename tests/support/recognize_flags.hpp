@@ -1,7 +1,8 @@
 #pragma once
 // Benchmark helper: the command-line options that set one RecognizeParams field each, shared by
 // bench_recognition and bench_library_scale (left out, the recognizer's default stays). Matching scope
-// (--no-arc-index, --all-roots, --no-second-search, ...), the hypothesis pool and the verification budget.
+// (--no-arc-index, --all-roots, --no-second-search, ...), the hypothesis pool, the verification budget and
+// the support test's look below a solid (--hidden-below-rays).
 #include <CLI/CLI.hpp>
 
 #include <cstdint>
@@ -20,6 +21,11 @@ inline void add_recognize_flags(CLI::App& app, fs::host::rec::RecognizeParams& p
          "RecognizeParams::max_hypotheses: search solutions kept per round, all references (default: 4 "
          "per reference, 8192 to 65536)")
       ->check(at_least(1));
+  app.add_option(
+         "--hidden-below-rays", p.hidden_below_min_rays,
+         "RecognizeParams::hidden_below_min_rays (default 0): rays that must end in front of the space "
+         "under a solid seen clearly for it to be held up")
+      ->check(at_least(0));
   app.add_option("--max-states", p.max_states, "RecognizeParams::max_states: the state budget of one search")
       ->check(at_least(1));
   app.add_flag(

@@ -82,7 +82,10 @@ struct CategoryStats {
   int found_as_candidate = 0;
   int stacked = 0, stacked_found = 0;  // objects resting on another one (cluttered)
   int seen3 = 0, seen3_found = 0;      // objects with 3 faces or more measured in kSeenFaceCells cells each
-  int interpenetrating_pairs = 0;      // accepted pairs whose solids interpenetrate (must stay 0)
+  // Of those missed: nothing reported within 20 mm, or the truth fits the view at least as well as the
+  // report.
+  int seen3_unreported = 0, seen3_truth_fits = 0;
+  int interpenetrating_pairs = 0;         // accepted pairs whose solids interpenetrate (must stay 0)
   std::map<std::string, int> confusions;  // "true -> reported" for identity errors; "*" = true model listed
   std::vector<double> rot_err, trans_err, cpu, wall, allocs, seg_ms, match_ms, verify_ms;
   int thinned = 0;  // scans segmented on every other row (RecognizeParams::segment_row_step)
@@ -282,6 +285,19 @@ int run(const Args& args) {
     // Copy what we evaluate: the second recognize() overwrites the result.
     std::vector<fs::host::rec::Hypothesis> found_objects = r.objects;
     const std::string note = r.note;
+    // Fine samples of this scan, built on first use (verify_on_fine).
+    fs::host::rec::SampleSet fine_samples;
+    bool fine_built = false;
+    fs::host::rec::Verifier fine_verifier(params.verify);
+    auto verify_on_fine = [&](const fs::host::Model& m, fs::Mat3 R, fs::Vec3 t) {
+      if (!fine_built) {
+        fine_samples.build(
+            cloud, fs::host::rec::sample_steps(fs::host::rec::grid_spacing_mm(cloud),
+                                               params.verify.sample_step, params.verify.sample_spacing_mm));
+        fine_built = true;
+      }
+      return fine_verifier.verify(fine_samples, fs::host::rec::ModelGeometry(m), R, t, false);
+    };
     if (args.scene_stats)
       std::printf(
           "scene seed %llu %s: %d graph parts, %d faces, %lld search states, matching %.1f ms, %d hypotheses "
@@ -336,21 +352,12 @@ int run(const Args& args) {
       }
       // Each true object's model verified in its true pose on the fine samples, without refinement (compare
       // with the candidates' in / viol / occ: the samples are the same).
-      {
-        const fs::host::rec::VerifyParams vp = params.verify;
-        fs::host::rec::SampleSet samples;
-        samples.build(cloud, fs::host::rec::sample_steps(fs::host::rec::grid_spacing_mm(cloud),
-                                                         vp.sample_step, vp.sample_spacing_mm));
-        fs::host::rec::Verifier verifier(vp);
-        for (std::size_t oi = 0; oi < rs.scene.objects.size(); ++oi) {
-          if (rs.catalog_index[oi] < 0) continue;
-          const auto& tm = library.models[static_cast<std::size_t>(rs.catalog_index[oi])];
-          fs::Mat3 R = rs.scene.objects[oi].rotation;
-          fs::Vec3 t = rs.scene.objects[oi].translation;
-          const auto v = verifier.verify(samples, fs::host::rec::ModelGeometry(tm), R, t, false);
-          std::printf("  truth-pose %s: in %d viol %d occ %d conf %.3f\n", tm.name.c_str(), v.inliers,
-                      v.violations, v.occluded, v.confidence);
-        }
+      for (std::size_t oi = 0; oi < rs.scene.objects.size(); ++oi) {
+        if (rs.catalog_index[oi] < 0) continue;
+        const auto& tm = library.models[static_cast<std::size_t>(rs.catalog_index[oi])];
+        const auto v = verify_on_fine(tm, rs.scene.objects[oi].rotation, rs.scene.objects[oi].translation);
+        std::printf("  truth-pose %s: in %d viol %d occ %d conf %.3f\n", tm.name.c_str(), v.inliers,
+                    v.violations, v.occluded, v.confidence);
       }
       for (const auto* h : recognizer.all_hypotheses())
         for (std::size_t oi = 0; oi < rs.scene.objects.size(); ++oi)
@@ -445,14 +452,30 @@ int run(const Args& args) {
             }
           }
         }
+        // The truth in its true pose and the nearest report in its own, on the fine samples: a truth that
+        // fits at least as well (as many inliers within 2, no more violations) was lost by the pipeline, not
+        // by the view.
+        const auto truth_fit = verify_on_fine(truth, obj.rotation, obj.translation);
+        std::string fits =
+            "truth in " + std::to_string(truth_fit.inliers) + " viol " + std::to_string(truth_fit.violations);
+        bool lost = true;
+        if (nearest >= 0) {
+          const auto& h = found_objects[static_cast<std::size_t>(nearest)];
+          const auto rep = verify_on_fine(library.models[static_cast<std::size_t>(h.model)], h.R, h.t);
+          fits += ", reported in " + std::to_string(rep.inliers) + " viol " + std::to_string(rep.violations);
+          lost = truth_fit.inliers + 2 >= rep.inliers && truth_fit.violations <= rep.violations;
+        }
+        if (faces_seen >= 3 && nearest < 0) ++s.seen3_unreported;
+        if (faces_seen >= 3 && nearest >= 0 && lost) ++s.seen3_truth_fits;
         if (args.verbose)
           std::printf(
-              "MISS seed %llu %s: %s (face %d on %s, %d faces, %d seen, %zu points) -> nearest %s; note: "
+              "MISS seed %llu %s: %s (face %d on %s, %d faces, %d seen, %zu points) -> nearest %s; %s; note: "
               "%s\n",
               static_cast<unsigned long long>(seed), fs::sim::to_string(cat), truth.name.c_str(),
               rs.resting_face[oi],
               stacked ? rs.scene.objects[static_cast<std::size_t>(rs.support[oi])].name.c_str() : "table",
-              static_cast<int>(truth.faces.size()), faces_seen, object_cells, got.c_str(), note.c_str());
+              static_cast<int>(truth.faces.size()), faces_seen, object_cells, got.c_str(), fits.c_str(),
+              note.c_str());
       }
     }
     // A physically possible answer: no two reported solids interpenetrate.
@@ -569,8 +592,11 @@ int run(const Args& args) {
   std::printf("\nobjects seen with 3 faces or more (%zu measured cells each), found (model + centre):\n",
               kSeenFaceCells);
   for (const auto& [cat, s] : stats)
-    std::printf("  %-10s %d of %d (%.1f %%); of the %d others %d\n", fs::sim::to_string(cat), s.seen3_found,
-                s.seen3, pct(s.seen3_found, s.seen3), s.objects - s.seen3, s.found - s.seen3_found);
+    std::printf(
+        "  %-10s %d of %d (%.1f %%); of the %d missed, %d have no report within 20 mm and %d fit the view in "
+        "their true pose at least as well as the report there; of the %d others %d\n",
+        fs::sim::to_string(cat), s.seen3_found, s.seen3, pct(s.seen3_found, s.seen3), s.seen3 - s.seen3_found,
+        s.seen3_unreported, s.seen3_truth_fits, s.objects - s.seen3, s.found - s.seen3_found);
   std::printf(
       "\nambiguous: reported objects that list alternatives; correct: the true model is the reported one or "
       "listed\n");

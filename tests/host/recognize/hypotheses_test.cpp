@@ -244,6 +244,15 @@ TEST(Support, SpaceHiddenUnderAFloatingSolidHoldsItUpSpaceSeenThroughDoesNot) {
   p.look_below = true;
   EXPECT_EQ(fs::host::rec::support_factor(m, Mat3::Identity(), up, table, plate, p), 1.0);
   EXPECT_EQ(fs::host::rec::support_factor(m, Mat3::Identity(), up, table, table_pts, p), 0.5);
+  // No ray of a measured point passes that space (what holds the solid up is in the laser's shadow): nothing
+  // is seen through it, and it holds the solid up unless rays that end in front of it are asked for.
+  const std::vector<Eigen::Vector3f> nothing_near{Eigen::Vector3f(140.0f, 140.0f, 0.0f)};
+  const auto unseen = fs::host::rec::look_below(lowest, table, viewpoint, nothing_near, 3.0);
+  EXPECT_EQ(unseen.hidden + unseen.seen_through, 0);
+  EXPECT_EQ(fs::host::rec::support_factor(m, Mat3::Identity(), up, table, nothing_near, p), 1.0);
+  p.min_hidden_rays = 3;
+  EXPECT_EQ(fs::host::rec::support_factor(m, Mat3::Identity(), up, table, nothing_near, p), 0.5);
+  EXPECT_EQ(fs::host::rec::support_factor(m, Mat3::Identity(), up, table, plate, p), 1.0);
 }
 
 // The measured points of a scene of posed cubes over the table (z = 0, x and y within 150 mm), seen from
