@@ -81,22 +81,27 @@ ScannerCalibration ScannerCalibration::bench_default(std::uint32_t step_count) {
   c.laser.axis_point = Vec3(200, 0, 500);
   c.laser.axis_dir = Vec3::UnitY();
   c.laser.optical_gain = 2.0;
-  // Plane at mirror angle 0 passes through the table origin: it contains the axis and the direction
-  // (origin - axis_point); its normal is perpendicular to both.
-  const Vec3 to_origin = (Vec3::Zero() - c.laser.axis_point).normalized();
-  c.laser.normal_at_zero = c.laser.axis_dir.cross(to_origin).normalized();
-  // Sweep the stripe over table x in [-150, 150]: plane angles relative to angle 0 (about +y).
-  auto plane_angle_for_x = [&](double x) {
-    const Vec3 dir = (Vec3(x, 0, 0) - c.laser.axis_point).normalized();
-    // signed angle from to_origin to dir about axis_dir
-    return std::atan2(to_origin.cross(dir).dot(c.laser.axis_dir), to_origin.dot(dir));
-  };
-  const double a0 = plane_angle_for_x(-150.0) / c.laser.optical_gain;
-  const double a1 = plane_angle_for_x(150.0) / c.laser.optical_gain;
-  c.laser.mirror_angle_at_step0 = a0;
-  c.laser.rad_per_step = step_count > 1 ? (a1 - a0) / static_cast<double>(step_count - 1) : 0.0;
+  // Sweep the stripe over table x in [-150, 150].
+  c.laser.aim(Vec3(-150, 0, 0), Vec3(150, 0, 0), step_count);
   c.table = Plane{Vec3::UnitZ(), 0.0};
   return c;
+}
+
+void LaserModel::aim(const Vec3& first, const Vec3& last, std::uint32_t steps) {
+  // Plane at mirror angle 0 passes through the origin: it contains the axis and the direction
+  // (origin - axis_point); its normal is perpendicular to both.
+  const Vec3 to_origin = (Vec3::Zero() - axis_point).normalized();
+  normal_at_zero = axis_dir.cross(to_origin).normalized();
+  // Plane angles relative to angle 0 (about axis_dir).
+  auto plane_angle = [&](const Vec3& x) {
+    const Vec3 dir = (x - axis_point).normalized();
+    // signed angle from to_origin to dir about axis_dir
+    return std::atan2(to_origin.cross(dir).dot(axis_dir), to_origin.dot(dir));
+  };
+  const double a0 = plane_angle(first) / optical_gain;
+  const double a1 = plane_angle(last) / optical_gain;
+  mirror_angle_at_step0 = a0;
+  rad_per_step = steps > 1 ? (a1 - a0) / static_cast<double>(steps - 1) : 0.0;
 }
 
 bool intersect_ray_plane(const Vec3& origin, const Vec3& dir, const Plane& plane, double cos_min, Vec3& hit) {

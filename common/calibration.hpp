@@ -62,6 +62,9 @@ struct LaserModel {
   // whose plane angle lies within a quarter turn of near_step's (pass the middle of the sweep: steps are
   // absolute, and a sweep may start far from step 0). NaN for a point on the axis or a zero step size.
   double step_through(const Vec3& x, double near_step = 0.0) const;
+  // Aims the sweep (axis_point, axis_dir and optical_gain set): the plane at mirror angle 0 through the world
+  // origin, step 0's plane through `first` and step steps - 1's through `last`.
+  void aim(const Vec3& first, const Vec3& last, std::uint32_t steps);
 };
 
 struct ScannerCalibration {

@@ -1,7 +1,5 @@
 #include "hw-sim/scene/oblique_rig.hpp"
 
-#include <cmath>
-
 namespace fs::sim {
 
 ScannerCalibration oblique_rig(std::uint32_t steps) {
@@ -26,16 +24,7 @@ ScannerCalibration oblique_rig(std::uint32_t steps) {
   c.laser.axis_point = Vec3(0, 150, 480);
   c.laser.axis_dir = Vec3::UnitX();
   c.laser.optical_gain = 2.0;
-  const Vec3 to_origin = (Vec3::Zero() - c.laser.axis_point).normalized();
-  c.laser.normal_at_zero = c.laser.axis_dir.cross(to_origin).normalized();
-  auto plane_angle_for_y = [&](double y_table) {
-    const Vec3 dir = (Vec3(0, y_table, 0) - c.laser.axis_point).normalized();
-    return std::atan2(to_origin.cross(dir).dot(c.laser.axis_dir), to_origin.dot(dir));
-  };
-  const double a0 = plane_angle_for_y(-110.0) / c.laser.optical_gain;
-  const double a1 = plane_angle_for_y(110.0) / c.laser.optical_gain;
-  c.laser.mirror_angle_at_step0 = a0;
-  c.laser.rad_per_step = steps > 1 ? (a1 - a0) / static_cast<double>(steps - 1) : 0.0;
+  c.laser.aim(Vec3(0, -110, 0), Vec3(0, 110, 0), steps);
   c.table = Plane{Vec3::UnitZ(), 0.0};
   return c;
 }
