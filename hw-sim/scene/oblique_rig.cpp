@@ -29,4 +29,12 @@ ScannerCalibration oblique_rig(std::uint32_t steps) {
   return c;
 }
 
+RandomScene make_oblique_scene(const std::vector<CatalogEntry>& catalog, RandomSceneOptions options,
+                               std::uint64_t seed) {
+  options.x_min = -100, options.x_max = 100, options.y_min = -85, options.y_max = 85;
+  RandomScene rs = make_random_scene(catalog, options, seed);
+  rs.scene.calibration = oblique_rig(options.steps);
+  return rs;
+}
+
 }  // namespace fs::sim

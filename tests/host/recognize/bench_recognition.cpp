@@ -252,12 +252,9 @@ int run(const Args& args) {
     if (args.only >= 0 && i != args.only) continue;
     const SceneCategory cat = args.categories[static_cast<std::size_t>(i) % args.categories.size()];
     const std::uint64_t seed = args.seed + static_cast<std::uint64_t>(i);
-    fs::sim::RandomSceneOptions scene_options{.category = cat, .steps = args.steps};
-    if (oblique)
-      scene_options.x_min = -100, scene_options.x_max = 100, scene_options.y_min = -85,
-      scene_options.y_max = 85;
-    auto rs = fs::sim::make_random_scene(catalog, scene_options, seed);
-    if (oblique) rs.scene.calibration = fs::sim::oblique_rig(args.steps);
+    const fs::sim::RandomSceneOptions scene_options{.category = cat, .steps = args.steps};
+    const auto rs = oblique ? fs::sim::make_oblique_scene(catalog, scene_options, seed)
+                            : fs::sim::make_random_scene(catalog, scene_options, seed);
     const fs::sim::GroundTruthGrid grid =
         fs::sim::make_ground_truth_grid(rs.scene, {.depth_noise_mm = args.noise, .seed = seed});
     grid.export_to(cloud, false);

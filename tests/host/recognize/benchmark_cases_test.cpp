@@ -34,15 +34,9 @@ const Bench& bench() { return fs::test::polyhedra_catalog(); }
 // The catalog of `bench_recognition --seed 1000` (its solids sized with seed 1000).
 const Bench& bench_seed_1000() { return fs::test::polyhedra_catalog(1000); }
 
-// The name of the model reported within 10 mm of scene object `index`'s centre ("" = none).
-std::string recognized_at(fs::sim::SceneCategory category, std::uint32_t steps, std::uint64_t seed,
-                          std::size_t index, const RecognizeParams& params, const Bench& b = bench()) {
-  const auto rs = fs::sim::make_random_scene(b.catalog, {.category = category, .steps = steps}, seed);
-  fs::host::OrganizedCloud cloud;
-  fs::sim::make_ground_truth_grid(rs.scene, {.depth_noise_mm = 0.05, .seed = seed}).export_to(cloud, false);
-  Recognizer rec(b.library, params, cloud.points.size());
-  const fs::Plane table = rs.scene.calibration.table;
-  const auto& r = rec.recognize(cloud, &table);
+// The name of the model of r reported within 10 mm of scene object `index`'s centre ("" = none).
+std::string reported_near(const fs::host::rec::Recognition& r, const fs::sim::RandomScene& rs,
+                          std::size_t index, const Bench& b) {
   const auto& truth = b.library.models[static_cast<std::size_t>(rs.catalog_index.at(index))];
   const auto& obj = rs.scene.objects.at(index);
   const fs::Vec3 centre = obj.rotation * truth.center + obj.translation;
@@ -51,6 +45,18 @@ std::string recognized_at(fs::sim::SceneCategory category, std::uint32_t steps, 
     if ((h.R * m.center + h.t - centre).norm() < 10.0) return m.name;
   }
   return "";
+}
+
+// The same for the benchmark scene of `category`, `steps` and `seed`, recognized with `params`.
+std::string recognized_at(fs::sim::SceneCategory category, std::uint32_t steps, std::uint64_t seed,
+                          std::size_t index, const RecognizeParams& params, const Bench& b = bench()) {
+  const auto rs = fs::sim::make_random_scene(b.catalog, {.category = category, .steps = steps}, seed);
+  fs::host::OrganizedCloud cloud;
+  fs::sim::make_ground_truth_grid(rs.scene, {.depth_noise_mm = 0.05, .seed = seed}).export_to(cloud, false);
+  Recognizer rec(b.library, params, cloud.points.size());
+  const fs::Plane table = rs.scene.calibration.table;
+  const auto& r = rec.recognize(cloud, &table);
+  return reported_near(r, rs, index, b);
 }
 
 std::size_t index_of(const fs::sim::RandomScene& rs, const std::string& name, const Bench& b = bench()) {
@@ -320,15 +326,8 @@ TEST(RecognizeBenchmarkCases, TheReseatPrefersThePlacementTheTableHoldsUp) {
 TEST(RecognizeBenchmarkCases, ASolidOnASupportTheLaserCannotReachIsHeldUp) {
   const Bench& b = fs::test::polyhedra_catalog(1, 55.0, 85.0);
   const std::uint64_t seed = 172;
-  auto rs = fs::sim::make_random_scene(b.catalog,
-                                       {.category = fs::sim::SceneCategory::cluttered,
-                                        .x_min = -100,
-                                        .x_max = 100,
-                                        .y_min = -85,
-                                        .y_max = 85,
-                                        .steps = 240},
-                                       seed);
-  rs.scene.calibration = fs::sim::oblique_rig(240);
+  const auto rs = fs::sim::make_oblique_scene(
+      b.catalog, {.category = fs::sim::SceneCategory::cluttered, .steps = 240}, seed);
   const std::size_t i = index_of(rs, "gyroelongated-pentagonal-birotunda", b);
   ASSERT_LT(i, rs.catalog_index.size()) << "the benchmark scene changed";
   ASSERT_GE(rs.support[i], 0) << "the benchmark scene changed";
@@ -336,18 +335,12 @@ TEST(RecognizeBenchmarkCases, ASolidOnASupportTheLaserCannotReachIsHeldUp) {
   fs::sim::make_ground_truth_grid(rs.scene, {.depth_noise_mm = 0.08, .seed = seed}).export_to(cloud, false);
   fs::sim::drop_points(cloud, 0.01, seed);
   cloud.scanner.reset();  // a cloud of unknown origin: the recognizer finds the table
-  const auto& truth = b.library.models[static_cast<std::size_t>(rs.catalog_index[i])];
-  const fs::Vec3 centre = rs.scene.objects[i].rotation * truth.center + rs.scene.objects[i].translation;
   auto reported_there = [&](int min_rays) {
     RecognizeParams params;
     params.threads = 2;
     params.hidden_below_min_rays = min_rays;
     Recognizer rec(b.library, params, cloud.points.size());
-    for (const auto& h : rec.recognize(cloud).objects) {
-      const auto& m = b.library.models[static_cast<std::size_t>(h.model)];
-      if ((h.R * m.center + h.t - centre).norm() < 10.0) return m.name;
-    }
-    return std::string();
+    return reported_near(rec.recognize(cloud), rs, i, b);
   };
   EXPECT_EQ(reported_there(0), "gyroelongated-pentagonal-birotunda");
   EXPECT_EQ(reported_there(3), "");
