@@ -23,7 +23,8 @@ void list_alternative(const RecognizeParams& params, const Library& library, int
                       int inliers, const Mat3& R, const Vec3& t, Hypothesis& o) {
   if (model == o.model || o.alternatives >= Hypothesis::kMaxAlternatives ||
       fit < o.verify.confidence - params.alternative_confidence ||
-      static_cast<double>(inliers) < params.alternative_inliers * static_cast<double>(o.verify.inliers))
+      static_cast<double>(inliers + params.alternative_inlier_slack) <
+          params.alternative_inliers * static_cast<double>(o.verify.inliers))
     return;
   for (const Hypothesis::Alternative& a : o.listed_alternatives())
     if (a.model == model) return;

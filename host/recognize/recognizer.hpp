@@ -160,6 +160,9 @@ struct RecognizeParams {
   // alternative_inliers x its own.
   double alternative_confidence = 0.02;
   double alternative_inliers = 0.97;
+  // ... less this many points: an object seen small (tens of fine samples) differs from a look-alike by a few
+  // samples at the ends of its faces, not by what is in view.
+  int alternative_inlier_slack = 3;
   int max_objects = 16;
   // A physically possible answer: two accepted solids may not interpenetrate, i.e. overlap by more than
   // interpenetration_share of the smaller one's volume AND by more than interpenetration_mm (the deepest

@@ -482,13 +482,33 @@ VerifyResult Verifier::verify_sliding(const SampleSet& samples, const SampleSet&
   const double centre = best_off;
   score(centre - 0.5 * step);
   score(centre + 0.5 * step);
-  if (best_off == 0.0 || best <= here.confidence + params_.slide_gain) {
-    evaluate(samples, g, R, t);  // the inlier lists of the pose kept
+  const bool moved = best_off != 0.0 && best > here.confidence + params_.slide_gain;
+  if (moved) {
+    t = t0 + best_off * u;
+    const int iterations = r.refine_iterations;
+    r = verify(samples, g, R, t, true);  // ICP at the new offset (it may turn the pose a little)
+    r.refine_iterations += iterations;
+  }
+  // Finer steps on the fine samples, from where the pose now is (ICP leaves the free direction alone).
+  const Vec3 t1 = t;
+  double fine_off = 0.0;
+  VerifyResult fine = r;
+  if (params_.slide_fine_mm > 0.0)
+    for (double h = 0.25 * step; h >= params_.slide_fine_mm; h *= 0.5) {
+      const double from = fine_off;
+      for (const double off : {from - h, from + h}) {
+        const VerifyResult e = evaluate(samples, g, R, t1 + off * u);
+        if (e.inliers >= fine.inliers && e.confidence > fine.confidence) fine = e, fine_off = off;
+      }
+    }
+  if (fine_off == 0.0) {
+    if (!moved || params_.slide_fine_mm > 0.0)
+      evaluate(samples, g, R, t);  // the inlier lists of the pose kept
     return r;
   }
-  t = t0 + best_off * u;
+  t = t1 + fine_off * u;
   const int iterations = r.refine_iterations;
-  r = verify(samples, g, R, t, true);  // ICP at the new offset (it may turn the pose a little)
+  r = verify(samples, g, R, t, true);
   r.refine_iterations += iterations;
   return r;
 }

@@ -26,6 +26,15 @@ inline void add_recognize_flags(CLI::App& app, fs::host::rec::RecognizeParams& p
          "RecognizeParams::hidden_below_min_rays (default 0): rays that must end in front of the space "
          "under a solid seen clearly for it to be held up")
       ->check(at_least(0));
+  app.add_option("--slide-fine", p.verify.slide_fine_mm,
+                 "VerifyParams::slide_fine_mm (default 0.0625): the finest step of the slide along a free "
+                 "translation, on the fine samples; 0 = no fine steps")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option(
+         "--alternative-slack", p.alternative_inlier_slack,
+         "RecognizeParams::alternative_inlier_slack (default 3): an alternative may explain this many "
+         "points fewer than 97 % of the object's")
+      ->check(at_least(0));
   app.add_option("--max-states", p.max_states, "RecognizeParams::max_states: the state budget of one search")
       ->check(at_least(1));
   app.add_flag(

@@ -472,4 +472,32 @@ TEST_F(CubeScan, SlidingFindsTheTranslationThePlanesLeaveOpen) {
   EXPECT_NEAR(t.norm(), 0.0, 1e-6);
 }
 
+// Less than a slide step off along the free direction: the rays past the cube's ends see the table where the
+// pose claims the cube (violations). The 1 mm and 0.5 mm steps on their own leave the pose 0.2-0.3 mm off;
+// the finer steps on the fine samples (slide_fine_mm) bring it to within one of them.
+TEST_F(CubeScan, FineSlideStepsPlaceThePoseWithinAFractionOfAMillimetre) {
+  const double offsets[] = {0.2, 0.3, -0.3, 0.7};
+  for (const double fine : {0.0, 0.0625}) {
+    fs::host::rec::VerifyParams p;
+    p.slide_fine_mm = fine;
+    fs::host::rec::Verifier w(p);
+    int left_off = 0;
+    for (const double off : offsets) {
+      fs::Mat3 R = fs::Mat3::Identity();
+      Vec3 t(off, 0.0, 0.0);
+      const auto r = w.verify_sliding(samples, samples, g, R, t, Vec3::UnitX());
+      left_off += std::abs(t.x()) >= 0.19 ? 1 : 0;
+      if (fine > 0.0) {
+        EXPECT_LT(std::abs(t.x()), 0.07) << "from " << off;
+        EXPECT_EQ(r.violations, 0) << "from " << off;
+        EXPECT_NEAR(t.y(), 0.0, 0.01);
+        EXPECT_NEAR(t.z(), 0.0, 0.01);
+      }
+    }
+    if (fine == 0.0) {
+      EXPECT_EQ(left_off, 4) << "without the fine steps";
+    }
+  }
+}
+
 }  // namespace
