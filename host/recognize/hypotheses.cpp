@@ -433,9 +433,18 @@ double support_factor(const Model& model, const Mat3& R, const Vec3& t, const Pl
     const Vec3 to_low = v_low - p.viewpoint;
     const double d = to_low.norm();
     const double cone = d > p.radius_mm ? std::asin(p.radius_mm / d) : M_PI;
+    const auto on_own_plane = [&](const Vec3& q) {
+      if (p.own_plane_mm <= 0.0) return false;
+      for (const ModelFace& f : model.faces) {
+        const Vec3 n = R * f.normal;
+        const double offset = f.offset + n.dot(t);
+        if (n.dot(p.viewpoint) > offset && std::abs(n.dot(q) - offset) <= p.own_plane_mm) return true;
+      }
+      return false;
+    };
     const auto near_below = [&](const Eigen::Vector3f& pf) {
       const Vec3 q = pf.cast<double>();
-      return (q - v_low).squaredNorm() <= r2 && table.signed_distance(q) < low - 1.0;
+      return (q - v_low).squaredNorm() <= r2 && table.signed_distance(q) < low - 1.0 && !on_own_plane(q);
     };
     if (points.any_in_cone(p.viewpoint, d > 0.0 ? Vec3(to_low / d) : Vec3::UnitZ(), cone, near_below))
       return 1.0;

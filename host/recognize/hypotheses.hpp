@@ -143,17 +143,22 @@ class MeasuredPoints {
 // Support (beyond the thesis): a solid object rests on the table or on something measured just below its
 // lowest point. Returns 1 when the model's lowest point in pose (R, t) lies within tol_mm of the table plane
 // (normal toward the sensor), or above it with a measured point within radius_mm of that point and more than
-// 1 mm lower, or (look_below) above it with the column under its centre of mass hidden from the sensor, from
-// the lowest point's height down (at least min_hidden_rays rays of look_below end in front of it, none
-// beyond: what holds a solid at rest is under its centre of mass); else `unsupported` (also when it sinks
-// into the table). *lowest receives the lowest point's height.
+// 1 mm lower (not on one of its own seen faces' planes: SupportParams::own_plane_mm), or (look_below) above
+// it with the column under its centre of mass hidden from the sensor, from the lowest point's height down (at
+// least min_hidden_rays rays of look_below end in front of it, none beyond: what holds a solid at rest is
+// under its centre of mass); else `unsupported` (also when it sinks into the table). *lowest receives the
+// lowest point's height.
 struct SupportParams {
   double tol_mm = 3.0;
   double radius_mm = 6.0;
   double unsupported = 0.5;
   bool look_below = false;
-  Vec3 viewpoint = Vec3::Zero();  // the sensor, for look_below
+  Vec3 viewpoint = Vec3::Zero();  // the sensor, for look_below and own_plane_mm
   int min_hidden_rays = 0;        // RecognizeParams::hidden_below_min_rays
+  // A measured point within this distance of the plane of one of the posed model's faces that turn to the
+  // viewpoint holds nothing up: it is that face's scene region going on past the model (the top part of a
+  // larger solid, which a smaller model fits, continues below the smaller one's lowest point). 0 = off.
+  double own_plane_mm = 0.0;
 };
 double support_factor(const Model& model, const Mat3& R, const Vec3& t, const Plane& table,
                       const MeasuredPoints& points, const SupportParams& p, double* lowest = nullptr);

@@ -124,6 +124,9 @@ struct RecognizeParams {
   double support_tol_mm = 3.0;
   double support_radius_mm = 6.0;
   double unsupported_factor = 0.5;
+  // A measured point on the plane of one of the solid's own seen faces (within this many mm) does not hold it
+  // up: the top part of a larger solid continues there (SupportParams::own_plane_mm). 0 = off.
+  double support_own_plane_mm = 0.5;
   // Nor is it scaled when the column under its centre of mass is hidden from the sensor and none of it is
   // seen through (look_below in hypotheses.hpp): it may rest on an object nothing of which is in view. Only
   // for a solid seen clearly: at least hidden_below_min_faces matched faces and a fit of hidden_below_min_fit

@@ -207,6 +207,7 @@ struct Recognizer::Impl {
   int hidden_below_min_faces = 3;
   double hidden_below_min_fit = 0.9;
   int hidden_below_min_rays = 0;
+  double support_own_plane = 0.5;
 
   void support_test(const Model& model, Hypothesis& h) const;
   // The support test's parameters for hypothesis h fitting `fit` (look_below only when it is seen clearly).

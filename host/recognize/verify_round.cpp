@@ -349,8 +349,8 @@ SupportParams Recognizer::Impl::support_params(const Hypothesis& h, double fit) 
   // enough matched faces, its fit high.
   const bool look = support_hidden_below && static_cast<int>(h.matches.size()) >= hidden_below_min_faces &&
                     fit >= hidden_below_min_fit;
-  return SupportParams{support_tol, support_radius,   unsupported_factor,
-                       look,        fine.viewpoint(), hidden_below_min_rays};
+  return SupportParams{support_tol,      support_radius,        unsupported_factor, look,
+                       fine.viewpoint(), hidden_below_min_rays, support_own_plane};
 }
 
 void Recognizer::Impl::support_test(const Model& model, Hypothesis& h) const {

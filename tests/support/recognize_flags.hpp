@@ -35,6 +35,10 @@ inline void add_recognize_flags(CLI::App& app, fs::host::rec::RecognizeParams& p
          "RecognizeParams::alternative_inlier_slack (default 3): an alternative may explain this many "
          "points fewer than 97 % of the object's")
       ->check(at_least(0));
+  app.add_option("--support-own-plane", p.support_own_plane_mm,
+                 "RecognizeParams::support_own_plane_mm (default 0.5): measured points this near one of a "
+                 "solid's seen face planes do not hold it up; 0 = they do")
+      ->check(CLI::NonNegativeNumber);
   app.add_option("--max-states", p.max_states, "RecognizeParams::max_states: the state budget of one search")
       ->check(at_least(1));
   app.add_flag(

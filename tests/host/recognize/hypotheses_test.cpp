@@ -209,6 +209,38 @@ TEST(Support, StackedOnMeasuredSurfaceIsSupported) {
   EXPECT_EQ(fs::host::rec::support_factor(m, Mat3::Identity(), Vec3(0, 0, 20), table, pts, {}), 1.0);
 }
 
+// A solid's own seen face going on below it holds nothing up (SupportParams::own_plane_mm): the top part of a
+// larger solid, fitted by a smaller model, has that larger solid's faces measured under its lowest point. A
+// surface off those planes, 2 mm in front of the face, still holds it up.
+TEST(Support, ItsOwnSeenFaceGoingOnBelowItHoldsNothingUp) {
+  const auto m = cube_model();
+  const fs::Plane table{Vec3::UnitZ(), 0.0};
+  const Mat3 R = Mat3::Identity();
+  const Vec3 t(0, 0, 20);
+  Vec3 v_low = Vec3::Zero();
+  ASSERT_NEAR(fs::host::rec::lowest_point(m, R, t, table, &v_low), 20.0, 1e-9);
+  // A side face through the lowest vertex, and a sensor in front of it and above.
+  Vec3 n = Vec3::Zero();
+  for (const auto& f : m.faces)
+    if (std::abs(f.normal.z()) < 0.1 && std::abs(f.normal.dot(v_low - t) - f.offset) < 1e-6) n = f.normal;
+  ASSERT_GT(n.norm(), 0.5);
+  const Vec3 e = n.cross(Vec3::UnitZ());
+  fs::host::rec::SupportParams p{.viewpoint = v_low + 300.0 * n + Vec3(0, 0, 300)};
+  std::vector<Eigen::Vector3f> face_below;  // the face's plane, 2-5 mm under the vertex
+  for (double down = 2.0; down <= 5.0; down += 1.0)
+    for (double along = -3.0; along <= 3.0; along += 1.0)
+      face_below.push_back((v_low - down * Vec3::UnitZ() + along * e).cast<float>());
+  p.own_plane_mm = 0.0;
+  EXPECT_EQ(fs::host::rec::support_factor(m, R, t, table, face_below, p), 1.0);
+  p.own_plane_mm = 0.5;
+  EXPECT_EQ(fs::host::rec::support_factor(m, R, t, table, face_below, p), 0.5);
+  const std::vector<Eigen::Vector3f> in_front{(v_low - 2.0 * Vec3::UnitZ() + 2.0 * n).cast<float>()};
+  EXPECT_EQ(fs::host::rec::support_factor(m, R, t, table, in_front, p), 1.0);
+  // A face turned away from the sensor does not count as seen: its plane's points hold the solid up.
+  p.viewpoint = v_low - 300.0 * n + Vec3(0, 0, 300);
+  EXPECT_EQ(fs::host::rec::support_factor(m, R, t, table, face_below, p), 1.0);
+}
+
 // The space under a floating solid (look_below), the sensor looking in at a slant: with only the table
 // measured, rays pass through the space under the lowest point and end on the table beyond it (seen through);
 // with a surface measured in front of that space (something the solid rests on is hidden behind it), the rays
