@@ -17,12 +17,15 @@ namespace {
 
 // Lists model `model` (confidence `fit`, `inliers` inlier points) as an alternative of accepted object o when
 // it fits o's points as well (confidence within alternative_confidence, inliers >= alternative_inliers x
-// o's), is another model, is not listed yet and there is room: a look-alike that met o across rounds. (R, t):
-// its pose.
+// o's less alternative_inlier_slack), is another model, is not listed yet and there is room: a look-alike
+// that met o across rounds. (R, t): its pose. `compared` and `object_compared`, when given, are the fits
+// compared instead of the confidences (seen_fit).
 void list_alternative(const RecognizeParams& params, const Library& library, int model, double fit,
-                      int inliers, const Mat3& R, const Vec3& t, Hypothesis& o) {
+                      int inliers, const Mat3& R, const Vec3& t, Hypothesis& o, double compared = -1.0,
+                      double object_compared = -1.0) {
+  if (compared < 0.0) compared = fit, object_compared = o.verify.confidence;
   if (model == o.model || o.alternatives >= Hypothesis::kMaxAlternatives ||
-      fit < o.verify.confidence - params.alternative_confidence ||
+      compared < object_compared - params.alternative_confidence ||
       static_cast<double>(inliers + params.alternative_inlier_slack) <
           params.alternative_inliers * static_cast<double>(o.verify.inliers))
     return;
@@ -33,9 +36,18 @@ void list_alternative(const RecognizeParams& params, const Library& library, int
   canonical_pose(library.models[static_cast<std::size_t>(model)], a.R, a.t);
 }
 
+// A verified hypothesis's fit without its occluded rays: what the measured points in view say of it.
+double seen_fit(const VerifyResult& v) {
+  const double seen = static_cast<double>(v.inliers + v.violations);
+  if (seen <= 0.0) return 0.0;
+  double f = static_cast<double>(v.inliers) / seen * v.explained * v.support;
+  if (v.inliers < 30) f *= static_cast<double>(v.inliers) / 30.0;
+  return f;
+}
+
 // The refined hypotheses of other models that explain the accepted hypothesis h (index `self`) as well: on at
-// least half of its scene faces, confidence within alternative_confidence, inliers >= alternative_inliers x
-// its own.
+// least half of its scene faces, fit within alternative_confidence (seen_fit with alternative_seen_fit),
+// inliers >= alternative_inliers x its own less the slack.
 void find_alternatives(const Recognizer::Impl& im, std::size_t self, const RecognizeParams& params,
                        Hypothesis& h) {
   h.alternatives = 0;
@@ -47,7 +59,11 @@ void find_alternatives(const Recognizer::Impl& im, std::size_t self, const Recog
     for (const FaceMatch& m : h.matches)
       for (const FaceMatch& om : o.matches) shared += om.scene == m.scene ? 1 : 0;
     if (2 * shared < h.matches.size()) continue;
-    list_alternative(params, *im.library, o.model, o.verify.confidence, o.verify.inliers, o.R, o.t, h);
+    if (params.alternative_seen_fit)
+      list_alternative(params, *im.library, o.model, o.verify.confidence, o.verify.inliers, o.R, o.t, h,
+                       seen_fit(o.verify), seen_fit(h.verify));
+    else
+      list_alternative(params, *im.library, o.model, o.verify.confidence, o.verify.inliers, o.R, o.t, h);
   }
 }
 

@@ -166,6 +166,11 @@ struct RecognizeParams {
   // ... less this many points: an object seen small (tens of fine samples) differs from a look-alike by a few
   // samples at the ends of its faces, not by what is in view.
   int alternative_inlier_slack = 3;
+  // The fits compared leave out the occluded rays (inliers / (inliers + violations), with the same explained
+  // share, support factor and few-inliers scaling): what hides both look-alikes does not tell them apart, and
+  // a look-alike whose extra part lies behind a neighbour is hit by more rays that the neighbour ends. false
+  // = the confidences themselves.
+  bool alternative_seen_fit = true;
   int max_objects = 16;
   // A physically possible answer: two accepted solids may not interpenetrate, i.e. overlap by more than
   // interpenetration_share of the smaller one's volume AND by more than interpenetration_mm (the deepest

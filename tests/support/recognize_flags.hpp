@@ -39,6 +39,9 @@ inline void add_recognize_flags(CLI::App& app, fs::host::rec::RecognizeParams& p
                  "RecognizeParams::support_own_plane_mm (default 0.5): measured points this near one of a "
                  "solid's seen face planes do not hold it up; 0 = they do")
       ->check(CLI::NonNegativeNumber);
+  app.add_flag(
+      "--no-seen-fit", [&p](std::int64_t) { p.alternative_seen_fit = false; },
+      "RecognizeParams::alternative_seen_fit off: alternatives compare confidences, occluded rays included");
   app.add_option("--max-states", p.max_states, "RecognizeParams::max_states: the state budget of one search")
       ->check(at_least(1));
   app.add_flag(
