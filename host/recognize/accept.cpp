@@ -36,12 +36,13 @@ void list_alternative(const RecognizeParams& params, const Library& library, int
   canonical_pose(library.models[static_cast<std::size_t>(model)], a.R, a.t);
 }
 
-// A verified hypothesis's fit without its occluded rays: what the measured points in view say of it.
-double seen_fit(const VerifyResult& v) {
+// A verified hypothesis's fit without its occluded rays: what the measured points in view say of it (scaled
+// as its confidence is: the explained share, the support factor, and fewer inliers than min_inliers).
+double seen_fit(const VerifyResult& v, int min_inliers) {
   const double seen = static_cast<double>(v.inliers + v.violations);
   if (seen <= 0.0) return 0.0;
   double f = static_cast<double>(v.inliers) / seen * v.explained * v.support;
-  if (v.inliers < 30) f *= static_cast<double>(v.inliers) / 30.0;
+  if (v.inliers < min_inliers) f *= static_cast<double>(v.inliers) / static_cast<double>(min_inliers);
   return f;
 }
 
@@ -61,7 +62,8 @@ void find_alternatives(const Recognizer::Impl& im, std::size_t self, const Recog
     if (2 * shared < h.matches.size()) continue;
     if (params.alternative_seen_fit)
       list_alternative(params, *im.library, o.model, o.verify.confidence, o.verify.inliers, o.R, o.t, h,
-                       seen_fit(o.verify), seen_fit(h.verify));
+                       seen_fit(o.verify, params.verify.min_inliers),
+                       seen_fit(h.verify, params.verify.min_inliers));
     else
       list_alternative(params, *im.library, o.model, o.verify.confidence, o.verify.inliers, o.R, o.t, h);
   }

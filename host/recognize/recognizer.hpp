@@ -159,8 +159,8 @@ struct RecognizeParams {
   double inlier_weight = 0.2;
   double max_shared_inliers = 0.3;  // two objects may not explain more than this share of the same points
   // An accepted object lists as alternatives the other models' verified hypotheses on at least half of its
-  // scene faces whose confidence is within alternative_confidence and whose inliers are at least
-  // alternative_inliers x its own.
+  // scene faces whose fit is within alternative_confidence of its own (alternative_seen_fit) and whose
+  // inliers are at least alternative_inliers x its own (less alternative_inlier_slack).
   double alternative_confidence = 0.02;
   double alternative_inliers = 0.97;
   // ... less this many points: an object seen small (tens of fine samples) differs from a look-alike by a few
