@@ -86,6 +86,8 @@ bool Recognizer::Impl::prepare_scene(Recognizer& rz, const OrganizedCloud& cloud
   hidden_below_min_fit = params.hidden_below_min_fit;
   hidden_below_min_rays = params.hidden_below_min_rays;
   support_own_plane = params.support_own_plane_mm;
+  table_snap = params.table_snap_mm;
+  table_snap_slack = params.table_snap_slack;
   out.stats.pfrg_ms = ms_since(t0);
   int known_nodes = 0;
   for (const auto& n : rz.scene_.nodes) known_nodes += n.supernode ? 0 : 1;

@@ -139,6 +139,14 @@ struct RecognizeParams {
   // from opposite sides lights nothing under a stacked solid, and measures no point there;
   // docs/performance.md, "another scanner's geometry").
   int hidden_below_min_rays = 0;
+  // A pose the matched planes leave free along a direction that climbs (two faces seen: the translation
+  // along their common edge comes from the faces' seen centroids) and whose lowest point ends up to
+  // table_snap_mm above the table or below it, beyond support_tol_mm, is also checked moved along that
+  // direction onto the table; the move is kept when it fits at most table_snap_slack worse (and keeps
+  // VerifyParams::slide_keep_inliers of its inliers): the slide's fit does not know that the pose it leaves
+  // floating will fail the support test. 0 = off.
+  double table_snap_mm = 8.0;
+  double table_snap_slack = 0.02;
   // Acceptance.
   double min_confidence = 0.6;
   // A hypothesis below min_confidence only because of measured points in front of it (occluded rays) is

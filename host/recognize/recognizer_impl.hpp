@@ -208,11 +208,15 @@ struct Recognizer::Impl {
   double hidden_below_min_fit = 0.9;
   int hidden_below_min_rays = 0;
   double support_own_plane = 0.5;
+  double table_snap = 8.0, table_snap_slack = 0.02;
 
   void support_test(const Model& model, Hypothesis& h) const;
   // The support test's parameters for hypothesis h fitting `fit` (look_below only when it is seen clearly).
   SupportParams support_params(const Hypothesis& h, double fit) const;
   void sink_test(const Model& model, Hypothesis& h) const;
+  // RecognizeParams::table_snap_mm: h (refined, fine-checked) moved along its free direction onto the table
+  // when that fits about as well.
+  void snap_to_table(const Model& model, Hypothesis& h, Verifier& v) const;
   // h failed the support test but rests on an accepted object: its confidence is restored (true).
   bool supported_by_accepted(Hypothesis& h, const Recognition& out) const;
   static constexpr std::size_t kNoHypothesis = static_cast<std::size_t>(-1);

@@ -472,9 +472,10 @@ VerifyResult Verifier::verify_sliding(const SampleSet& samples, const SampleSet&
   const Vec3 t0 = t;
   const VerifyResult here = evaluate(search, g, R, t0);
   double best = here.confidence, best_off = 0.0;
+  const double keep = params_.slide_keep_inliers * here.inliers;
   auto score = [&](double off) {
     const VerifyResult e = evaluate(search, g, R, t0 + off * u);
-    if (e.inliers >= here.inliers && e.confidence > best) best = e.confidence, best_off = off;
+    if (e.inliers >= keep && e.confidence > best) best = e.confidence, best_off = off;
   };
   const int n = static_cast<int>(params_.slide_range_mm / step);
   for (int k = -n; k <= n; ++k)

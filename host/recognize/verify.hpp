@@ -33,6 +33,9 @@ struct VerifyParams {
   double slide_range_mm = 8.0;
   double slide_step_mm = 1.0;
   double slide_gain = 0.005;
+  // An offset is taken only when it explains at least this share of the inliers of the pose it slides from
+  // (1 = as many): sliding off the seen faces must not buy a better fit by explaining less.
+  double slide_keep_inliers = 0.95;
   // Then, on the fine samples, steps of a quarter slide_step_mm halved down to slide_fine_mm: where the
   // planes leave the pose free, only the points at the ends of the seen faces place it, and a pose 0.2 mm
   // off loses a few percent of its inliers to the range tolerance there (a look-alike placed better then

@@ -113,6 +113,7 @@ void verify_task(void* ctx, std::size_t task, int worker) {
   }
   m.scale_by_explained(h, *cells, m.refine_phase);
   if (m.refine_phase) {
+    if (h.free_dims == 1) m.snap_to_table(m.library->models[static_cast<std::size_t>(h.model)], h, v);
     m.support_test(m.library->models[static_cast<std::size_t>(h.model)], h);
   } else {
     m.reseat(m.order[task], worker);
@@ -342,6 +343,31 @@ void Recognizer::Impl::rekey(const RecognizeParams& params) {
 void Recognizer::Impl::sink_test(const Model& model, Hypothesis& h) const {
   if (have_table && lowest_point(model, h.R, h.t, table) < -support_tol)
     h.verify.confidence *= unsupported_factor;
+}
+
+void Recognizer::Impl::snap_to_table(const Model& model, Hypothesis& h, Verifier& v) const {
+  if (!have_table || table_snap <= 0.0) return;
+  const Vec3 u = h.free_dir.normalized();
+  const double climb = u.dot(table.n);  // height gained per mm along u
+  if (std::abs(climb) < 0.1) return;    // (nearly) level: the table does not place it along u
+  const double low = lowest_point(model, h.R, h.t, table);
+  if (std::abs(low) <= support_tol || std::abs(low) > table_snap) return;
+  Mat3 R = h.R;
+  Vec3 t = h.t - (low / climb) * u;
+  VerifyResult e = v.verify(fine, geometry[static_cast<std::size_t>(h.model)], R, t, false);
+  // On the table it must not be seen through more (the true pose is not), nor explain much less.
+  if (e.inliers < v.params().slide_keep_inliers * h.verify.inliers ||
+      e.violations > h.verify.violations + std::max(2, h.verify.inliers / 100))
+    return;
+  e.explained = explained_share(h, v.inlier_cells(), region_fine);
+  e.confidence *= e.explained;
+  if (e.confidence < h.verify.confidence - table_snap_slack) return;
+  // The move is parallel to the matched planes: their inliers' plane distances (the rms) stay.
+  e.refine_iterations = h.verify.refine_iterations;
+  e.rms_mm = h.verify.rms_mm;
+  h.t = t;
+  h.verify = e;
+  h.inlier_cells.assign(v.inlier_cells().begin(), v.inlier_cells().end());
 }
 
 SupportParams Recognizer::Impl::support_params(const Hypothesis& h, double fit) const {

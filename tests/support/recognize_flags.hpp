@@ -30,6 +30,17 @@ inline void add_recognize_flags(CLI::App& app, fs::host::rec::RecognizeParams& p
                  "VerifyParams::slide_fine_mm (default 0.0625): the finest step of the slide along a free "
                  "translation, on the fine samples; 0 = no fine steps")
       ->check(CLI::NonNegativeNumber);
+  app.add_option("--slide-range", p.verify.slide_range_mm,
+                 "VerifyParams::slide_range_mm: how far the slide along a free translation goes each way")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option(
+         "--slide-keep-inliers", p.verify.slide_keep_inliers,
+         "VerifyParams::slide_keep_inliers: the share of the inliers an offset of the slide must keep")
+      ->check(CLI::Range(0.0, 1.0));
+  app.add_option("--table-snap", p.table_snap_mm,
+                 "RecognizeParams::table_snap_mm (default 8): a pose free along a climbing direction is also "
+                 "checked moved onto the table when its lowest point is this near it; 0 = off")
+      ->check(CLI::NonNegativeNumber);
   app.add_option(
          "--alternative-slack", p.alternative_inlier_slack,
          "RecognizeParams::alternative_inlier_slack (default 3): an alternative may explain this many "

@@ -30,6 +30,7 @@
 #include <CLI/CLI.hpp>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -89,7 +90,14 @@ struct CategoryStats {
   std::map<std::string, int> confusions;  // "true -> reported" for identity errors; "*" = true model listed
   std::vector<double> rot_err, trans_err, cpu, wall, allocs, seg_ms, match_ms, verify_ms;
   int thinned = 0;  // scans segmented on every other row (RecognizeParams::segment_row_step)
+  // Reported objects by their reported confidence (Hypothesis::confidence(), ambiguity included; bins
+  // kConfidenceBins) and the faces their search matched (2 or fewer, 3 or more), correct (issue #20's
+  // scoring) or false: what a robot that acts only above a confidence would get.
+  std::array<std::array<int, 5>, 2> conf_correct{}, conf_false{};
 };
+
+// Lower edges of the confidence bins of CategoryStats::conf_*.
+constexpr std::array<double, 5> kConfidenceBins{0.0, 0.7, 0.8, 0.9, 0.95};
 
 struct Args {
   int scenes = 200;
@@ -542,6 +550,13 @@ int run(const Args& args) {
     }
     int extra = 0;
     for (std::size_t j = 0; j < found_objects.size(); ++j) extra += used[j] ? 0 : 1;
+    for (std::size_t j = 0; j < found_objects.size(); ++j) {
+      const auto& h = found_objects[j];
+      std::size_t bin = 0;
+      while (bin + 1 < kConfidenceBins.size() && h.confidence() >= kConfidenceBins[bin + 1]) ++bin;
+      auto& row = (used[j] || as_candidate[j] ? s.conf_correct : s.conf_false)[h.level >= 3 ? 1 : 0];
+      ++row[bin];
+    }
     s.extra += extra;
     if (extra > 0) ++s.scenes_with_fp;
     if (args.verbose && extra > 0)
@@ -605,6 +620,24 @@ int run(const Args& args) {
                 fs::sim::to_string(cat), s.found + s.found_as_candidate, s.objects,
                 pct(s.found + s.found_as_candidate, s.objects), s.extra - s.found_as_candidate, s.reported,
                 pct(s.extra - s.found_as_candidate, s.reported));
+  std::printf(
+      "\nreported objects by confidence, correct / false (issue #20's scoring), their search matching 2 "
+      "faces "
+      "or fewer | 3 or more:\n");
+  for (const auto& [cat, s] : stats) {
+    std::printf("  %-10s", fs::sim::to_string(cat));
+    for (std::size_t b = 0; b < kConfidenceBins.size(); ++b) {
+      if (b == 0)
+        std::printf(" <%.2f:", kConfidenceBins[1]);
+      else if (b + 1 < kConfidenceBins.size())
+        std::printf(" %.2f-%.2f:", kConfidenceBins[b], kConfidenceBins[b + 1]);
+      else
+        std::printf(" >=%.2f:", kConfidenceBins[b]);
+      std::printf(" %d / %d | %d / %d;", s.conf_correct[0][b], s.conf_false[0][b], s.conf_correct[1][b],
+                  s.conf_false[1][b]);
+    }
+    std::printf("\n");
+  }
   std::printf("\nwall time per stage (median ms; stages run on --threads workers): \n");
   for (const auto& [cat, s] : stats)
     std::printf(

@@ -391,21 +391,30 @@ TEST(SampleSet, StepsFollowTheGridSpacingInMillimetres) {
 // A cube and the table around it, scanned: rays from a sensor in front and above through a grid on the table
 // (z = 0), onto the cube (resting on z = 0, centred on x = y = 0: the model frame) or the table; samples
 // every second cell, about 1.5 mm apart.
+// A scan from `sensor` of the table x in [-60, -60 + 0.75 (width - 1)], y in [-80, 79] (160 rows): each
+// cell's range along its ray to the table is what range_of(ray direction, range to the table) returns.
+template <class RangeOf>
+fs::host::OrganizedCloud table_scan(const Vec3& sensor, std::uint32_t width, RangeOf range_of) {
+  fs::host::OrganizedCloud cloud;
+  cloud.reset(width, 160);
+  for (std::uint32_t r = 0; r < cloud.height; ++r)
+    for (std::uint32_t c = 0; c < cloud.width; ++c) {
+      const Vec3 on_table(-60.0 + 0.75 * c, -80.0 + 1.0 * r, 0.0);
+      const Vec3 dir = (on_table - sensor).normalized();
+      cloud.at(r, c) = Vec3(sensor + range_of(dir, (on_table - sensor).norm()) * dir).cast<float>();
+    }
+  cloud.viewpoint = sensor;
+  return cloud;
+}
+
 class CubeScan : public ::testing::Test {
  protected:
   CubeScan() {
     const Vec3 sensor(0, -250, 250);
-    fs::host::OrganizedCloud cloud;
-    cloud.reset(160, 160);
-    for (std::uint32_t r = 0; r < cloud.height; ++r)
-      for (std::uint32_t c = 0; c < cloud.width; ++c) {
-        const Vec3 on_table(-60.0 + 0.75 * c, -80.0 + 1.0 * r, 0.0);
-        const Vec3 dir = (on_table - sensor).normalized();
-        double s = 0.0;
-        const Vec3 p = g.cast(sensor, dir, s) >= 0 ? Vec3(sensor + s * dir) : on_table;
-        cloud.at(r, c) = p.cast<float>();
-      }
-    cloud.viewpoint = sensor;
+    const auto cloud = table_scan(sensor, 160, [&](const Vec3& dir, double range) {
+      double s = 0.0;
+      return g.cast(sensor, dir, s) >= 0 ? s : range;
+    });
     samples.build(cloud, fs::host::rec::sample_steps(fs::host::rec::grid_spacing_mm(cloud), 2, 1.5));
     v.reserve(samples.points().size(), cube.faces.size());
   }
@@ -501,3 +510,72 @@ TEST_F(CubeScan, FineSlideStepsPlaceThePoseWithinAFractionOfAMillimetre) {
 }
 
 }  // namespace
+
+// The cube beside a second cube of its height, 8 mm apart along x (the free direction of its two seen
+// faces), behind a wall that hides its left part. A pose slid toward the second cube explains the whole
+// visible part and some of the second cube's top and front, so more points than the true pose, while the
+// rays through the gap see the table where it claims the cube.
+class CubeBesideACube : public ::testing::Test {
+ protected:
+  CubeBesideACube() {
+    const Vec3 sensor(0, -250, 250);
+    const Vec3 beside(58, 0, 0);
+    const auto cloud = table_scan(sensor, 200, [&](const Vec3& dir, double range) {
+      double s = 0.0;
+      if (g.cast(sensor, dir, s) >= 0) range = std::min(range, s);
+      if (g.cast(sensor - beside, dir, s) >= 0) range = std::min(range, s);
+      if (wall_g.cast(sensor, dir, s) >= 0) range = std::min(range, s);
+      return range;
+    });
+    samples.build(cloud, fs::host::rec::sample_steps(fs::host::rec::grid_spacing_mm(cloud), 2, 1.5));
+  }
+  const fs::Mesh cube_mesh = fs::read_mesh(fs::test::source_dir() / "hw-sim/scenes/meshes/cube.off");
+  const fs::host::Model cube = fs::host::build_model(cube_mesh);
+  const fs::host::rec::ModelGeometry g{cube};
+  // The wall: x in [-60, -10], y in [-110, -90], z in [0, 150] (the cube's corners mapped).
+  const fs::host::Model wall = fs::host::build_model([this] {
+    fs::Mesh m = cube_mesh;
+    for (Vec3& p : m.vertices)
+      p = Vec3(p.x() < 0 ? -60.0 : -10.0, p.y() < 0 ? -110.0 : -90.0, p.z() > 0 ? 150.0 : 0.0);
+    return m;
+  }());
+  const fs::host::rec::ModelGeometry wall_g{wall};
+  fs::host::rec::SampleSet samples;
+};
+
+// The slide goes back to the true pose although it explains fewer points there (slide_keep_inliers); asked
+// to keep every inlier it stays where the gap's rays see through it.
+TEST_F(CubeBesideACube, TheSlideGivesUpPointsItExplainsThroughAGap) {
+  const fs::Mat3 I = fs::Mat3::Identity();
+  fs::host::rec::Verifier v;
+  fs::Mat3 R = I;
+  Vec3 t = Vec3::Zero();
+  const auto truth = v.verify(samples, g, R, t, false);
+  t = Vec3(8.0, 0, 0);
+  const auto off = v.verify(samples, g, R, t, false);
+  ASSERT_GT(off.inliers, truth.inliers) << "the pose slid toward the second cube explains more points";
+  ASSERT_GT(off.violations, 20);
+  ASSERT_EQ(truth.violations, 0);
+  ASSERT_GT(truth.confidence, off.confidence);
+  for (const double keep : {1.0, fs::host::rec::VerifyParams{}.slide_keep_inliers}) {
+    fs::host::rec::VerifyParams p;
+    p.slide_keep_inliers = keep;
+    fs::host::rec::Verifier w(p);
+    R = I;
+    t = Vec3(8.0, 0, 0);
+    const auto slid = w.verify_sliding(samples, samples, g, R, t, Vec3::UnitX());
+    if (keep == 1.0) {
+      EXPECT_GT(t.x(), 4.0) << "asked to keep every inlier";
+    } else {
+      EXPECT_NEAR(t.x(), 0.0, 0.1);
+      EXPECT_NEAR(t.y(), 0.0, 0.1);
+      EXPECT_NEAR(t.z(), 0.0, 0.1);
+      EXPECT_EQ(slid.violations, 0);
+    }
+    // From the true pose nothing draws it toward the second cube.
+    R = I;
+    t = Vec3::Zero();
+    w.verify_sliding(samples, samples, g, R, t, Vec3::UnitX());
+    EXPECT_NEAR(t.norm(), 0.0, 1e-6);
+  }
+}
