@@ -24,6 +24,9 @@ namespace fs::fw {
 
 namespace {
 Nanos mono_now() { return monotonic_ns(); }
+Nanos heartbeat_now(const TcpSinkConfig& c) {
+  return c.heartbeat_clock ? c.heartbeat_clock->now() : mono_now();
+}
 
 std::string gai_message(int rc) {
   return rc == EAI_SYSTEM ? std::string(std::strerror(errno)) : std::string(gai_strerror(rc));
@@ -182,7 +185,7 @@ bool TcpSink::try_connect() {
   fd_ = fd;
   sent_ = 0;  // a frame cut by the previous connection goes again whole
   conn_bytes_ = 0;
-  last_host_heartbeat_ = mono_now();
+  last_host_heartbeat_ = heartbeat_now(cfg_);
   connected_ = true;
   connections_.fetch_add(1);
   return true;
@@ -253,7 +256,7 @@ void TcpSink::service() {
               if (f.header.type == msg::Type::Heartbeat) {
                 host_heartbeats_.fetch_add(1);
                 std::lock_guard<std::mutex> lock(mu_);
-                last_host_heartbeat_ = mono_now();
+                last_host_heartbeat_ = heartbeat_now(cfg_);
               }
             }
           }
@@ -289,7 +292,7 @@ void TcpSink::service() {
     }
     if (!lost && cfg_.host_heartbeat_timeout > 0) {
       std::lock_guard<std::mutex> lock(mu_);
-      lost = mono_now() - last_host_heartbeat_ > cfg_.host_heartbeat_timeout;
+      lost = heartbeat_now(cfg_) - last_host_heartbeat_ > cfg_.host_heartbeat_timeout;
       if (lost)
         why = "no heartbeat from the host for " + std::to_string(cfg_.host_heartbeat_timeout / 1'000'000) +
               " ms";

@@ -37,6 +37,9 @@ struct TcpSinkConfig {
   Nanos backoff_max = 5'000'000'000;
   Nanos connect_timeout = 1'000'000'000;
   Nanos host_heartbeat_timeout = 0;  // 0: not required
+  // The clock that times the host's heartbeats (nullptr: the monotonic clock). Tests inject one, so that a
+  // late thread on a loaded machine does not look like a silent host.
+  Clock* heartbeat_clock = nullptr;
 };
 
 // Name resolution of HOST:PORT once (the start-up check): "" when it resolves, else the error

@@ -346,7 +346,7 @@ void Recognizer::Impl::sink_test(const Model& model, Hypothesis& h) const {
 }
 
 void Recognizer::Impl::snap_to_table(const Model& model, Hypothesis& h, Verifier& v) const {
-  if (!have_table || table_snap <= 0.0) return;
+  if (!have_table || table_snap <= 0.0 || h.free_dir.squaredNorm() < 0.25) return;
   const Vec3 u = h.free_dir.normalized();
   const double climb = u.dot(table.n);  // height gained per mm along u
   if (std::abs(climb) < 0.1) return;    // (nearly) level: the table does not place it along u
