@@ -234,10 +234,10 @@ Library Library::from_bytes(std::span<const std::uint8_t> bytes, const std::stri
   r.pos = 8;
   const std::size_t vpos = r.pos;
   const std::uint32_t version = r.u32("version");
-  if (version != 1 && version != kFslibVersion)
+  if (version < 1 || version > kFslibVersion)
     throw error_at_offset(
         source, vpos,
-        fmt::format("unsupported .fslib version {} (this build reads 1 and {})", version, kFslibVersion));
+        fmt::format("unsupported .fslib version {} (this build reads 1 to {})", version, kFslibVersion));
   const std::uint32_t nmodels = r.u32("model count");
   const std::size_t spos = r.pos;
   const std::uint64_t size = r.u64("payload size");
@@ -327,6 +327,7 @@ Library Library::from_bytes(std::span<const std::uint8_t> bytes, const std::stri
     lib.index = read_index(r, nmodels);
     if (!lib.index_describes_models())
       throw error_at_offset(source, at, "the arc index does not describe the models (fingerprints differ)");
+    if (version == 2) lib.index = match::ArcIndex{};  // its areas lack the shallow folds: built again
   }
   if (r.pos != bytes.size())
     throw r.fail(fmt::format("{} unexpected bytes after the {}", bytes.size() - r.pos,

@@ -21,12 +21,14 @@
 
 namespace fs::host {
 
-inline constexpr std::uint32_t kFslibVersion = 2;
+// 3: the arc index counts shallow folds in its areas (match::kAreaFoldMaxDeg); a version 2 file's index (face
+// areas alone) is checked and dropped when read, so the recognizer builds one.
+inline constexpr std::uint32_t kFslibVersion = 3;
 
 class Library {
  public:
   std::vector<Model> models;
-  // The arc index of the models (read from a version 2 file, or build_index()); the recognizer uses it when
+  // The arc index of the models (read from a version 3 file, or build_index()); the recognizer uses it when
   // it describes the models (ArcIndex::describes) and builds its own otherwise.
   match::ArcIndex index;
 

@@ -65,12 +65,26 @@ void ArcIndex::add_reference(const Pfrg& g, std::uint32_t ref) {
     if (a < 0 || b < 0) continue;
     adj[static_cast<std::size_t>(a)].push_back(b);
     adj[static_cast<std::size_t>(b)].push_back(a);
-    const PfrgNode& na = g.nodes[static_cast<std::size_t>(a)];
-    const PfrgNode& nb = g.nodes[static_cast<std::size_t>(b)];
-    const auto t = static_cast<float>(angle_deg(na.normal, nb.normal));
+  }
+  // The areas the matcher's area condition may compare with: each face with its neighbours across folds of up
+  // to kAreaFoldMaxDeg (MatchParams::th_area_fold_deg is at most that).
+  std::vector<float> area(g.nodes.size());
+  for (std::size_t i = 0; i < g.nodes.size(); ++i) {
+    double a = g.nodes[i].area;
+    for (int k : adj[i])
+      if (angle_deg(g.nodes[i].normal, g.nodes[static_cast<std::size_t>(k)].normal) <
+          kAreaFoldMaxDeg + kAngleSlackDeg)
+        a += g.nodes[static_cast<std::size_t>(k)].area;
+    area[i] = static_cast<float>(a);
+  }
+  for (const PfrgArc& arc : g.arcs) {
+    const int a = index_of(arc.a), b = index_of(arc.b);
+    if (a < 0 || b < 0) continue;
+    const auto ua = static_cast<std::size_t>(a), ub = static_cast<std::size_t>(b);
+    const auto t = static_cast<float>(angle_deg(g.nodes[ua].normal, g.nodes[ub].normal));
     flattest = std::min(flattest, std::min(t, 180.0f - t));
-    entries_.push_back({t, static_cast<float>(na.area), static_cast<float>(nb.area), ref});
-    entries_.push_back({t, static_cast<float>(nb.area), static_cast<float>(na.area), ref});
+    entries_.push_back({t, area[ua], area[ub], ref});
+    entries_.push_back({t, area[ub], area[ua], ref});
   }
   for (std::size_t y = 0; y < g.nodes.size(); ++y) {
     const PfrgNode& ny = g.nodes[y];
@@ -81,8 +95,8 @@ void ArcIndex::add_reference(const Pfrg& g, std::uint32_t ref) {
         const PfrgNode& nz = g.nodes[static_cast<std::size_t>(z)];
         paths_.push_back({static_cast<float>(angle_deg(nx.normal, ny.normal)),
                           static_cast<float>(angle_deg(ny.normal, nz.normal)),
-                          static_cast<float>(angle_deg(nx.normal, nz.normal)), static_cast<float>(nx.area),
-                          static_cast<float>(ny.area), static_cast<float>(nz.area)});
+                          static_cast<float>(angle_deg(nx.normal, nz.normal)),
+                          area[static_cast<std::size_t>(x)], area[y], area[static_cast<std::size_t>(z)]});
       }
     }
   }

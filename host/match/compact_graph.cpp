@@ -1,5 +1,7 @@
 #include "host/match/compact_graph.hpp"
 
+#include <cmath>
+#include <numbers>
 #include <string>
 
 #include "common/error.hpp"
@@ -55,6 +57,17 @@ void CompactGraph::load(const Pfrg& g, bool include_supernodes) {
       if (!supernode[i]) s += area[i] * normal[i];
     observer = s.norm() > 1e-12 ? Vec3(s.normalized()) : Vec3(Vec3::UnitZ());
   }
+}
+
+double area_with_shallow_folds(const CompactGraph& g, int i, double fold_deg) {
+  const auto ui = static_cast<std::size_t>(i);
+  double a = g.area[ui];
+  if (fold_deg <= 0 || g.supernode[ui]) return a;
+  const double c = std::cos(fold_deg * std::numbers::pi / 180.0);
+  for (int k = 0; k < g.n; ++k)
+    if (g.adj[ui].test(k) && g.real.test(k) && g.normal[ui].dot(g.normal[static_cast<std::size_t>(k)]) > c)
+      a += g.area[static_cast<std::size_t>(k)];
+  return a;
 }
 
 int CompactGraph::index_of(int node_id) const {

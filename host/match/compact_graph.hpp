@@ -27,4 +27,9 @@ struct CompactGraph {
   int index_of(int node_id) const;  // -1 when absent
 };
 
+// Area of real node i plus that of each real neighbour whose normal lies within fold_deg of i's (the surface
+// a segmentation region may grow over across shallow folds; MatchParams::th_area_fold_deg). fold_deg <= 0:
+// the node's own area.
+double area_with_shallow_folds(const CompactGraph& g, int i, double fold_deg);
+
 }  // namespace fs::host::match

@@ -67,13 +67,15 @@ MatchParams preset(std::string_view name) {
     // area (params.hpp), rotation-fit increments <= 0.005 (a matched normal off by ~6 deg at most; t7.34: 1,
     // no limit), TH_omega 10 deg with the rigidity test from level-1 parents too (normals of scanned planes
     // err by a few degrees at most, not 20), the one-sided area condition (a face is never seen larger
-    // than 1.3x + 30 mm2) and a 10000-state budget (a search of a many-faced reference with congruent faces
+    // than 1.3x + 30 mm2, the face counted with its neighbours across folds of up to 15 deg, which region
+    // growing follows) and a 10000-state budget (a search of a many-faced reference with congruent faces
     // can otherwise spend 50000 states before its first leaf).
     MatchParams p = base("scan", 5e-2, 4e-2, 1e-2, 1e-2, 0.9, 10, 2, 1, 0.005);
     p.zeta = 0.1;
     p.rigidity_pairs = true;
     p.th_area_ratio = 1.3;
     p.th_area_slack_mm2 = 30.0;
+    p.th_area_fold_deg = 15.0;
     p.max_states = 10000;
     return p;
   }
@@ -143,7 +145,11 @@ MatchParams params_from_json(const nlohmann::json& j, const std::string& source)
       p.th_area_ratio = num(v, k);
     else if (k == "th_area_slack_mm2")
       p.th_area_slack_mm2 = num(v, k);
-    else if (k == "th_arcatt")
+    else if (k == "th_area_fold_deg") {
+      p.th_area_fold_deg = nonneg(v, k);
+      if (p.th_area_fold_deg > kAreaFoldMaxDeg)
+        throw Error(source + ": " + k + ": must be <= 20 (match::kAreaFoldMaxDeg, the arc index's fold)");
+    } else if (k == "th_arcatt")
       p.th_arcatt = num(v, k);
     else if (k == "th_rotfit")
       p.th_rotfit = num(v, k);
@@ -206,6 +212,7 @@ nlohmann::json to_json(const MatchParams& p) {
                       {"th_node", num(p.th_node)},
                       {"th_area_ratio", num(p.th_area_ratio)},
                       {"th_area_slack_mm2", num(p.th_area_slack_mm2)},
+                      {"th_area_fold_deg", p.th_area_fold_deg},
                       {"th_arcatt", num(p.th_arcatt)},
                       {"th_rotfit", num(p.th_rotfit)},
                       {"degenerate_deg", p.degenerate_deg},

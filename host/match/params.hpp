@@ -33,6 +33,8 @@ inline constexpr int kConditionCount = static_cast<int>(Condition::kCount);
 std::string_view condition_name(Condition c);  // "connectivity", "supernode", ... (also the JSON keys)
 
 inline constexpr double kInf = std::numeric_limits<double>::infinity();
+// The largest MatchParams::th_area_fold_deg: ArcIndex counts the neighbours within this fold in its areas.
+inline constexpr double kAreaFoldMaxDeg = 20.0;
 
 struct MatchParams {
   std::string name = "custom";
@@ -61,6 +63,10 @@ struct MatchParams {
   // (occlusion only makes scene faces smaller). Off (infinity) in the thesis presets; the recognizer sets it.
   double th_area_ratio = kInf;
   double th_area_slack_mm2 = 0.0;
+  // Beyond the thesis: a region grown over a shallow fold takes the neighbour's surface too, so the condition
+  // compares with the reference face's area plus that of every neighbour whose normal is within this angle of
+  // its own (degrees; 0 = the face alone). At most kAreaFoldMaxDeg, the fold ArcIndex allows for.
+  double th_area_fold_deg = 0.0;
   double th_arcatt = 1.0;
   double th_rotfit = kInf;
   double degenerate_deg = 1.0;  // matched reference normals all within this of one axis = degenerate

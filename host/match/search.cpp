@@ -128,6 +128,7 @@ void InexactMatcher::Impl::fill_pair_tables() {
     if (gs.supernode[static_cast<std::size_t>(i)]) gs_super.set(i);
   for (int r = 0; r < gr.n; ++r) {
     const auto ur = static_cast<std::size_t>(r);
+    const double area_bound = area_with_shallow_folds(gr, r, p.th_area_fold_deg);
     for (int s = 0; s < gs.n; ++s) {
       const auto us = static_cast<std::size_t>(s);
       const std::size_t k = ur * kMaxNodes + us;
@@ -140,7 +141,7 @@ void InexactMatcher::Impl::fill_pair_tables() {
       const bool open = (gs.adj[us] & gs_super).any();
       pair_degree_fail[k] = open ? (ds - 1 - dr > p.th_nodedegree) : (std::abs(dr - ds) > p.th_nodedegree);
       pair_area_fail[k] = !gs.supernode[us] && !gr.supernode[ur] &&
-                          gs.area[us] > p.th_area_ratio * gr.area[ur] + p.th_area_slack_mm2;
+                          gs.area[us] > p.th_area_ratio * area_bound + p.th_area_slack_mm2;
     }
   }
 }

@@ -21,6 +21,7 @@ void override_match(const RecognizeParams& params, match::MatchParams& m) {
   if (params.match_area_ratio > 0) {
     m.th_area_ratio = params.match_area_ratio;
     m.th_area_slack_mm2 = params.match_area_slack_mm2;
+    m.th_area_fold_deg = std::min(params.match_area_fold_deg, match::kAreaFoldMaxDeg);
   }
 }
 

@@ -241,6 +241,11 @@ struct RecognizeParams {
   // be seen bigger than it is; segmentation may add a rim): match::MatchParams::th_area_ratio. <= 0 = off.
   double match_area_ratio = 1.3;
   double match_area_slack_mm2 = 30.0;
+  // ... compared with the model face's area plus its neighbours' across folds of up to this angle (degrees,
+  // at most match::kAreaFoldMaxDeg; 0 = the face alone): region growing (SegmentParams::angle_deg 15) follows
+  // a fold that shallow, and one scene face then covers a square of an elongated rotunda and a triangle
+  // beside it.
+  double match_area_fold_deg = 15.0;
   int min_level = 3;  // faces a search solution must match (TH_minlevel, as in the thesis)
   // Beyond the thesis: a connected part of the scene graph with fewer faces than min_level but at least this
   // many (a tetrahedron or pyramid showing two faces) is searched with TH_minlevel = its face count; its

@@ -192,7 +192,30 @@ TEST(LibraryFile, VersionOneFilesAreStillRead) {
   for (std::size_t i = 0; i < lib.models.size(); ++i) expect_same(lib.models[i], v1.models[i]);
   EXPECT_EQ(v1.index.references(), 0u);
   EXPECT_FALSE(v1.index_describes_models());
-  EXPECT_EQ(v1.to_bytes(), lib.to_bytes());  // written again as version 2, with the index
+  EXPECT_EQ(v1.to_bytes(), lib.to_bytes());  // written again as the current version, with the index
+}
+
+// A version 2 file's index holds face areas alone, without the shallow folds the matcher's area condition now
+// counts (match::kAreaFoldMaxDeg): it is checked, then dropped, so that the recognizer builds the index
+// again.
+TEST(LibraryFile, VersionTwoFilesAreReadAndTheirIndexBuiltAgain) {
+  Library lib = small_library();
+  lib.build_index();
+  auto bytes = lib.to_bytes();
+  ASSERT_EQ(bytes[8], fs::host::kFslibVersion);
+  bytes[8] = 2;  // the header's version (the CRC covers the payload only)
+  const Library v2 = Library::from_bytes(bytes, "v2.fslib");
+  ASSERT_EQ(v2.models.size(), lib.models.size());
+  for (std::size_t i = 0; i < lib.models.size(); ++i) expect_same(lib.models[i], v2.models[i]);
+  EXPECT_EQ(v2.index.references(), 0u);
+  EXPECT_EQ(v2.to_bytes(), lib.to_bytes());
+  // Its index is still checked: a bad one is reported as in a version 3 file.
+  bytes[bytes.size() - 1] ^= 0x40;  // the last model's fingerprint
+  EXPECT_NE(error_of(with_crc(bytes)).find("fingerprints differ"), std::string::npos)
+      << error_of(with_crc(bytes));
+  bytes[8] = 4;
+  EXPECT_NE(error_of(with_crc(bytes)).find("unsupported .fslib version 4 (this build reads 1 to 3)"),
+            std::string::npos);
 }
 
 TEST(LibraryFile, ABadArcIndexIsReportedWithItsOffset) {

@@ -20,6 +20,7 @@
 #include "host/match/params.hpp"
 #include "host/match/report.hpp"
 #include "match_helpers.hpp"
+#include "support/merged_faces.hpp"
 #include "support/test_paths.hpp"
 #include "test_graphs.hpp"
 
@@ -526,6 +527,34 @@ TEST(Inexact, AreaRatioConditionRemovesScenesLargerThanTheReference) {
   // It round-trips through the parameter JSON.
   const MatchParams q = params_from_json(nlohmann::json{{"preset", "t9.3"}, {"th_area_ratio", 1.25}}, "test");
   EXPECT_DOUBLE_EQ(q.th_area_ratio, 1.25);
+}
+
+// A flat truncated pyramid (sides 9.9 deg off the top) seen from above, segmented as region growing does
+// across such a shallow fold: the top and one side are one scene face, larger than the model's top by more
+// than the area condition allows. With th_area_fold_deg the condition compares with the top plus its
+// neighbours across the fold, and the top is matched again.
+TEST(Inexact, AFaceGrownOverAShallowFoldKeepsItsReferenceFace) {
+  const Pfrg model = fs::test::mesh_pfrg(fs::test::truncated_pyramid(100, 60, 3.5));
+  const Pfrg view = fs::test::rigid_view(model, Mat3::Identity(), kViewDir);
+  const Pfrg merged = fs::test::merged_faces(view, 1, 2);  // the top (node 1) grown over side 2
+  ASSERT_EQ(merged.nodes.size(), view.nodes.size() - 1);
+  InexactMatcher m;
+  MatchParams p = preset("t9.3");
+  p.th_area_ratio = 1.3;
+  p.th_area_slack_mm2 = 30.0;
+  auto top_on_top = [&](const MatchResult& r) {
+    for (const auto& s : r.solutions)
+      for (const auto& nm : s.matches)
+        if (nm.scene == 1 && nm.ref == 1) return true;
+    return false;
+  };
+  const MatchResult& without = m.match(merged, model, p);
+  EXPECT_FALSE(top_on_top(without));
+  EXPECT_GT(without.stats.removed[static_cast<std::size_t>(Condition::kNodeSimilarity)], 0);
+  p.th_area_fold_deg = 15.0;
+  EXPECT_TRUE(top_on_top(m.match(merged, model, p)));
+  p.th_area_fold_deg = 9.0;  // the fold is 9.9 deg: not counted
+  EXPECT_FALSE(top_on_top(m.match(merged, model, p)));
 }
 
 }  // namespace
