@@ -27,7 +27,8 @@ double angle_deg(const Vec3& a, const Vec3& b) {
 }
 
 bool area_rule(const MatchParams& p) {
-  return p.on(Condition::kNodeSimilarity) && std::isfinite(p.th_area_ratio) && p.th_area_ratio > 0;
+  return p.on(Condition::kNodeSimilarity) && std::isfinite(p.th_area_ratio) && p.th_area_ratio > 0 &&
+         p.th_area_fold_deg <= kAreaFoldMaxDeg;  // (false for NaN too)
 }
 
 bool angle_rule(const MatchParams& p) {

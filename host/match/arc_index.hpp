@@ -5,7 +5,9 @@
 // real faces matched to a reference arc (r0, r1) (1 connectivity, 7 neighbour match), whose pairs pass
 //   - 3 rigidity from the level-1 parent (MatchParams::rigidity_pairs):
 //     |angle(n_r0, n_r1) - angle(n_s0, n_s1)| <= TH_omega, and
-//   - the one-sided area part of 9.1: area_s <= th_area_ratio * area_r + th_area_slack_mm2, for both pairs.
+//   - the one-sided area part of 9.1: area_s <= th_area_ratio * area_r + th_area_slack_mm2, for both pairs,
+//     area_r counted with the neighbours across folds of up to th_area_fold_deg. The index's areas count
+//     those of up to kAreaFoldMaxDeg, at least as many; a larger th_area_fold_deg switches its area part off.
 // ArcIndex holds every reference arc in both directions, bucketed by the angle between its normals (a 90 deg
 // arc of a box and one of a wedge meet the same bucket) and sorted by area; candidates() marks the references
 // that hold such an arc for some arc of a scene graph. A reference it leaves unmarked cannot produce a
@@ -37,12 +39,12 @@ class ArcIndex {
  public:
   struct Entry {
     float angle;   // degrees between the two faces' normals, [0, 180]
-    float a0, a1;  // areas of the arc's first and second face (mm^2)
+    float a0, a1;  // areas of the arc's first and second face, with their shallow folds (mm^2)
     std::uint32_t ref;
   };
   struct PathSig {
     float xy, yz, xz;  // angles between the normals of x - y - z (degrees)
-    float ax, ay, az;  // the largest areas of the reference's paths with these angles
+    float ax, ay, az;  // the largest areas (as Entry's) of the reference's paths with these angles
   };
 
   ArcIndex() = default;

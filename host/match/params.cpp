@@ -149,6 +149,7 @@ MatchParams params_from_json(const nlohmann::json& j, const std::string& source)
       p.th_area_fold_deg = nonneg(v, k);
       if (p.th_area_fold_deg > kAreaFoldMaxDeg)
         throw Error(source + ": " + k + ": must be <= 20 (match::kAreaFoldMaxDeg, the arc index's fold)");
+      static_assert(kAreaFoldMaxDeg == 20.0, "the message above names it");
     } else if (k == "th_arcatt")
       p.th_arcatt = num(v, k);
     else if (k == "th_rotfit")

@@ -485,11 +485,17 @@ TEST(Params, PresetsAndJson) {
   EXPECT_EQ(scan_back.zeta, scan.zeta);
   EXPECT_TRUE(scan_back.rigidity_pairs);
   EXPECT_EQ(scan_back.th_area_ratio, 1.3);
+  EXPECT_EQ(scan_back.th_area_fold_deg, 15.0);
   EXPECT_EQ(scan_back.max_states, 10000);
   EXPECT_THROW(params_from_json(nlohmann::json::parse(R"({"rigidity_pairs":1})"), "p"), fs::Error);
   EXPECT_THROW(params_from_json(nlohmann::json::parse(R"({"alfa":1})"), "p"), fs::Error);
   EXPECT_THROW(params_from_json(nlohmann::json::parse(R"({"conditions":{"x":true}})"), "p"), fs::Error);
   EXPECT_THROW(params_from_json(nlohmann::json::parse(R"({"alpha":-1})"), "p"), fs::Error);
+  // The fold the area condition counts stays within the arc index's (match::kAreaFoldMaxDeg).
+  EXPECT_EQ(params_from_json(nlohmann::json::parse(R"({"th_area_fold_deg":20})"), "p").th_area_fold_deg,
+            20.0);
+  EXPECT_THROW(params_from_json(nlohmann::json::parse(R"({"th_area_fold_deg":21})"), "p"), fs::Error);
+  EXPECT_THROW(params_from_json(nlohmann::json::parse(R"({"th_area_fold_deg":-1})"), "p"), fs::Error);
 }
 
 }  // namespace

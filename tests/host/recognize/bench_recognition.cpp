@@ -183,11 +183,11 @@ Args parse_args(CLI::App& app, int argc, char** argv) {
   app.add_option("--min-level", p.min_level, "TH_minlevel")->check(positive);
   fs::test::add_recognize_flags(app, p);  // pool, matching scope, verification budget, rounds
   app.add_option("--area-ratio", p.match_area_ratio, "match_area_ratio (0 = off)")->check(non_negative);
-  app.add_option("--area-fold", p.match_area_fold_deg,
-                 "RecognizeParams::match_area_fold_deg (default 15): the area condition counts a model "
-                 "face's neighbours "
-                 "across folds up to this angle; 0 = the face alone")
-      ->check(non_negative);
+  app.add_option(
+         "--area-fold", p.match_area_fold_deg,
+         "RecognizeParams::match_area_fold_deg (default 15): the area condition counts a model face's "
+         "neighbours across folds up to this angle; 0 = the face alone")
+      ->check(CLI::Range(0.0, fs::host::match::kAreaFoldMaxDeg));
   app.add_option("--area-cost", p.area_cost,
                  "weight of the area dissimilarity in the search cost (< 0 = the preset's)");
   app.add_option("--omega", p.rigidity_deg, "rigidity cone TH_omega, degrees (0 = the preset's)")

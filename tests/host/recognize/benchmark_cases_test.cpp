@@ -121,7 +121,7 @@ struct CloudCase {
 // are one region, larger than the square beyond the area condition, so a triaugmented triangular prism was
 // reported. Counting the square with its neighbours across shallow folds (match_area_fold_deg) matches the
 // merged face to the square again.
-TEST(RecognizeBenchmarkCases, FiveDegreeCreasesStayTwoFaces) {
+TEST(RecognizeBenchmarkCases, FiveDegreeCreasesKeptOrMergedFindTheSolid) {
   const auto rs = fs::sim::make_random_scene(
       bench().catalog, {.category = fs::sim::SceneCategory::separated, .steps = 250}, 102);
   const std::size_t i = index_of(rs, "triaugmented-hexagonal-prism");
