@@ -60,32 +60,36 @@ void ArcIndex::add_reference(const Pfrg& g, std::uint32_t ref) {
       if (g.nodes[i].id == id) return g.nodes[i].supernode ? -1 : static_cast<int>(i);
     return -1;
   };
+  // The arcs between real faces, resolved once: node indexes and the angle between their normals.
+  struct Arc {
+    std::size_t a, b;
+    float angle;
+  };
+  std::vector<Arc> arcs;
+  arcs.reserve(g.arcs.size());
   std::vector<std::vector<int>> adj(g.nodes.size());
   for (const PfrgArc& arc : g.arcs) {
     const int a = index_of(arc.a), b = index_of(arc.b);
     if (a < 0 || b < 0) continue;
     adj[static_cast<std::size_t>(a)].push_back(b);
     adj[static_cast<std::size_t>(b)].push_back(a);
+    const auto ua = static_cast<std::size_t>(a), ub = static_cast<std::size_t>(b);
+    arcs.push_back({ua, ub, static_cast<float>(angle_deg(g.nodes[ua].normal, g.nodes[ub].normal))});
   }
   // The areas the matcher's area condition may compare with: each face with its neighbours across folds of up
   // to kAreaFoldMaxDeg (MatchParams::th_area_fold_deg is at most that).
-  std::vector<float> area(g.nodes.size());
-  for (std::size_t i = 0; i < g.nodes.size(); ++i) {
-    double a = g.nodes[i].area;
-    for (int k : adj[i])
-      if (angle_deg(g.nodes[i].normal, g.nodes[static_cast<std::size_t>(k)].normal) <
-          kAreaFoldMaxDeg + kAngleSlackDeg)
-        a += g.nodes[static_cast<std::size_t>(k)].area;
-    area[i] = static_cast<float>(a);
-  }
-  for (const PfrgArc& arc : g.arcs) {
-    const int a = index_of(arc.a), b = index_of(arc.b);
-    if (a < 0 || b < 0) continue;
-    const auto ua = static_cast<std::size_t>(a), ub = static_cast<std::size_t>(b);
-    const auto t = static_cast<float>(angle_deg(g.nodes[ua].normal, g.nodes[ub].normal));
-    flattest = std::min(flattest, std::min(t, 180.0f - t));
-    entries_.push_back({t, area[ua], area[ub], ref});
-    entries_.push_back({t, area[ub], area[ua], ref});
+  std::vector<double> folded(g.nodes.size());
+  for (std::size_t i = 0; i < g.nodes.size(); ++i) folded[i] = g.nodes[i].area;
+  for (const Arc& arc : arcs)
+    if (arc.angle < kAreaFoldMaxDeg + kAngleSlackDeg) {
+      folded[arc.a] += g.nodes[arc.b].area;
+      folded[arc.b] += g.nodes[arc.a].area;
+    }
+  std::vector<float> area(folded.begin(), folded.end());
+  for (const Arc& arc : arcs) {
+    flattest = std::min(flattest, std::min(arc.angle, 180.0f - arc.angle));
+    entries_.push_back({arc.angle, area[arc.a], area[arc.b], ref});
+    entries_.push_back({arc.angle, area[arc.b], area[arc.a], ref});
   }
   for (std::size_t y = 0; y < g.nodes.size(); ++y) {
     const PfrgNode& ny = g.nodes[y];
