@@ -146,7 +146,8 @@ bool Recognizer::Impl::accept_one(const RecognizeParams& params, Recognizer& rz,
     // `better`: the other way to replace them, a better fit of the same points (below).
     double replaced_inliers = 0.0;
     int replaced_violations = 0;
-    bool replace = true, better = true;
+    bool replace = true, better = true, net = params.replace_violation_weight > 0.0;
+    const double h_fit = seen_fit(h.verify, params.verify.min_inliers);
     int conflicts = 0;
     for (std::size_t k = 0; k < out.objects.size(); ++k) {
       const Hypothesis& o = out.objects[k];
@@ -157,6 +158,8 @@ bool Recognizer::Impl::accept_one(const RecognizeParams& params, Recognizer& rz,
       replace =
           replace && covers && h.verify.confidence >= o.verify.confidence - params.alternative_confidence;
       better = better && covers && h.verify.confidence >= o.verify.confidence + params.replace_better;
+      net = net && covers &&
+            h_fit >= seen_fit(o.verify, params.verify.min_inliers) - params.alternative_confidence;
       replaced_violations += o.verify.violations;
       // The points the objects explain together (a cell counts once: for its owner).
       for (std::uint32_t c : o.inlier_cells)
@@ -170,7 +173,14 @@ bool Recognizer::Impl::accept_one(const RecognizeParams& params, Recognizer& rz,
     // confidence (a smaller model where a larger one claimed matter in seen free space).
     better = better && conflicts > 0 && h_cells >= params.alternative_inliers * replaced_inliers &&
              h.verify.violations < replaced_violations;
-    replace = replace || better;
+    // ... or one whose net count of points (inliers less replace_violation_weight x violations) is at least
+    // replace_gain x theirs, its fit of the points in view (seen_fit: what hides part of a larger solid does
+    // not count against it) as good: a larger model whose extra part the sensor saw where a smaller one ends.
+    const double w = params.replace_violation_weight;
+    net = net && conflicts > 0 &&
+          h_cells - w * h.verify.violations >=
+              params.replace_gain * (replaced_inliers - w * static_cast<double>(replaced_violations));
+    replace = replace || better || net;
     if (!replace) {
       out.stats.interpenetrating += solid_clash ? 1 : 0;
       // A look-alike of the one object it conflicts with, on most of its points: an alternative of it.
@@ -373,6 +383,10 @@ bool Recognizer::Impl::accept_objects(Recognizer& rz, Scan& scan, int round, Rec
   for (std::size_t i : order) {
     if (static_cast<int>(out.objects.size()) >= params.max_objects) break;
     Hypothesis& h = hyps[i];
+    if (h.partial_face && h.verify.confidence < params.single_face_hidden_min_confidence) {
+      reject(h);
+      continue;
+    }
     const bool restored = h.verify.confidence < params.min_confidence && supported_by_accepted(h, out);
     if (h.verify.confidence < params.min_confidence) {
       const VerifyResult& v = h.verify;

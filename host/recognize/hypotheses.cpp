@@ -134,7 +134,7 @@ namespace {
 
 // A hypothesis of one face match (scene face -> model face fi) in pose (R, t); the buffers of h are reused.
 void one_face_hypothesis(Hypothesis& h, int model, int scene_face, int fi, const Mat3& R, const Vec3& t,
-                         double cost) {
+                         double cost, bool partial_face = false) {
   h.model = model;
   h.rank = 0;
   h.path.clear();
@@ -149,6 +149,7 @@ void one_face_hypothesis(Hypothesis& h, int model, int scene_face, int fi, const
   h.rotfit_error = 0.0;
   h.degenerate = false;
   h.merged = false;
+  h.partial_face = partial_face;
   h.instance = 0;
   h.verify = VerifyResult{};
   h.inlier_cells.clear();
@@ -178,26 +179,51 @@ int single_face_hypotheses(const Library& library, const PfrgNode& face, const P
   M.row(2) = u.transpose();
   const Mat3 Minv = M.inverse();
   int written = 0;
-  for (std::size_t mi = 0; mi < library.models.size(); ++mi) {
-    const Model& model = library.models[mi];
-    for (std::size_t fi = 0; fi < model.faces.size(); ++fi) {
-      const ModelFace& f = model.faces[fi];
-      if (!p.area.fits(face.area, f.area)) continue;
-      for (std::size_t gi = 0; gi < model.faces.size(); ++gi) {
-        if (gi == fi) continue;
-        const ModelFace& g = model.faces[gi];
-        const double angle = std::acos(std::clamp(f.normal.dot(g.normal), -1.0, 1.0));
-        if (std::abs(angle - scene_angle) > tol) continue;
-        if (written >= static_cast<int>(out.size())) return written;
-        const Vec3 a2 = f.normal.cross(g.normal).normalized();
-        Mat3 A;
-        A << f.normal, a2, f.normal.cross(a2);
-        const Mat3 R = B * A.transpose();
-        // n_s . t = d_s - off_f (matched plane), n_table . t = d_table + off_g (g on the table),
-        // u . t = u . (c_s - R c_f) (the face's centroid along the common line).
-        const Vec3 rhs(face.offset - f.offset, table.d + g.offset, u.dot(face.centroid - R * f.centroid));
-        one_face_hypothesis(out[static_cast<std::size_t>(written++)], static_cast<int>(mi), face.id,
-                            static_cast<int>(fi), R, Minv * rhs, 0.0);
+  // First the model faces whose area fits the scene face's, then (hidden) the larger ones it may be the seen
+  // part of: these come after every fitting one, so they never take the room of one.
+  for (const bool hidden : {false, true}) {
+    if (hidden && !(p.extent_known && p.hidden_min_area_ratio > 0.0)) break;
+    for (std::size_t mi = 0; mi < library.models.size(); ++mi) {
+      const Model& model = library.models[mi];
+      for (std::size_t fi = 0; fi < model.faces.size(); ++fi) {
+        const ModelFace& f = model.faces[fi];
+        const bool fits = p.area.fits(face.area, f.area);
+        if (hidden ? fits || face.area > f.area || face.area < p.hidden_min_area_ratio * f.area : !fits)
+          continue;
+        for (std::size_t gi = 0; gi < model.faces.size(); ++gi) {
+          if (gi == fi) continue;
+          const ModelFace& g = model.faces[gi];
+          const double angle = std::acos(std::clamp(f.normal.dot(g.normal), -1.0, 1.0));
+          if (std::abs(angle - scene_angle) > tol) continue;
+          const Vec3 a2 = f.normal.cross(g.normal).normalized();
+          Mat3 A;
+          A << f.normal, a2, f.normal.cross(a2);
+          const Mat3 R = B * A.transpose();
+          // n_s . t = d_s - off_f (matched plane), n_table . t = d_table + off_g (g on the table),
+          // u . t = u . (c_s - R c_f) (the face's centroid along the common line).
+          const Vec3 rhs(face.offset - f.offset, table.d + g.offset, u.dot(face.centroid - R * f.centroid));
+          std::array<double, 3> along{rhs.z(), 0.0, 0.0};
+          int placements = 1;
+          if (hidden) {
+            // Also either end of the model face's extent along u at the scene face's.
+            double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+            for (const auto& loop : f.loops)
+              for (const Vec3& v : loop) {
+                const double s = u.dot(R * v);
+                lo = std::min(lo, s);
+                hi = std::max(hi, s);
+              }
+            along[1] = p.extent_min - lo;
+            along[2] = p.extent_max - hi;
+            placements = 3;
+          }
+          for (int k = 0; k < placements; ++k) {
+            if (written >= static_cast<int>(out.size())) return written;
+            one_face_hypothesis(out[static_cast<std::size_t>(written++)], static_cast<int>(mi), face.id,
+                                static_cast<int>(fi), R, Minv * Vec3(rhs.x(), rhs.y(), along[k]), 0.0,
+                                hidden);
+          }
+        }
       }
     }
   }

@@ -65,6 +65,15 @@ struct SingleFaceParams {
   double angle_tol_deg = 2.0;
   double min_tilt_deg = 10.0;
   FaceAreaFit area;
+  // A lone face partly hidden by other objects shows less than its model face. When the scene face's extent
+  // along the line it shares with the table is known (extent_known: [extent_min, extent_max], its points'
+  // coordinates along u = normal x table normal), the model faces too large for `area` but with
+  // area_s >= hidden_min_area_ratio x area_f get hypotheses after all the fitting ones (Hypothesis::
+  // partial_face): at the centroid, and with either end of the model face's extent along u at the scene
+  // face's (one end is the face's edge, the other where the view of it ends). 0 = off.
+  double hidden_min_area_ratio = 0.0;
+  bool extent_known = false;
+  double extent_min = 0.0, extent_max = 0.0;
 };
 int single_face_hypotheses(const Library& library, const PfrgNode& face, const Plane& table,
                            const SingleFaceParams& p, std::span<Hypothesis> out);

@@ -2,6 +2,7 @@
 // fit and the matched planes, expansion, compatible merge) and, beyond the thesis, the single-face hypotheses
 // of faces that border no other face.
 #include <algorithm>
+#include <limits>
 
 #include "host/recognize/recognizer_impl.hpp"
 
@@ -46,6 +47,20 @@ void Recognizer::Impl::lone_face_hypotheses(Recognizer& rz, const Pfrg& graph, R
     if (room == 0) break;  // the pool is full this round: the face is tried again in the next one
     int n = 0;
     if (!parallel_to_table(face, table, sp.min_tilt_deg)) {
+      sp.hidden_min_area_ratio = params.single_face_hidden_min_area_ratio;
+      sp.extent_known = false;
+      if (sp.hidden_min_area_ratio > 0.0) {
+        // The face's extent along its common line with the table, from its fine samples.
+        const Vec3 u = face.normal.cross(table.n).normalized();
+        outline(face, rz.seg_.labels, u, face.normal.cross(u));
+        sp.extent_known = !hull.empty();
+        sp.extent_min = std::numeric_limits<double>::infinity();
+        sp.extent_max = -sp.extent_min;
+        for (const Eigen::Vector2d& q : hull) {
+          sp.extent_min = std::min(sp.extent_min, q.x());
+          sp.extent_max = std::max(sp.extent_max, q.x());
+        }
+      }
       n = single_face_hypotheses(rz.library_, face, table, sp,
                                  std::span<Hypothesis>(hyps.data() + nhyp, room));
     } else {

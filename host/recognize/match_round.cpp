@@ -161,6 +161,7 @@ void fill(Hypothesis& h, int model, const SolutionSlot& s) {
   h.rotfit_error = s.rotfit;
   h.degenerate = s.degenerate;
   h.merged = false;
+  h.partial_face = false;
   h.instance = 0;
   h.verify = VerifyResult{};
   h.inlier_cells.clear();

@@ -197,6 +197,11 @@ struct RecognizeParams {
   // ... or when it explains at least alternative_inliers x their inliers with fewer violations and a
   // confidence at least replace_better above each of theirs (a better fit of the same points).
   double replace_better = 0.03;
+  // ... or when its inliers less this many per violation number at least replace_gain x theirs (less as many
+  // per violation of theirs), with a fit of the points in view (seen_fit) within alternative_confidence of
+  // each of theirs: the points decide between a larger model and the smaller one whose part of it was
+  // accepted. 0 = off.
+  double replace_violation_weight = 2.0;
   // Faces one searched part of the scene graph may hold; a connected part with more is searched in
   // overlapping windows of this many faces. 0 = the matcher's limit (match::kMaxNodes minus the supernodes);
   // a larger value is clamped to it.
@@ -257,6 +262,12 @@ struct RecognizeParams {
   // single_face_min_area_mm2 are ignored; <= 0 = off. At most single_face_max hypotheses per face.
   double single_face_min_area_mm2 = 300.0;
   int single_face_max = 384;
+  // A tilted lone face that other objects partly hide shows less than its model face: larger model faces,
+  // down to this ratio of scene to model area, are also tried, placed at the face's centroid and with either
+  // end of the model face at an end of the seen one (SingleFaceParams::hidden_min_area_ratio). So little of
+  // such an object is in view that one is accepted only at single_face_hidden_min_confidence. 0 = off.
+  double single_face_hidden_min_area_ratio = 0.35;
+  double single_face_hidden_min_confidence = 0.9;
   // Rounds of matching + verification (beyond the thesis): after the first, the faces that no accepted object
   // explains are searched again with TH_minlevel = small_part_min_level and single-face hypotheses, until a
   // round accepts nothing new. 1 = the first round only.
@@ -293,6 +304,9 @@ struct Hypothesis {
   int screened_inliers = 0;   // ... and its inliers there
   int instance = 0;           // 0 = first instance of its model, 1 = second, ...
   bool merged = false;        // a compatible solution was merged into it
+  // A single-face hypothesis whose model face is larger than the scene face (SingleFaceParams::
+  // hidden_min_area_ratio): accepted only at RecognizeParams::hidden_min_confidence.
+  bool partial_face = false;
   // Other models that fit this view as well (same scene faces, confidence and inliers within
   // RecognizeParams::alternative_*): the parts where they differ are out of view. Accepted objects only.
   struct Alternative {

@@ -197,6 +197,15 @@ Args parse_args(CLI::App& app, int argc, char** argv) {
                "switch the level-1 rigidity off (the thesis)");
   app.add_option("--replace-better", p.replace_better, "RecognizeParams::replace_better (> 1 = off)")
       ->check(non_negative);
+  app.add_option("--lone-hidden-ratio", p.single_face_hidden_min_area_ratio,
+                 "RecognizeParams::single_face_hidden_min_area_ratio (default 0.35; 0 = off)")
+      ->check(CLI::Range(0.0, 1.0));
+  app.add_option("--lone-hidden-confidence", p.single_face_hidden_min_confidence,
+                 "RecognizeParams::single_face_hidden_min_confidence (default 0.9)")
+      ->check(CLI::Range(0.0, 1.0));
+  app.add_option("--replace-violation-weight", p.replace_violation_weight,
+                 "RecognizeParams::replace_violation_weight (default 2; 0 = off)")
+      ->check(non_negative);
   app.add_option(
          "--support-radius", p.support_radius_mm,
          "RecognizeParams::support_radius_mm (0 = only the table or an accepted object holds a solid up)")

@@ -505,6 +505,80 @@ TEST(SingleFaceHypotheses, RecoverTheRestingPoseFromOneFaceAndTheTable) {
             1);
 }
 
+// The same pyramid with its base partly hidden: only the part of the pentagon up to a cut across the line the
+// face shares with the table is seen (about half of it). The base is then too large for the area condition;
+// with hidden_min_area_ratio, the hypotheses that place the base with one end of its extent along that line
+// at the seen part's end hold the true pose exactly, are marked partial_face and come after every fitting
+// one.
+TEST(SingleFaceHypotheses, APartlyHiddenFaceIsPlacedByTheEndOfItsView) {
+  fs::host::Library lib;
+  lib.add(fs::host::build_model(
+      fs::read_mesh(fs::test::shared_data() / "polyhedra/polyhedra-viewer/off/pentagonal-pyramid.off"),
+      {.scale = 40.0}));
+  lib.add(cube_model());
+  const fs::host::Model& m = lib.models[0];
+  std::size_t g = 0, base = 0;
+  for (std::size_t f = 0; f < m.faces.size(); ++f) {
+    if (m.faces[f].loops[0].size() == 3 && g == 0) g = f;
+    if (m.faces[f].loops[0].size() == 5) base = f;
+  }
+  const Mat3 Rtilt = Eigen::Quaterniond::FromTwoVectors(m.faces[g].normal, Vec3(0, 0, -1)).toRotationMatrix();
+  const Mat3 R = Eigen::AngleAxisd(-40.0 * M_PI / 180.0, Vec3::UnitZ()).toRotationMatrix() * Rtilt;
+  fs::Plane table;
+  Vec3 t(30, -10, 0);
+  t.z() = -(R * m.faces[g].centroid).z();
+  PfrgNode face;
+  face.id = 3;
+  face.normal = R * m.faces[base].normal;
+  face.offset = face.normal.dot(R * m.faces[base].centroid + t);
+  face.has_plane = true;
+  const Vec3 u = face.normal.cross(table.n).normalized();
+  double lo = 1e9, hi = -1e9;
+  for (const Vec3& v : m.faces[base].loops[0]) {
+    lo = std::min(lo, u.dot(R * v + t));
+    hi = std::max(hi, u.dot(R * v + t));
+  }
+  // The seen part: up to the middle of the extent (its area about half the pentagon's), centroid inside it.
+  const double cut = 0.5 * (lo + hi);
+  face.area = 0.5 * m.faces[base].area;
+  face.centroid = R * m.faces[base].centroid + t - 0.25 * (hi - lo) * u;
+
+  auto true_pose_among = [&](std::span<const Hypothesis> hs, bool* partial) {
+    for (const Hypothesis& h : hs)
+      if (h.model == 0 && fs::host::rec::rotation_angle_deg_sym(R, h.R, m) < 1e-6 &&
+          ((R * m.center + t) - (h.R * m.center + h.t)).norm() < 1e-6) {
+        *partial = h.partial_face;
+        return true;
+      }
+    return false;
+  };
+  std::vector<Hypothesis> out(256);
+  for (auto& h : out) h.matches.reserve(4);
+  fs::host::rec::SingleFaceParams p;
+  int n = fs::host::rec::single_face_hypotheses(lib, face, table, p, out);
+  bool partial = false;
+  for (int k = 0; k < n; ++k) EXPECT_FALSE(out[static_cast<std::size_t>(k)].partial_face);
+  EXPECT_FALSE(
+      true_pose_among(std::span<const Hypothesis>(out.data(), static_cast<std::size_t>(n)), &partial));
+
+  p.hidden_min_area_ratio = 0.35;
+  p.extent_known = true;
+  p.extent_min = lo;
+  p.extent_max = cut;
+  const int fitting = n;
+  n = fs::host::rec::single_face_hypotheses(lib, face, table, p, out);
+  ASSERT_GT(n, fitting);
+  for (int k = 0; k < n; ++k) EXPECT_EQ(out[static_cast<std::size_t>(k)].partial_face, k >= fitting) << k;
+  EXPECT_TRUE(
+      true_pose_among(std::span<const Hypothesis>(out.data(), static_cast<std::size_t>(n)), &partial));
+  EXPECT_TRUE(partial);
+  // A view of less than hidden_min_area_ratio of the face is not placed on it.
+  face.area = 0.3 * m.faces[base].area;
+  n = fs::host::rec::single_face_hypotheses(lib, face, table, p, out);
+  EXPECT_FALSE(
+      true_pose_among(std::span<const Hypothesis>(out.data(), static_cast<std::size_t>(n)), &partial));
+}
+
 }  // namespace
 
 namespace {
