@@ -6,6 +6,7 @@
 // rounds is listed as an alternative; and the report of an empty result.
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdio>
 
 #include "host/recognize/recognizer_impl.hpp"
@@ -55,7 +56,8 @@ void find_alternatives(const Recognizer::Impl& im, std::size_t self, const Recog
   for (std::size_t j : im.order) {
     if (h.alternatives >= Hypothesis::kMaxAlternatives) break;
     const Hypothesis& o = im.hyps[j];
-    if (j == self) continue;
+    if (j == self || (o.partial_face && o.verify.confidence < params.single_face_hidden_min_confidence))
+      continue;
     std::size_t shared = 0;
     for (const FaceMatch& m : h.matches)
       for (const FaceMatch& om : o.matches) shared += om.scene == m.scene ? 1 : 0;
@@ -176,10 +178,12 @@ bool Recognizer::Impl::accept_one(const RecognizeParams& params, Recognizer& rz,
     // ... or one whose net count of points (inliers less replace_violation_weight x violations) is at least
     // replace_gain x theirs, its fit of the points in view (seen_fit: what hides part of a larger solid does
     // not count against it) as good: a larger model whose extra part the sensor saw where a smaller one ends.
+    // (A gain over a negative count, objects with more violations than half their inliers, is still a gain.)
     const double w = params.replace_violation_weight;
+    const double replaced_net = replaced_inliers - w * static_cast<double>(replaced_violations);
     net = net && conflicts > 0 &&
           h_cells - w * h.verify.violations >=
-              params.replace_gain * (replaced_inliers - w * static_cast<double>(replaced_violations));
+              replaced_net + (params.replace_gain - 1.0) * std::abs(replaced_net);
     replace = replace || better || net;
     if (!replace) {
       out.stats.interpenetrating += solid_clash ? 1 : 0;
@@ -291,7 +295,7 @@ void Recognizer::Impl::alternatives_in_hiding(const RecognizeParams& params, std
   int coarse_checks = 0, run_model = -1, run = 0;
   for (std::size_t j = 0; j < nhyp && coarse_checks < kMaxCoarse; ++j) {
     const Hypothesis& c = hyps[j];
-    if (c.model == o.model || (j < alive.size() && !alive[j])) continue;
+    if (c.model == o.model || (j < alive.size() && !alive[j]) || c.partial_face) continue;
     // On at least half of o's scene faces, and on no face another accepted object holds.
     std::size_t shared = 0;
     bool taken = false;

@@ -180,7 +180,8 @@ int single_face_hypotheses(const Library& library, const PfrgNode& face, const P
   const Mat3 Minv = M.inverse();
   int written = 0;
   // First the model faces whose area fits the scene face's, then (hidden) the larger ones it may be the seen
-  // part of: these come after every fitting one, so they never take the room of one.
+  // part of: these come after every fitting one, so they never take the room of one of this face (they may
+  // take the pool's room of lone faces that come later, which wait for the next round, if there is one).
   for (const bool hidden : {false, true}) {
     if (hidden && !(p.extent_known && p.hidden_min_area_ratio > 0.0)) break;
     for (std::size_t mi = 0; mi < library.models.size(); ++mi) {

@@ -58,9 +58,10 @@ bool parallel_to_table(const PfrgNode& face, const Plane& table, double min_tilt
 // table on one of its faces g: matching a model face f to the scene face and g to the table gives two normal
 // pairs, hence the rotation (when the angle between f and g equals the angle between the scene face and the
 // table's downward normal, within angle_tol_deg); the two planes and the scene face's centroid along their
-// common line give the translation. Faces parallel to the table (parallel_to_table with min_tilt_deg) and
-// model faces whose area does not fit are skipped. Writes at most out.size() hypotheses (model, one match, R,
-// t) and returns how many.
+// common line give the translation. Faces parallel to the table (parallel_to_table with min_tilt_deg) are
+// skipped, and so are model faces whose area does not fit unless the face may be their seen part
+// (SingleFaceParams::hidden_min_area_ratio). Writes at most out.size() hypotheses (model, one match, R, t)
+// and returns how many.
 struct SingleFaceParams {
   double angle_tol_deg = 2.0;
   double min_tilt_deg = 10.0;

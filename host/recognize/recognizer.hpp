@@ -197,10 +197,10 @@ struct RecognizeParams {
   // ... or when it explains at least alternative_inliers x their inliers with fewer violations and a
   // confidence at least replace_better above each of theirs (a better fit of the same points).
   double replace_better = 0.03;
-  // ... or when its inliers less this many per violation number at least replace_gain x theirs (less as many
-  // per violation of theirs), with a fit of the points in view (seen_fit) within alternative_confidence of
-  // each of theirs: the points decide between a larger model and the smaller one whose part of it was
-  // accepted. 0 = off.
+  // ... or when it explains replace_cover of each one's points and its inliers less this many per violation
+  // number at least replace_gain x theirs (less as many per violation of theirs), with a fit of the points in
+  // view (seen_fit) within alternative_confidence of each of theirs: the points decide between a larger model
+  // and the smaller one whose part of it was accepted. 0 = off.
   double replace_violation_weight = 2.0;
   // Faces one searched part of the scene graph may hold; a connected part with more is searched in
   // overlapping windows of this many faces. 0 = the matcher's limit (match::kMaxNodes minus the supernodes);
@@ -265,7 +265,8 @@ struct RecognizeParams {
   // A tilted lone face that other objects partly hide shows less than its model face: larger model faces,
   // down to this ratio of scene to model area, are also tried, placed at the face's centroid and with either
   // end of the model face at an end of the seen one (SingleFaceParams::hidden_min_area_ratio). So little of
-  // such an object is in view that one is accepted only at single_face_hidden_min_confidence. 0 = off.
+  // such an object is in view that one is accepted only at single_face_hidden_min_confidence, its confidence
+  // as verified (before the credit for rays that other objects end in front of it). 0 = off.
   double single_face_hidden_min_area_ratio = 0.35;
   double single_face_hidden_min_confidence = 0.9;
   // Rounds of matching + verification (beyond the thesis): after the first, the faces that no accepted object
@@ -305,7 +306,8 @@ struct Hypothesis {
   int instance = 0;           // 0 = first instance of its model, 1 = second, ...
   bool merged = false;        // a compatible solution was merged into it
   // A single-face hypothesis whose model face is larger than the scene face (SingleFaceParams::
-  // hidden_min_area_ratio): accepted only at RecognizeParams::hidden_min_confidence.
+  // hidden_min_area_ratio): accepted, listed as an alternative and counted as a face's passing refinement
+  // only at RecognizeParams::single_face_hidden_min_confidence.
   bool partial_face = false;
   // Other models that fit this view as well (same scene faces, confidence and inliers within
   // RecognizeParams::alternative_*): the parts where they differ are out of view. Accepted objects only.

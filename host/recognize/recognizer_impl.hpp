@@ -147,7 +147,7 @@ struct Recognizer::Impl {
   std::vector<int> lone_faces;   // indices into the split graph's nodes of faces that border no other face
   std::vector<char> lone_tried;  // by scene node id: single-face hypotheses made already
   Pfrg rest;  // the scene graph without the faces of accepted objects (rounds after the first)
-  std::vector<Eigen::Vector2d> hull, hull_scratch;  // outline of a lone face parallel to the table
+  std::vector<Eigen::Vector2d> hull, hull_scratch;  // outline of a lone face
 
   // hull = convex hull of the fine samples of `face` (scene node id = region + 1), in the plane basis (u, v).
   void outline(const PfrgNode& face, const std::vector<std::int32_t>& labels, const Vec3& u, const Vec3& v);

@@ -508,8 +508,6 @@ TEST(RecognizeBenchmarkCases, AFaceGrownOverAShallowFoldStillMeetsItsModelFace) 
   EXPECT_EQ(recognized_at(kCluttered, 250, 86, i, params), "hexagonal-prism");
 }
 
-}  // namespace
-
 // Seeds 80 and 18 (cluttered, 250 steps): a smaller model fitted part of a larger solid and was accepted
 // first; the true model's hypothesis explained all its points and more, but missed both replacement rules by
 // a hair.
@@ -574,3 +572,5 @@ TEST(RecognizeBenchmarkCases, APartlyHiddenLoneFaceIsPlacedByTheEndOfItsView) {
   params.single_face_hidden_min_confidence = params.min_confidence;
   EXPECT_EQ(near_pyramid(params), "pentagonal-rotunda");
 }
+
+}  // namespace

@@ -505,11 +505,11 @@ TEST(SingleFaceHypotheses, RecoverTheRestingPoseFromOneFaceAndTheTable) {
             1);
 }
 
-// The same pyramid with its base partly hidden: only the part of the pentagon up to a cut across the line the
-// face shares with the table is seen (about half of it). The base is then too large for the area condition;
-// with hidden_min_area_ratio, the hypotheses that place the base with one end of its extent along that line
-// at the seen part's end hold the true pose exactly, are marked partial_face and come after every fitting
-// one.
+// The same pyramid with its base partly hidden: only the part of the pentagon on one side of a cut across the
+// line the face shares with the table is seen (about half of it), one side, then the other. The base is then
+// too large for the area condition; with hidden_min_area_ratio, the hypotheses that place the base with one
+// end of its extent along that line at the seen part's end hold the true pose exactly, are marked
+// partial_face and come after every fitting one.
 TEST(SingleFaceHypotheses, APartlyHiddenFaceIsPlacedByTheEndOfItsView) {
   fs::host::Library lib;
   lib.add(fs::host::build_model(
@@ -572,6 +572,13 @@ TEST(SingleFaceHypotheses, APartlyHiddenFaceIsPlacedByTheEndOfItsView) {
   EXPECT_TRUE(
       true_pose_among(std::span<const Hypothesis>(out.data(), static_cast<std::size_t>(n)), &partial));
   EXPECT_TRUE(partial);
+  // The other half seen instead: the placement by the other end holds the true pose.
+  face.centroid = R * m.faces[base].centroid + t + 0.25 * (hi - lo) * u;
+  p.extent_min = cut;
+  p.extent_max = hi;
+  n = fs::host::rec::single_face_hypotheses(lib, face, table, p, out);
+  EXPECT_TRUE(
+      true_pose_among(std::span<const Hypothesis>(out.data(), static_cast<std::size_t>(n)), &partial));
   // A view of less than hidden_min_area_ratio of the face is not placed on it.
   face.area = 0.3 * m.faces[base].area;
   n = fs::host::rec::single_face_hypotheses(lib, face, table, p, out);
