@@ -207,18 +207,20 @@ TEST(RecognizeBenchmarkCases, LookAlikesAreListedAsAlternatives) {
 // the rule each case pins as well; on these scenes as they were segmented then, only the rule gets there.
 void segment_by_cells(RecognizeParams& p) { fs::test::segment_by_cells(p.segment); }
 
-// A 250-step benchmark scene (catalog `b`), segmented by cells: the model reported at object `name` with the
-// default parameters, then with `change` applied to them.
+// A 250-step benchmark scene (catalog `b`), segmented by cells (or with the default segmentation): the model
+// reported at object `name` with the default parameters, then with `change` applied to them.
+enum class Segmentation { by_cells, defaults };
 template <class Change>
 std::pair<std::string, std::string> with_and_without(fs::sim::SceneCategory category, std::uint64_t seed,
                                                      const std::string& name, Change change,
-                                                     const Bench& b = bench()) {
+                                                     const Bench& b = bench(),
+                                                     Segmentation segmentation = Segmentation::by_cells) {
   const auto rs = fs::sim::make_random_scene(b.catalog, {.category = category, .steps = 250}, seed);
   const std::size_t i = index_of(rs, name, b);
   if (i >= rs.catalog_index.size()) return {"the benchmark scene changed", ""};
   RecognizeParams params;
   params.threads = 2;
-  segment_by_cells(params);
+  if (segmentation == Segmentation::by_cells) segment_by_cells(params);
   std::pair<std::string, std::string> out;
   out.first = recognized_at(category, 250, seed, i, params, b);
   change(params);
@@ -497,15 +499,11 @@ TEST(RecognizeBenchmarkCases, TheSlideGivesUpPointsForRaysThatSeeThroughTheSolid
 // place (0.85). The condition now counts the square with its neighbours across folds of up to 15 deg
 // (RecognizeParams::match_area_fold_deg).
 TEST(RecognizeBenchmarkCases, AFaceGrownOverAShallowFoldStillMeetsItsModelFace) {
-  constexpr auto kCluttered = fs::sim::SceneCategory::cluttered;
-  const auto rs = fs::sim::make_random_scene(bench().catalog, {.category = kCluttered, .steps = 250}, 86);
-  const std::size_t i = index_of(rs, "elongated-pentagonal-rotunda");
-  ASSERT_LT(i, rs.catalog_index.size()) << "the benchmark scene changed";
-  RecognizeParams params;
-  params.threads = 2;
-  EXPECT_EQ(recognized_at(kCluttered, 250, 86, i, params), "elongated-pentagonal-rotunda");
-  params.match_area_fold_deg = 0;
-  EXPECT_EQ(recognized_at(kCluttered, 250, 86, i, params), "hexagonal-prism");
+  const auto rotunda = with_and_without(
+      fs::sim::SceneCategory::cluttered, 86, "elongated-pentagonal-rotunda",
+      [](RecognizeParams& p) { p.match_area_fold_deg = 0; }, bench(), Segmentation::defaults);
+  EXPECT_EQ(rotunda.first, "elongated-pentagonal-rotunda");
+  EXPECT_EQ(rotunda.second, "hexagonal-prism");
 }
 
 // Seeds 80 and 18 (cluttered, 250 steps): a smaller model fitted part of a larger solid and was accepted
@@ -519,20 +517,16 @@ TEST(RecognizeBenchmarkCases, AFaceGrownOverAShallowFoldStillMeetsItsModelFace) 
 // Counting a violation against two inliers, with the fit of the points in view, the true model replaces it
 // (RecognizeParams::replace_violation_weight).
 TEST(RecognizeBenchmarkCases, AViolationCountsAgainstTheInliersWhenOneModelReplacesAnother) {
-  constexpr auto kCluttered = fs::sim::SceneCategory::cluttered;
   const std::pair<std::uint64_t, std::string> cases[] = {{80, "elongated-pentagonal-orthobirotunda"},
                                                          {18, "gyroelongated-pentagonal-cupola"}};
   const std::string before[] = {"", "gyroelongated-square-cupola"};
   for (std::size_t k = 0; k < 2; ++k) {
     const auto& [seed, name] = cases[k];
-    const auto rs = fs::sim::make_random_scene(bench().catalog, {.category = kCluttered, .steps = 250}, seed);
-    const std::size_t i = index_of(rs, name);
-    ASSERT_LT(i, rs.catalog_index.size()) << "the benchmark scene changed";
-    RecognizeParams params;
-    params.threads = 2;
-    EXPECT_EQ(recognized_at(kCluttered, 250, seed, i, params), name) << "seed " << seed;
-    params.replace_violation_weight = 0.0;
-    EXPECT_EQ(recognized_at(kCluttered, 250, seed, i, params), before[k]) << "seed " << seed;
+    const auto reported = with_and_without(
+        fs::sim::SceneCategory::cluttered, seed, name,
+        [](RecognizeParams& p) { p.replace_violation_weight = 0.0; }, bench(), Segmentation::defaults);
+    EXPECT_EQ(reported.first, name) << "seed " << seed;
+    EXPECT_EQ(reported.second, before[k]) << "seed " << seed;
   }
 }
 
@@ -547,14 +541,11 @@ TEST(RecognizeBenchmarkCases, AViolationCountsAgainstTheInliersWhenOneModelRepla
 //   little of such an object is in view that it must fit clearly (single_face_hidden_min_confidence 0.9).
 TEST(RecognizeBenchmarkCases, APartlyHiddenLoneFaceIsPlacedByTheEndOfItsView) {
   constexpr auto kCluttered = fs::sim::SceneCategory::cluttered;
-  const auto rs31 = fs::sim::make_random_scene(bench().catalog, {.category = kCluttered, .steps = 250}, 31);
-  const std::size_t i = index_of(rs31, "square-pyramid");
-  ASSERT_LT(i, rs31.catalog_index.size()) << "the benchmark scene changed";
-  RecognizeParams params;
-  params.threads = 2;
-  EXPECT_EQ(recognized_at(kCluttered, 250, 31, i, params), "square-pyramid");
-  params.single_face_hidden_min_area_ratio = 0.0;
-  EXPECT_EQ(recognized_at(kCluttered, 250, 31, i, params), "");
+  const auto square = with_and_without(
+      kCluttered, 31, "square-pyramid", [](RecognizeParams& p) { p.single_face_hidden_min_area_ratio = 0.0; },
+      bench(), Segmentation::defaults);
+  EXPECT_EQ(square.first, "square-pyramid");
+  EXPECT_EQ(square.second, "");
 
   const auto rs = fs::sim::make_random_scene(bench().catalog, {.category = kCluttered, .steps = 250}, 185);
   const std::size_t j = index_of(rs, "pentagonal-pyramid");
@@ -566,7 +557,7 @@ TEST(RecognizeBenchmarkCases, APartlyHiddenLoneFaceIsPlacedByTheEndOfItsView) {
     Recognizer rec(bench().library, p, cloud.points.size());
     return reported_near(rec.recognize(cloud, &table), rs, j, bench(), 20.0);
   };
-  params = RecognizeParams{};
+  RecognizeParams params;
   params.threads = 2;
   EXPECT_EQ(near_pyramid(params), "");
   params.single_face_hidden_min_confidence = params.min_confidence;

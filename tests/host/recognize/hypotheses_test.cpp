@@ -438,37 +438,52 @@ TEST(Report, AxisAngleTextHidesTheAxisOfRotationsBelowDisplayPrecision) {
 
 namespace {
 
+// A pentagonal pyramid (library model 0, a cube after it) lying on the table z = 0 on one of its triangles g:
+// R maps g's normal to -z, then turns it by yaw_deg about the vertical; placed at (x, y). `face` is its
+// tilted base seen whole (scene node `face_id`).
+struct PyramidOnItsSide {
+  PyramidOnItsSide(double yaw_deg, double x, double y, int face_id) {
+    lib.add(fs::host::build_model(
+        fs::read_mesh(fs::test::shared_data() / "polyhedra/polyhedra-viewer/off/pentagonal-pyramid.off"),
+        {.scale = 40.0}));
+    lib.add(cube_model());
+    const fs::host::Model& m = lib.models[0];
+    std::size_t g = 0;
+    for (std::size_t f = 0; f < m.faces.size(); ++f) {
+      if (m.faces[f].loops[0].size() == 3 && g == 0) g = f;
+      if (m.faces[f].loops[0].size() == 5) base = f;
+    }
+    const Mat3 Rtilt =
+        Eigen::Quaterniond::FromTwoVectors(m.faces[g].normal, Vec3(0, 0, -1)).toRotationMatrix();
+    R = Eigen::AngleAxisd(yaw_deg * M_PI / 180.0, Vec3::UnitZ()).toRotationMatrix() * Rtilt;
+    t = Vec3(x, y, -(R * m.faces[g].centroid).z());  // face g on z = 0
+    face.id = face_id;
+    face.normal = R * m.faces[base].normal;
+    face.centroid = R * m.faces[base].centroid + t;
+    face.offset = face.normal.dot(face.centroid);
+    face.area = m.faces[base].area;
+    face.has_plane = true;
+  }
+  fs::host::Library lib;
+  std::size_t base = 0;  // the pentagon
+  Mat3 R;
+  Vec3 t;
+  PfrgNode face;
+};
+
 // Single-face hypotheses: a pentagonal pyramid lying on one of its triangles shows only its tilted base. The
 // true pose must be among the hypotheses exactly (rotation up to the model's symmetry, model centre within
 // 1e-6 mm), every hypothesis must put some face of its model on the table and its matched face on the scene
 // face's plane, and a horizontal face (pose about the vertical open) or a face larger than every model face
 // gives none.
 TEST(SingleFaceHypotheses, RecoverTheRestingPoseFromOneFaceAndTheTable) {
-  fs::host::Library lib;
-  lib.add(fs::host::build_model(
-      fs::read_mesh(fs::test::shared_data() / "polyhedra/polyhedra-viewer/off/pentagonal-pyramid.off"),
-      {.scale = 40.0}));
-  lib.add(cube_model());
+  const PyramidOnItsSide scene(30.0, -50, 20, 5);
+  const fs::host::Library& lib = scene.lib;
   const fs::host::Model& m = lib.models[0];
-  // Rest on face g (a triangle): R maps its normal to -z; then yaw 30 deg and place it on the table at (-50,
-  // 20).
-  std::size_t g = 0, base = 0;
-  for (std::size_t f = 0; f < m.faces.size(); ++f) {
-    if (m.faces[f].loops[0].size() == 3 && g == 0) g = f;
-    if (m.faces[f].loops[0].size() == 5) base = f;
-  }
-  const Mat3 Rtilt = Eigen::Quaterniond::FromTwoVectors(m.faces[g].normal, Vec3(0, 0, -1)).toRotationMatrix();
-  const Mat3 R = Eigen::AngleAxisd(30.0 * M_PI / 180.0, Vec3::UnitZ()).toRotationMatrix() * Rtilt;
-  fs::Plane table;  // z = 0, normal up
-  Vec3 t(-50, 20, 0);
-  t.z() = -(R * m.faces[g].centroid).z();  // face g on z = 0
-  PfrgNode face;
-  face.id = 5;
-  face.normal = R * m.faces[base].normal;
-  face.offset = face.normal.dot(R * m.faces[base].centroid + t);
-  face.centroid = R * m.faces[base].centroid + t;
-  face.area = m.faces[base].area;
-  face.has_plane = true;
+  const Mat3& R = scene.R;
+  const Vec3& t = scene.t;
+  const PfrgNode& face = scene.face;
+  fs::Plane table;                  // z = 0, normal up
   ASSERT_GT(face.normal.z(), 0.2);  // tilted toward the sensor, not horizontal
 
   std::vector<Hypothesis> out(64);
@@ -511,27 +526,14 @@ TEST(SingleFaceHypotheses, RecoverTheRestingPoseFromOneFaceAndTheTable) {
 // end of its extent along that line at the seen part's end hold the true pose exactly, are marked
 // partial_face and come after every fitting one.
 TEST(SingleFaceHypotheses, APartlyHiddenFaceIsPlacedByTheEndOfItsView) {
-  fs::host::Library lib;
-  lib.add(fs::host::build_model(
-      fs::read_mesh(fs::test::shared_data() / "polyhedra/polyhedra-viewer/off/pentagonal-pyramid.off"),
-      {.scale = 40.0}));
-  lib.add(cube_model());
+  const PyramidOnItsSide scene(-40.0, 30, -10, 3);
+  const fs::host::Library& lib = scene.lib;
   const fs::host::Model& m = lib.models[0];
-  std::size_t g = 0, base = 0;
-  for (std::size_t f = 0; f < m.faces.size(); ++f) {
-    if (m.faces[f].loops[0].size() == 3 && g == 0) g = f;
-    if (m.faces[f].loops[0].size() == 5) base = f;
-  }
-  const Mat3 Rtilt = Eigen::Quaterniond::FromTwoVectors(m.faces[g].normal, Vec3(0, 0, -1)).toRotationMatrix();
-  const Mat3 R = Eigen::AngleAxisd(-40.0 * M_PI / 180.0, Vec3::UnitZ()).toRotationMatrix() * Rtilt;
+  const std::size_t base = scene.base;
+  const Mat3& R = scene.R;
+  const Vec3& t = scene.t;
+  PfrgNode face = scene.face;
   fs::Plane table;
-  Vec3 t(30, -10, 0);
-  t.z() = -(R * m.faces[g].centroid).z();
-  PfrgNode face;
-  face.id = 3;
-  face.normal = R * m.faces[base].normal;
-  face.offset = face.normal.dot(R * m.faces[base].centroid + t);
-  face.has_plane = true;
   const Vec3 u = face.normal.cross(table.n).normalized();
   double lo = 1e9, hi = -1e9;
   for (const Vec3& v : m.faces[base].loops[0]) {
