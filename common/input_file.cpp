@@ -142,9 +142,9 @@ std::string read_input_file(const std::filesystem::path& path, std::uint64_t max
   return read_all<std::string>(path, max_bytes, what);
 }
 
-std::vector<std::byte> read_input_bytes(const std::filesystem::path& path, std::uint64_t max_bytes,
-                                        std::string_view what) {
-  return read_all<std::vector<std::byte>>(path, max_bytes, what);
+ByteBuffer read_input_bytes(const std::filesystem::path& path, std::uint64_t max_bytes,
+                            std::string_view what) {
+  return read_all<ByteBuffer>(path, max_bytes, what);
 }
 
 void check_declared(const std::string& source, std::string_view field, std::uint64_t declared,

@@ -17,6 +17,8 @@
 #include <string_view>
 #include <vector>
 
+#include "common/byte_buffer.hpp"
+
 namespace fs {
 
 inline constexpr std::uint64_t kKiB = 1024, kMiB = 1024 * kKiB, kGiB = 1024 * kMiB;
@@ -48,8 +50,9 @@ int open_input_file(const std::filesystem::path& path, std::uint64_t max_bytes, 
 // The whole file, checked as by open_input_file.
 std::string read_input_file(const std::filesystem::path& path, std::uint64_t max_bytes,
                             std::string_view what);
-std::vector<std::byte> read_input_bytes(const std::filesystem::path& path, std::uint64_t max_bytes,
-                                        std::string_view what);
+// Large files land in a buffer on transparent huge pages (common/byte_buffer.hpp).
+ByteBuffer read_input_bytes(const std::filesystem::path& path, std::uint64_t max_bytes,
+                            std::string_view what);
 
 // A count declared by a file (`field`, e.g. "POINTS") of elements of at least element_bytes bytes each must
 // fit in the bytes_left bytes that follow; otherwise throws

@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "common/byte_buffer.hpp"
 #include "host/io/organized_cloud.hpp"
 
 namespace fs::host {
@@ -30,6 +31,6 @@ void read_ply(std::span<const std::byte> data, const std::string& name, Organize
               const CloudReadOptions& options = {});
 
 // Whole file into memory; fs::Error naming the path when it cannot be read.
-std::vector<std::byte> read_file_bytes(const std::string& path);
+ByteBuffer read_file_bytes(const std::string& path);
 
 }  // namespace fs::host

@@ -50,10 +50,10 @@ LoadInfo load_cloud(const std::string& path, OrganizedCloud& out, const LoadOpti
   if (ext == ".pcd" || ext == ".ply") {
     const auto bytes = read_file_bytes(path);
     if (ext == ".pcd") {
-      read_pcd(bytes, path, out, ro);
+      read_pcd(bytes.span(), path, out, ro);
       info.format = "pcd";
     } else {
-      read_ply(bytes, path, out, ro);
+      read_ply(bytes.span(), path, out, ro);
       info.format = "ply";
     }
     info.scale = choose_scale(out, options);

@@ -311,7 +311,7 @@ void read_pcd(std::span<const std::byte> data, const std::string& name, Organize
     read_records(records, h.data == PcdData::Compressed, h, out);
 }
 
-std::vector<std::byte> read_file_bytes(const std::string& path) {
+ByteBuffer read_file_bytes(const std::string& path) {
   return read_input_bytes(path, kMaxCloudFileBytes, "point-cloud file");
 }
 

@@ -336,7 +336,7 @@ Library Library::from_bytes(std::span<const std::uint8_t> bytes, const std::stri
 }
 
 Library Library::load(const std::filesystem::path& path) {
-  const std::vector<std::byte> bytes = read_input_bytes(path, kMaxLibraryFileBytes, "model library");
+  const ByteBuffer bytes = read_input_bytes(path, kMaxLibraryFileBytes, "model library");
   return from_bytes(std::span(reinterpret_cast<const std::uint8_t*>(bytes.data()), bytes.size()),
                     path.string());
 }

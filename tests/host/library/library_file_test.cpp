@@ -123,6 +123,15 @@ TEST(LibraryFile, CorruptionIsReportedWithOffsets) {
   one.models[0].graph.arcs[0].b = 40;
   const std::string e = error_of(one.to_bytes());
   EXPECT_NE(e.find("does not join two faces of 6"), std::string::npos) << e;
+  // The same pair of faces twice (reversed), named at the second: header 28, name "c" 5, open flag 1, face
+  // count 4, six square faces of 64 + 4 + 4 + 4 x 24 bytes, arc count 4, then 16 bytes per arc.
+  Library dup;
+  dup.add(polycube_model({{0, 0, 0}}, 1, "c"));
+  auto& arcs = dup.models[0].graph.arcs;
+  arcs[4] = PfrgArc{arcs[1].b, arcs[1].a, arcs[1].border};
+  const std::size_t arcs_at = 28 + 5 + 1 + 4 + 6 * (64 + 4 + 4 + 4 * 24) + 4;
+  EXPECT_EQ(error_of(dup.to_bytes()), fmt::format("bad.fslib: at byte {}: duplicate arc ({}, {})",
+                                                  arcs_at + 4 * 16, arcs[1].b, arcs[1].a));
   Library nosym;
   nosym.add(polycube_model({{0, 0, 0}}, 1, "c"));
   nosym.models[0].symmetries[1](0, 0) = 3;
