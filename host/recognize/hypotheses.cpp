@@ -293,18 +293,20 @@ int top_face_hypotheses(const Library& library, const PfrgNode& face, const Plan
   };
   std::array<Turn, 8> best{};
   int written = 0;
+  const bool raised = p.raised;
   for (std::size_t mi = 0; mi < library.models.size(); ++mi) {
     const Model& model = library.models[mi];
     for (std::size_t fi = 0; fi < model.faces.size(); ++fi) {
       const ModelFace& f = model.faces[fi];
       if (!p.area.fits(face.area, f.area)) continue;
       if (f.loops.empty() || f.loops[0].size() < 3 || f.loops[0].size() > kMaxPoly) continue;
-      // A resting face g antiparallel to f at the right distance.
+      // A resting face g antiparallel to f at the right distance (raised: at less than the face's height).
       int g = -1;
       for (std::size_t gi = 0; gi < model.faces.size() && g < 0; ++gi) {
         const ModelFace& mg = model.faces[gi];
         if (gi == fi || f.normal.dot(mg.normal) > -cos_anti) continue;
-        if (std::abs((f.offset + mg.offset) - height) <= p.height_tol_mm) g = static_cast<int>(gi);
+        const double above = height - (f.offset + mg.offset);
+        if (raised ? above > p.height_tol_mm : std::abs(above) <= p.height_tol_mm) g = static_cast<int>(gi);
       }
       if (g < 0) continue;
       // R0: f's normal onto the scene face's; then f's outer polygon and centroid in the (u, v) basis.
@@ -317,6 +319,20 @@ int top_face_hypotheses(const Library& library, const PfrgNode& face, const Plan
         poly[i] = Eigen::Vector2d(w.dot(u), w.dot(v));
       }
       for (std::size_t i = 0; i < n; ++i) poly_max = std::max(poly_max, (poly[(i + 1) % n] - poly[i]).norm());
+      // Turns about the face's normal that are symmetries of the model (a regular polygon's, on a model that
+      // has them): turns that differ by one of these are one placement, not two of the max_turns.
+      std::array<double, 16> sym_turns{};
+      std::size_t nsym = 0;
+      {
+        const Vec3 a = face.normal.unitOrthogonal();
+        for (const Mat3& S : model.symmetries) {
+          if (nsym == sym_turns.size()) break;
+          if ((S * f.normal - f.normal).norm() > 1e-6) continue;
+          const Vec3 b = R0 * (S * (R0.transpose() * a));
+          const double turn = std::atan2(face.normal.dot(a.cross(b)), a.dot(b));
+          if (std::abs(turn) > 1e-6) sym_turns[nsym++] = turn;
+        }
+      }
       const Vec3 cf = R0 * f.centroid;
       const Eigen::Vector2d c_poly(cf.dot(u), cf.dot(v));
       const Eigen::Vector2d c_scene(face.centroid.dot(u), face.centroid.dot(v));
@@ -339,8 +355,12 @@ int top_face_hypotheses(const Library& library, const PfrgNode& face, const Plan
           // Keep the best max_turns distinct turns (1 deg apart).
           bool dup = false;
           for (int k = 0; k < nbest; ++k) {
-            const double d = std::remainder(best[static_cast<std::size_t>(k)].angle - angle, 2 * M_PI);
-            if (std::abs(d) < M_PI / 180.0) {
+            bool same = std::abs(std::remainder(best[static_cast<std::size_t>(k)].angle - angle, 2 * M_PI)) <
+                        M_PI / 180.0;
+            for (std::size_t j = 0; j < nsym && !same; ++j)
+              same = std::abs(std::remainder(best[static_cast<std::size_t>(k)].angle - angle - sym_turns[j],
+                                             2 * M_PI)) < M_PI / 180.0;
+            if (same) {
               dup = true;
               if (score < best[static_cast<std::size_t>(k)].score)
                 best[static_cast<std::size_t>(k)] = Turn{score, angle, shift};
@@ -369,7 +389,7 @@ int top_face_hypotheses(const Library& library, const PfrgNode& face, const Plan
         const Vec3 t = u * tr.shift.x() + v * tr.shift.y() + face.normal * (face.offset - f.offset);
         // Cost: the outline fit (in m) as a tie-break.
         one_face_hypothesis(out[static_cast<std::size_t>(written++)], static_cast<int>(mi), face.id,
-                            static_cast<int>(fi), R, t, tr.score * 1e-3);
+                            static_cast<int>(fi), R, t, tr.score * 1e-3, raised);
       }
     }
   }

@@ -93,6 +93,9 @@ struct TopFaceParams {
   double height_tol_mm = 3.0;
   double max_outline_mm = 3.0;
   int max_turns = 2;
+  // Instead, the models whose resting face lies higher than the table: on something hidden under them. Such
+  // hypotheses are marked Hypothesis::partial_face.
+  bool raised = false;
 };
 int top_face_hypotheses(const Library& library, const PfrgNode& face, const Plane& table,
                         std::span<const Eigen::Vector2d> hull, const Vec3& u, const Vec3& v,

@@ -32,6 +32,7 @@ void Recognizer::Impl::make_hypotheses(Recognizer& rz, const HypothesisContext& 
 // table).
 void Recognizer::Impl::lone_face_hypotheses(Recognizer& rz, const Pfrg& graph, RecognizeStats& stats) {
   const RecognizeParams& params = rz.params_;
+  raised_waiting = 0;
   if (!(params.single_face_min_area_mm2 > 0 && have_table)) return;
   SingleFaceParams sp;
   if (params.match_area_ratio > 0) {
@@ -40,13 +41,17 @@ void Recognizer::Impl::lone_face_hypotheses(Recognizer& rz, const Pfrg& graph, R
   }
   for (int idx : lone_faces) {
     const PfrgNode& face = graph.nodes[static_cast<std::size_t>(idx)];
-    if (face.area < params.single_face_min_area_mm2 || lone_tried[static_cast<std::size_t>(face.id)])
-      continue;
+    const auto id = static_cast<std::size_t>(face.id);
+    // A face parallel to the table that a round of placements on the table left unexplained gets the raised
+    // ones (on something hidden under it) in the next round.
+    const bool parallel = parallel_to_table(face, table, sp.min_tilt_deg);
+    const bool raise = parallel && params.single_face_raised && lone_tried[id] == 1;
+    if (face.area < params.single_face_min_area_mm2 || (lone_tried[id] && !raise)) continue;
     const std::size_t room =
         std::min(hyps.size() - nhyp, static_cast<std::size_t>(std::max(params.single_face_max, 0)));
     if (room == 0) break;  // the pool is full this round: the face is tried again in the next one
     int n = 0;
-    if (!parallel_to_table(face, table, sp.min_tilt_deg)) {
+    if (!parallel) {
       sp.hidden_min_area_ratio = params.single_face_hidden_min_area_ratio;
       sp.extent_known = false;
       if (sp.hidden_min_area_ratio > 0.0) {
@@ -70,13 +75,16 @@ void Recognizer::Impl::lone_face_hypotheses(Recognizer& rz, const Pfrg& graph, R
       outline(face, rz.seg_.labels, u, v);
       TopFaceParams tp;
       tp.area = sp.area;
+      tp.raised = raise;
       n = top_face_hypotheses(rz.library_, face, table, hull, u, v, tp,
                               std::span<Hypothesis>(hyps.data() + nhyp, room));
     }
     nhyp += static_cast<std::size_t>(n);
     stats.single_face += n;
-    // Done with this face unless its hypotheses were cut short by the room left.
-    if (static_cast<std::size_t>(n) < room) lone_tried[static_cast<std::size_t>(face.id)] = 1;
+    // Done with this face (1: on the table, 2: raised too) unless its hypotheses were cut short by the room
+    // left.
+    if (static_cast<std::size_t>(n) < room) lone_tried[id] = raise ? 2 : 1;
+    raised_waiting += parallel && params.single_face_raised && lone_tried[id] == 1 ? 1 : 0;
   }
   alive.resize(nhyp, 1);
 }

@@ -201,13 +201,14 @@ const Recognition& Recognizer::recognize(const OrganizedCloud& cloud, const Plan
     // 3. Hypotheses: pose, expansion, compatible merge, single-face hypotheses.
     im.make_hypotheses(*this, hc, *graph, scan, out.stats);
     if (im.nhyp == 0) {
-      if (round > 0) break;
+      if (round > 0 && im.raised_waiting == 0) break;
       continue;
     }
     // 4. Low-level verification of the most plausible hypotheses.
     im.verify_hypotheses(*this, hc, cloud, out.stats);
     // 5. Recognition (ch. 9.4): greedy extraction of the compatible set that holds the best solution.
-    if (!im.accept_objects(*this, scan, round, out)) break;
+    // A round that accepts nothing ends the search, unless lone faces wait for their raised placements.
+    if (!im.accept_objects(*this, scan, round, out) && im.raised_waiting == 0) break;
   }
   im.finish_report(*this, scan, out);
   out.stats.total_ms = ms_since(t_start);

@@ -129,8 +129,8 @@ struct RecognizeParams {
   double support_own_plane_mm = 0.5;
   // Nor is it scaled when the column under its centre of mass is hidden from the sensor and none of it is
   // seen through (look_below in hypotheses.hpp): it may rest on an object nothing of which is in view. Only
-  // for a solid seen clearly: at least hidden_below_min_faces matched faces and a fit of hidden_below_min_fit
-  // before the factor.
+  // for a solid seen clearly: at least hidden_below_min_faces matched faces (or a lone face's placement,
+  // Hypothesis::partial_face, such as a raised top) and a fit of hidden_below_min_fit before the factor.
   bool support_hidden_below = true;
   int hidden_below_min_faces = 3;
   double hidden_below_min_fit = 0.9;
@@ -269,6 +269,12 @@ struct RecognizeParams {
   // as verified (before the credit for rays that other objects end in front of it). 0 = off.
   double single_face_hidden_min_area_ratio = 0.35;
   double single_face_hidden_min_confidence = 0.9;
+  // A lone face parallel to the table that no placement on the table explains may be the top of an object
+  // resting on one it hides: in the next round it gets placements of the models that fit it and stand lower
+  // than it (TopFaceParams::raised). Like the partly hidden ones, these are accepted only at
+  // single_face_hidden_min_confidence, and only when the support test finds them held up by measured points
+  // or by hidden space under them (support_hidden_below, which such a placement may use with one face).
+  bool single_face_raised = true;
   // Rounds of matching + verification (beyond the thesis): after the first, the faces that no accepted object
   // explains are searched again with TH_minlevel = small_part_min_level and single-face hypotheses, until a
   // round accepts nothing new. 1 = the first round only.
@@ -306,8 +312,8 @@ struct Hypothesis {
   int instance = 0;           // 0 = first instance of its model, 1 = second, ...
   bool merged = false;        // a compatible solution was merged into it
   // A single-face hypothesis whose model face is larger than the scene face (SingleFaceParams::
-  // hidden_min_area_ratio): accepted, listed as an alternative and counted as a face's passing refinement
-  // only at RecognizeParams::single_face_hidden_min_confidence.
+  // hidden_min_area_ratio) or a raised top (TopFaceParams::raised): accepted, listed as an alternative and
+  // counted as a face's passing refinement only at RecognizeParams::single_face_hidden_min_confidence.
   bool partial_face = false;
   // Other models that fit this view as well (same scene faces, confidence and inliers within
   // RecognizeParams::alternative_*): the parts where they differ are out of view. Accepted objects only.

@@ -143,10 +143,13 @@ struct Recognizer::Impl {
   // Connected parts of the scene graph (supernode arcs do not connect), each with >= min_level faces; the
   // matcher searches each on its own. parts[k] holds the supernode(s) and the part's faces and arcs.
   std::vector<Pfrg> parts;
-  std::vector<int> part_faces;   // real faces of parts[k]
-  std::vector<int> lone_faces;   // indices into the split graph's nodes of faces that border no other face
-  std::vector<char> lone_tried;  // by scene node id: single-face hypotheses made already
-  Pfrg rest;  // the scene graph without the faces of accepted objects (rounds after the first)
+  std::vector<int> part_faces;  // real faces of parts[k]
+  std::vector<int> lone_faces;  // indices into the split graph's nodes of faces that border no other face
+  // By scene node id: single-face hypotheses made already (1: on the table; 2: raised too,
+  // top_face_hypotheses).
+  std::vector<char> lone_tried;
+  int raised_waiting = 0;  // lone faces of this round whose raised placements come in the next one
+  Pfrg rest;               // the scene graph without the faces of accepted objects (rounds after the first)
   std::vector<Eigen::Vector2d> hull, hull_scratch;  // outline of a lone face
 
   // hull = convex hull of the fine samples of `face` (scene node id = region + 1), in the plane basis (u, v).

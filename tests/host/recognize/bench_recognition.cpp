@@ -200,6 +200,9 @@ Args parse_args(CLI::App& app, int argc, char** argv) {
   app.add_option("--lone-hidden-ratio", p.single_face_hidden_min_area_ratio,
                  "RecognizeParams::single_face_hidden_min_area_ratio (default 0.35; 0 = off)")
       ->check(CLI::Range(0.0, 1.0));
+  app.add_option(
+      "--lone-raised", p.single_face_raised,
+      "RecognizeParams::single_face_raised (default 1: a lone top face may rest on a hidden object)");
   app.add_option("--lone-hidden-confidence", p.single_face_hidden_min_confidence,
                  "RecognizeParams::single_face_hidden_min_confidence (default 0.9)")
       ->check(CLI::Range(0.0, 1.0));
@@ -384,11 +387,12 @@ int run(const Args& args) {
             const auto& tm = library.models[static_cast<std::size_t>(h->model)];
             std::printf(
                 "  truth-hyp %s lvl %d faces %zu pre %.3f scr %.3f cost %.4f rot-to-truth %.1f t-err %.1f "
-                "hits %d in %d viol %d occ %d expl %.2f conf %.3f scene",
+                "hits %d in %d viol %d occ %d expl %.2f conf %.3f support %.2f low %.1f scene",
                 tm.name.c_str(), h->level, h->matches.size(), h->prescore, h->screened, h->cost,
                 fs::host::rec::rotation_angle_deg_sym(rs.scene.objects[oi].rotation, h->R, tm),
                 (h->t - rs.scene.objects[oi].translation).norm(), h->verify.hits, h->verify.inliers,
-                h->verify.violations, h->verify.occluded, h->verify.explained, h->verify.confidence);
+                h->verify.violations, h->verify.occluded, h->verify.explained, h->verify.confidence,
+                h->verify.support, h->verify.lowest_mm);
             for (const auto& m : h->matches) std::printf(" %d", m.scene);
             std::printf("\n");
           }

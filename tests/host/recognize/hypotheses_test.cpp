@@ -438,6 +438,18 @@ TEST(Report, AxisAngleTextHidesTheAxisOfRotationsBelowDisplayPrecision) {
 
 namespace {
 
+// Scene node `id` for model face `f` in pose (R, t): its plane, centroid and area.
+PfrgNode posed_face_node(const fs::host::Model& m, std::size_t f, const Mat3& R, const Vec3& t, int id) {
+  PfrgNode face;
+  face.id = id;
+  face.normal = R * m.faces[f].normal;
+  face.centroid = R * m.faces[f].centroid + t;
+  face.offset = face.normal.dot(face.centroid);
+  face.area = m.faces[f].area;
+  face.has_plane = true;
+  return face;
+}
+
 // A pentagonal pyramid (library model 0, a cube after it) lying on the table z = 0 on one of its triangles g:
 // R maps g's normal to -z, then turns it by yaw_deg about the vertical; placed at (x, y). `face` is its
 // tilted base seen whole (scene node `face_id`).
@@ -457,12 +469,7 @@ struct PyramidOnItsSide {
         Eigen::Quaterniond::FromTwoVectors(m.faces[g].normal, Vec3(0, 0, -1)).toRotationMatrix();
     R = Eigen::AngleAxisd(yaw_deg * M_PI / 180.0, Vec3::UnitZ()).toRotationMatrix() * Rtilt;
     t = Vec3(x, y, -(R * m.faces[g].centroid).z());  // face g on z = 0
-    face.id = face_id;
-    face.normal = R * m.faces[base].normal;
-    face.centroid = R * m.faces[base].centroid + t;
-    face.offset = face.normal.dot(face.centroid);
-    face.area = m.faces[base].area;
-    face.has_plane = true;
+    face = posed_face_node(m, base, R, t, face_id);
   }
   fs::host::Library lib;
   std::size_t base = 0;  // the pentagon
@@ -610,13 +617,7 @@ TEST(TopFaceHypotheses, TurnFromTheOutlineAndHeightFromTheTable) {
   const Mat3 R = Eigen::AngleAxisd(25.0 * M_PI / 180.0, Vec3::UnitZ()).toRotationMatrix();
   const Vec3 t(-40, 30, -zmin);
   const fs::Plane table;
-  PfrgNode face;
-  face.id = 9;
-  face.normal = Vec3::UnitZ();
-  face.centroid = R * m.faces[top].centroid + t;
-  face.offset = face.centroid.z();
-  face.area = m.faces[top].area;
-  face.has_plane = true;
+  const PfrgNode face = posed_face_node(m, top, R, t, 9);
   const Vec3 u = face.normal.unitOrthogonal(), v = face.normal.cross(u);
   // Dense samples of the top rectangle, then their hull.
   std::vector<Eigen::Vector2d> pts, scratch;
@@ -647,6 +648,57 @@ TEST(TopFaceHypotheses, TurnFromTheOutlineAndHeightFromTheTable) {
   higher.offset += 10.0;  // 10 mm higher than the box is tall: no model fits
   higher.centroid.z() += 10.0;
   EXPECT_EQ(fs::host::rec::top_face_hypotheses(lib, higher, table, pts, u, v, {}, out), 0);
+}
+
+// A pentagonal cupola upside down, its decagon on top, resting 30 mm above the table on something unseen.
+// - On the table no model stands that high: no hypothesis. Raised (TopFaceParams::raised), the cupola's
+//   placements rest lower than the face: the true pose is among them, all marked partial_face.
+// - A regular decagon's outline fits ten turns equally; turns 72 deg apart are one placement of the
+//   five-fold cupola, turns 36 deg apart are two. The two turns kept are two placements, never one twice:
+//   otherwise, as the outline ties, rounding decided whether the true one was kept.
+TEST(TopFaceHypotheses, ARaisedTopKeepsDistinctPlacementsOfASymmetricModel) {
+  fs::host::Library lib;
+  lib.add(fs::host::build_model(
+      fs::read_mesh(fs::test::shared_data() / "polyhedra/polyhedra-viewer/off/pentagonal-cupola.off")));
+  const fs::host::Model& m = lib.models[0];
+  ASSERT_EQ(m.symmetry_order(), 5u);
+  std::size_t top = 0;
+  for (std::size_t f = 0; f < m.faces.size(); ++f)
+    if (m.faces[f].area > m.faces[top].area) top = f;  // the decagon
+  ASSERT_EQ(m.faces[top].loops[0].size(), 10u);
+  // The decagon's normal up, turned 20 deg about the vertical; the opposite face 30 mm above the table.
+  const Mat3 R = Eigen::AngleAxisd(20.0 * M_PI / 180.0, Vec3::UnitZ()).toRotationMatrix() *
+                 Eigen::Quaterniond::FromTwoVectors(m.faces[top].normal, Vec3::UnitZ()).toRotationMatrix();
+  double zmin = 1e9;
+  for (const auto& f : m.faces)
+    for (const Vec3& v : f.loops[0]) zmin = std::min(zmin, (R * v).z());
+  const Vec3 t(25, -10, 30.0 - zmin);
+  const fs::Plane table;
+  const PfrgNode face = posed_face_node(m, top, R, t, 4);
+  const Vec3 u = face.normal.unitOrthogonal(), v = face.normal.cross(u);
+  std::vector<Eigen::Vector2d> hull;
+  for (const Vec3& c : m.faces[top].loops[0]) {
+    const Vec3 w = R * c + t;
+    hull.emplace_back(w.dot(u), w.dot(v));
+  }
+  std::vector<Hypothesis> out(16);
+  fs::host::rec::TopFaceParams p;
+  EXPECT_EQ(fs::host::rec::top_face_hypotheses(lib, face, table, hull, u, v, p, out), 0);
+  p.raised = true;
+  const int n = fs::host::rec::top_face_hypotheses(lib, face, table, hull, u, v, p, out);
+  std::vector<const Hypothesis*> on_top;  // the decagon's placements (other faces' outlines may fit too)
+  bool found = false;
+  for (int k = 0; k < n; ++k) {
+    const Hypothesis& h = out[static_cast<std::size_t>(k)];
+    EXPECT_TRUE(h.partial_face);
+    if (h.matches[0].ref != static_cast<int>(top)) continue;
+    on_top.push_back(&h);
+    found = found || (fs::host::rec::rotation_angle_deg_sym(R, h.R, m) < 1e-6 &&
+                      ((R * m.center + t) - (h.R * m.center + h.t)).norm() < 1e-6);
+  }
+  EXPECT_TRUE(found);
+  ASSERT_EQ(on_top.size(), static_cast<std::size_t>(p.max_turns));
+  EXPECT_NEAR(fs::host::rec::rotation_angle_deg_sym(on_top[0]->R, on_top[1]->R, m), 36.0, 1e-3);
 }
 
 TEST(Report, ResultTableNamesTheAlternativesOfAnObject) {
