@@ -134,7 +134,7 @@ namespace {
 
 // A hypothesis of one face match (scene face -> model face fi) in pose (R, t); the buffers of h are reused.
 void one_face_hypothesis(Hypothesis& h, int model, int scene_face, int fi, const Mat3& R, const Vec3& t,
-                         double cost, bool partial_face = false) {
+                         double cost, bool partial_face = false, bool raised = false) {
   h.model = model;
   h.rank = 0;
   h.path.clear();
@@ -149,7 +149,8 @@ void one_face_hypothesis(Hypothesis& h, int model, int scene_face, int fi, const
   h.rotfit_error = 0.0;
   h.degenerate = false;
   h.merged = false;
-  h.partial_face = partial_face;
+  h.partial_face = partial_face || raised;
+  h.raised = raised;
   h.instance = 0;
   h.verify = VerifyResult{};
   h.inlier_cells.clear();
@@ -321,13 +322,15 @@ int top_face_hypotheses(const Library& library, const PfrgNode& face, const Plan
       for (std::size_t i = 0; i < n; ++i) poly_max = std::max(poly_max, (poly[(i + 1) % n] - poly[i]).norm());
       // Turns about the face's normal that are symmetries of the model (a regular polygon's, on a model that
       // has them): turns that differ by one of these are one placement, not two of the max_turns.
-      std::array<double, 16> sym_turns{};
+      std::array<double, kMaxPoly> sym_turns{};
       std::size_t nsym = 0;
       {
         const Vec3 a = face.normal.unitOrthogonal();
         for (const Mat3& S : model.symmetries) {
           if (nsym == sym_turns.size()) break;
-          if ((S * f.normal - f.normal).norm() > 1e-6) continue;
+          // The tolerance of the symmetries themselves (BuildOptions::symmetry_tolerance): their normals come
+          // from the mesh's rounded coordinates. Distinct face normals differ by far more.
+          if ((S * f.normal - f.normal).norm() > 1e-3) continue;
           const Vec3 b = R0 * (S * (R0.transpose() * a));
           const double turn = std::atan2(face.normal.dot(a.cross(b)), a.dot(b));
           if (std::abs(turn) > 1e-6) sym_turns[nsym++] = turn;
@@ -389,7 +392,7 @@ int top_face_hypotheses(const Library& library, const PfrgNode& face, const Plan
         const Vec3 t = u * tr.shift.x() + v * tr.shift.y() + face.normal * (face.offset - f.offset);
         // Cost: the outline fit (in m) as a tie-break.
         one_face_hypothesis(out[static_cast<std::size_t>(written++)], static_cast<int>(mi), face.id,
-                            static_cast<int>(fi), R, t, tr.score * 1e-3, raised);
+                            static_cast<int>(fi), R, t, tr.score * 1e-3, false, raised);
       }
     }
   }

@@ -85,8 +85,9 @@ int single_face_hypotheses(const Library& library, const PfrgNode& face, const P
 // v) (u x v along the face normal, origin anywhere); every pair of long edges of the hull and of f's outer
 // polygon gives a candidate turn, each is scored by the mean distance of the hull's vertices to the turned
 // polygon's boundary and of the polygon's to the hull's, and the best max_turns per (model, f) within
-// max_outline_mm are kept. The distance between f and g must equal the face's height above the table within
-// height_tol_mm.
+// max_outline_mm are kept, turns that differ by a symmetry of the model about f's normal counting as one. The
+// distance between f and g must equal the face's height above the table within height_tol_mm (raised: be less
+// than the height by more than height_tol_mm).
 struct TopFaceParams {
   double antiparallel_deg = 2.0;
   FaceAreaFit area;
@@ -94,7 +95,7 @@ struct TopFaceParams {
   double max_outline_mm = 3.0;
   int max_turns = 2;
   // Instead, the models whose resting face lies higher than the table: on something hidden under them. Such
-  // hypotheses are marked Hypothesis::partial_face.
+  // hypotheses are marked Hypothesis::raised and partial_face.
   bool raised = false;
 };
 int top_face_hypotheses(const Library& library, const PfrgNode& face, const Plane& table,

@@ -49,7 +49,10 @@ void Recognizer::Impl::lone_face_hypotheses(Recognizer& rz, const Pfrg& graph, R
     if (face.area < params.single_face_min_area_mm2 || (lone_tried[id] && !raise)) continue;
     const std::size_t room =
         std::min(hyps.size() - nhyp, static_cast<std::size_t>(std::max(params.single_face_max, 0)));
-    if (room == 0) break;  // the pool is full this round: the face is tried again in the next one
+    if (room == 0) {  // the pool is full this round: the face is tried again in the next one
+      raised_waiting += raise ? 1 : 0;
+      continue;
+    }
     int n = 0;
     if (!parallel) {
       sp.hidden_min_area_ratio = params.single_face_hidden_min_area_ratio;

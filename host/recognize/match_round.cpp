@@ -162,6 +162,7 @@ void fill(Hypothesis& h, int model, const SolutionSlot& s) {
   h.degenerate = s.degenerate;
   h.merged = false;
   h.partial_face = false;
+  h.raised = false;
   h.instance = 0;
   h.verify = VerifyResult{};
   h.inlier_cells.clear();

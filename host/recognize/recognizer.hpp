@@ -129,8 +129,8 @@ struct RecognizeParams {
   double support_own_plane_mm = 0.5;
   // Nor is it scaled when the column under its centre of mass is hidden from the sensor and none of it is
   // seen through (look_below in hypotheses.hpp): it may rest on an object nothing of which is in view. Only
-  // for a solid seen clearly: at least hidden_below_min_faces matched faces (or a lone face's placement,
-  // Hypothesis::partial_face, such as a raised top) and a fit of hidden_below_min_fit before the factor.
+  // for a solid seen clearly: at least hidden_below_min_faces matched faces (or a raised top,
+  // Hypothesis::raised) and a fit of hidden_below_min_fit before the factor.
   bool support_hidden_below = true;
   int hidden_below_min_faces = 3;
   double hidden_below_min_fit = 0.9;
@@ -273,7 +273,9 @@ struct RecognizeParams {
   // resting on one it hides: in the next round it gets placements of the models that fit it and stand lower
   // than it (TopFaceParams::raised). Like the partly hidden ones, these are accepted only at
   // single_face_hidden_min_confidence, and only when the support test finds them held up by measured points
-  // or by hidden space under them (support_hidden_below, which such a placement may use with one face).
+  // or by hidden space under them (support_hidden_below, which such a placement may use with one face). The
+  // next round is a round of its own (rounds >= 2; its graph needs small_part_min_level > 0): a round that
+  // accepts nothing leads to it while such faces wait.
   bool single_face_raised = true;
   // Rounds of matching + verification (beyond the thesis): after the first, the faces that no accepted object
   // explains are searched again with TH_minlevel = small_part_min_level and single-face hypotheses, until a
@@ -315,6 +317,9 @@ struct Hypothesis {
   // hidden_min_area_ratio) or a raised top (TopFaceParams::raised): accepted, listed as an alternative and
   // counted as a face's passing refinement only at RecognizeParams::single_face_hidden_min_confidence.
   bool partial_face = false;
+  // A raised top (TopFaceParams::raised, also partial_face): it rests on what it hides, so space hidden under
+  // it may hold it up with its one face (RecognizeParams::support_hidden_below).
+  bool raised = false;
   // Other models that fit this view as well (same scene faces, confidence and inliers within
   // RecognizeParams::alternative_*): the parts where they differ are out of view. Accepted objects only.
   struct Alternative {

@@ -374,11 +374,10 @@ void Recognizer::Impl::snap_to_table(const Model& model, Hypothesis& h, Verifier
 
 SupportParams Recognizer::Impl::support_params(const Hypothesis& h, double fit) const {
   // Space hidden under a solid holds it up only when the solid itself is seen clearly: its pose fixed by
-  // enough matched faces, its fit high. A lone face's placement (partial_face: a raised top rests on what it
-  // hides by its premise) may use it with its one face; it is accepted only at
-  // single_face_hidden_min_confidence.
+  // enough matched faces, its fit high. A raised top rests on what it hides by its premise: it may use it
+  // with its one face (it is accepted only at single_face_hidden_min_confidence).
   const bool look = support_hidden_below &&
-                    (static_cast<int>(h.matches.size()) >= hidden_below_min_faces || h.partial_face) &&
+                    (static_cast<int>(h.matches.size()) >= hidden_below_min_faces || h.raised) &&
                     fit >= hidden_below_min_fit;
   return SupportParams{support_tol,      support_radius,        unsupported_factor, look,
                        fine.viewpoint(), hidden_below_min_rays, support_own_plane};
