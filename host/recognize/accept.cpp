@@ -56,8 +56,7 @@ void find_alternatives(const Recognizer::Impl& im, std::size_t self, const Recog
   for (std::size_t j : im.order) {
     if (h.alternatives >= Hypothesis::kMaxAlternatives) break;
     const Hypothesis& o = im.hyps[j];
-    if (j == self || (o.partial_face && o.verify.confidence < params.single_face_hidden_min_confidence))
-      continue;
+    if (j == self || (o.partial_face && o.verify.confidence < detail::pass_confidence(o, params))) continue;
     std::size_t shared = 0;
     for (const FaceMatch& m : h.matches)
       for (const FaceMatch& om : o.matches) shared += om.scene == m.scene ? 1 : 0;
@@ -387,7 +386,7 @@ bool Recognizer::Impl::accept_objects(Recognizer& rz, Scan& scan, int round, Rec
   for (std::size_t i : order) {
     if (static_cast<int>(out.objects.size()) >= params.max_objects) break;
     Hypothesis& h = hyps[i];
-    if (h.partial_face && h.verify.confidence < params.single_face_hidden_min_confidence) {
+    if (h.partial_face && h.verify.confidence < detail::pass_confidence(h, params)) {
       reject(h);
       continue;
     }

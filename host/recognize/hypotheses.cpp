@@ -294,7 +294,6 @@ int top_face_hypotheses(const Library& library, const PfrgNode& face, const Plan
   };
   std::array<Turn, 8> best{};
   int written = 0;
-  const bool raised = p.raised;
   for (std::size_t mi = 0; mi < library.models.size(); ++mi) {
     const Model& model = library.models[mi];
     for (std::size_t fi = 0; fi < model.faces.size(); ++fi) {
@@ -307,7 +306,7 @@ int top_face_hypotheses(const Library& library, const PfrgNode& face, const Plan
         const ModelFace& mg = model.faces[gi];
         if (gi == fi || f.normal.dot(mg.normal) > -cos_anti) continue;
         const double above = height - (f.offset + mg.offset);
-        if (raised ? above > p.height_tol_mm : std::abs(above) <= p.height_tol_mm) g = static_cast<int>(gi);
+        if (p.raised ? above > p.height_tol_mm : std::abs(above) <= p.height_tol_mm) g = static_cast<int>(gi);
       }
       if (g < 0) continue;
       // R0: f's normal onto the scene face's; then f's outer polygon and centroid in the (u, v) basis.
@@ -392,7 +391,7 @@ int top_face_hypotheses(const Library& library, const PfrgNode& face, const Plan
         const Vec3 t = u * tr.shift.x() + v * tr.shift.y() + face.normal * (face.offset - f.offset);
         // Cost: the outline fit (in m) as a tie-break.
         one_face_hypothesis(out[static_cast<std::size_t>(written++)], static_cast<int>(mi), face.id,
-                            static_cast<int>(fi), R, t, tr.score * 1e-3, false, raised);
+                            static_cast<int>(fi), R, t, tr.score * 1e-3, false, p.raised);
       }
     }
   }

@@ -45,7 +45,8 @@ void Recognizer::Impl::lone_face_hypotheses(Recognizer& rz, const Pfrg& graph, R
     // A face parallel to the table that a round of placements on the table left unexplained gets the raised
     // ones (on something hidden under it) in the next round.
     const bool parallel = parallel_to_table(face, table, sp.min_tilt_deg);
-    const bool raise = parallel && params.single_face_raised && lone_tried[id] == 1;
+    const auto waits_raised = [&] { return parallel && params.single_face_raised && lone_tried[id] == 1; };
+    const bool raise = waits_raised();
     if (face.area < params.single_face_min_area_mm2 || (lone_tried[id] && !raise)) continue;
     const std::size_t room =
         std::min(hyps.size() - nhyp, static_cast<std::size_t>(std::max(params.single_face_max, 0)));
@@ -87,7 +88,7 @@ void Recognizer::Impl::lone_face_hypotheses(Recognizer& rz, const Pfrg& graph, R
     // Done with this face (1: on the table, 2: raised too) unless its hypotheses were cut short by the room
     // left.
     if (static_cast<std::size_t>(n) < room) lone_tried[id] = raise ? 2 : 1;
-    raised_waiting += parallel && params.single_face_raised && lone_tried[id] == 1 ? 1 : 0;
+    raised_waiting += waits_raised() ? 1 : 0;
   }
   alive.resize(nhyp, 1);
 }

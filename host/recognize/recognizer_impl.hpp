@@ -27,6 +27,13 @@ inline double ms_since(Clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 }
 
+// The confidence h must reach to be accepted, listed as an alternative or count as a face's passing
+// refinement: single_face_hidden_min_confidence for a lone face's partial placement (Hypothesis::
+// partial_face), else min_confidence.
+inline double pass_confidence(const Hypothesis& h, const RecognizeParams& p) {
+  return h.partial_face ? p.single_face_hidden_min_confidence : p.min_confidence;
+}
+
 // One reference's kept solutions (buffers reused across scans).
 struct SolutionSlot {
   std::vector<int> path;

@@ -295,9 +295,7 @@ void Recognizer::Impl::refine_again(const RecognizeParams& params, double min_pl
   refined.assign(nhyp, 0);
   for (std::size_t i : order) {
     refined[i] = 1;
-    const double pass =
-        hyps[i].partial_face ? params.single_face_hidden_min_confidence : params.min_confidence;
-    if (hyps[i].verify.confidence >= pass)
+    if (hyps[i].verify.confidence >= detail::pass_confidence(hyps[i], params))
       for (const FaceMatch& m : hyps[i].matches) face_cover[static_cast<std::size_t>(m.scene)] = -1;
   }
   picked.clear();
